@@ -1,0 +1,244 @@
+"""Command-line interface: parse, call the core, write, report.
+
+stdout carries data only (a state file, a mesh, ``--json``); messages go to
+stderr.  Exit codes: 0 ok, 1 processing failure, 2 usage error.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import os
+import sys
+import time
+
+import click
+
+from . import __version__, io, pipeline, state
+from .contour import load_contour
+from .deform import DEFAULT_STEPS, SOLVERS
+from .errors import DeformeshError, OptionError
+from .select import DEFAULT_MAX_NODES
+
+
+class BoxType(click.ParamType):
+    name = "XMIN,YMIN,XMAX,YMAX"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple):
+            return value
+        try:
+            v = tuple(float(s) for s in value.split(","))
+        except ValueError:
+            self.fail(f"{value!r} is not four numbers XMIN,YMIN,XMAX,YMAX", param, ctx)
+        if len(v) != 4:
+            self.fail(f"{value!r} has {len(v)} numbers, expected XMIN,YMIN,XMAX,YMAX", param, ctx)
+        return v
+
+
+def _positive(ctx, param, value):
+    if value is not None and not value > 0:
+        raise click.BadParameter("must be > 0")
+    return value
+
+
+def _handle_errors(fn):
+    """Turn core errors into one-line messages and exit codes; never a traceback."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        try:
+            return fn(*args, **kwargs)
+        except OptionError as exc:
+            raise click.UsageError(str(exc)) from None
+        except DeformeshError as exc:
+            click.echo(f"deformesh: error: {exc}", err=True)
+            sys.exit(1)
+        except MemoryError:
+            click.echo("deformesh: error: out of memory; lower --max-nodes or give a larger --h",
+                       err=True)
+            sys.exit(1)
+
+    return wrapper
+
+
+def _say(quiet: bool, msg: str) -> None:
+    if not quiet:
+        click.echo(f"deformesh: {msg}", err=True)
+
+
+def _check_binary_stdout(out: str) -> None:
+    if out == "-" and sys.stdout.isatty():
+        raise click.UsageError("refusing to write a binary state file to a terminal; "
+                               "use -o FILE or a pipe")
+
+
+def _read_contour(path: str):
+    data = io.read_bytes(path) if path == "-" else None
+    return load_contour(path, data)
+
+
+select_options = [
+    click.option("--h", "h", type=float, callback=_positive, default=None,
+                 help="Grid step. Default: Appendix A's 0.9*d_c/sqrt(2), d_c the smallest "
+                      "distance between two contour points."),
+    click.option("--box", type=BoxType(), default=None,
+                 help="Background box XMIN,YMIN,XMAX,YMAX (must contain the contour). "
+                      "Default: the contour's bounding box grown by --margin."),
+    click.option("--margin", type=float, default=None,
+                 help="Gap between the contour's bounding box and the background box, in "
+                      "contour units. Default: 3 grid steps."),
+    click.option("--strict", is_flag=True,
+                 help="Fail instead of adding boundary nodes where consecutive contour points "
+                      "select grid nodes that are not neighbours."),
+    click.option("--max-nodes", type=click.IntRange(min=4), default=DEFAULT_MAX_NODES,
+                 show_default=True, help="Refuse grids with more nodes than this (memory guard)."),
+]
+steps_option = click.option("--steps", type=click.IntRange(min=1), default=DEFAULT_STEPS,
+                            show_default=True, help="Pseudo-time steps of the deformation.")
+solver_option = click.option(
+    "--solver", type=click.Choice(SOLVERS), default="auto", show_default=True,
+    help="Linear solver per step: sparse LU ('direct'), multigrid-preconditioned CG ('amg'), "
+         "or 'auto' (direct up to 40,000 free nodes).")
+format_option = click.option(
+    "--format", "fmt", type=click.Choice(sorted(io.FORMATS), case_sensitive=False),
+    default=None, help="Mesh format. Default: from the output file's extension.")
+quiet_option = click.option("-q", "--quiet", is_flag=True, help="Print errors only.")
+
+
+def _apply(options):
+    def deco(fn):
+        for opt in reversed(options):
+            fn = opt(fn)
+        return fn
+
+    return deco
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="deformesh")
+def cli():
+    """Triangle meshes whose boundary nodes are exactly your contour's points.
+
+    A Cartesian grid is deformed onto the contour by a div-curl system
+    (Liao et al.), so the interior stays structured and never folds.
+    """
+
+
+@cli.command("select")
+@click.argument("contour", type=click.Path(dir_okay=False, allow_dash=True))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, allow_dash=True),
+              help="State file to write ('-' for stdout).")
+@_apply(select_options)
+@quiet_option
+@_handle_errors
+def select_cmd(contour, output, h, box, margin, strict, max_nodes, quiet):
+    """Lay the background grid and pick one grid node per contour point (stage 1)."""
+    _check_binary_stdout(output)
+    c = _read_contour(contour)
+    sel = pipeline.run_select(c, h, box, margin, strict, max_nodes)
+    io.write_bytes(state.dumps(state.State("selected", c, sel)), output)
+    g = sel.grid
+    _say(quiet, f"{c.source}: selected {c.n} grid nodes on a {g.nx}x{g.ny} grid "
+                f"(h = {sel.h:.4g}), {sel.extra_nodes} extra boundary nodes")
+
+
+@cli.command("deform")
+@click.argument("state_in", metavar="STATE", type=click.Path(dir_okay=False, allow_dash=True))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, allow_dash=True),
+              help="Deformed state file to write ('-' for stdout).")
+@steps_option
+@solver_option
+@quiet_option
+@_handle_errors
+def deform_cmd(state_in, output, steps, solver, quiet):
+    """Move the selected nodes onto the contour without folding (stage 2)."""
+    _check_binary_stdout(output)
+    name = "<stdin>" if state_in == "-" else state_in
+    st = state.loads(io.read_bytes(state_in), name, want="selected")
+    d = pipeline.run_deform(st.contour, st.selection, steps, solver=solver)
+    out = state.State("deformed", st.contour, st.selection, d.points, {"steps": steps})
+    io.write_bytes(state.dumps(out), output)
+    _say(quiet, f"{st.contour.source}: deformed in {d.stats.solves} solves "
+                f"({d.stats.halvings} step halvings)")
+
+
+@cli.command("triangulate")
+@click.argument("state_in", metavar="STATE", type=click.Path(dir_okay=False, allow_dash=True))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, allow_dash=True),
+              help="Mesh file to write; the format follows the extension.")
+@format_option
+@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
+@quiet_option
+@_handle_errors
+def triangulate_cmd(state_in, output, fmt, as_json, quiet):
+    """Keep the triangles inside the contour and write the mesh (stage 3)."""
+    t0 = time.perf_counter()
+    fmt = _check_mesh_output(output, fmt, as_json)
+    name = "<stdin>" if state_in == "-" else state_in
+    st = state.loads(io.read_bytes(state_in), name, want="deformed")
+    mesh, report = pipeline.run_triangulate(st.contour, pipeline.Deformed(st.selection, st.points))
+    report.update(pipeline.selection_report(st.selection))
+    _finish(st.contour, mesh, report, output, fmt, as_json, quiet, t0)
+
+
+def _check_mesh_output(output, fmt, as_json):
+    if as_json and output == "-":
+        raise click.UsageError("--json and -o - both use stdout; write the mesh to a file")
+    try:
+        return io.format_for(output, fmt)
+    except OptionError as exc:
+        raise click.UsageError(str(exc)) from None
+
+
+def _finish(contour, mesh, report, output, fmt, as_json, quiet, t0):
+    io.write_mesh(mesh, output, fmt)
+    report = {"input": contour.source, "output": output, "format": fmt, **report,
+              "seconds": round(time.perf_counter() - t0, 3)}
+    if as_json:
+        click.echo(json.dumps(report, sort_keys=False))
+    _say(quiet, summary_line(report))
+
+
+def summary_line(r: dict) -> str:
+    return (
+        f"{r['input']} -> {r['output']}: {r['nodes']} nodes, {r['triangles']} triangles, "
+        f"angles {r['min_angle']:.1f}-{r['max_angle']:.1f} deg, smallest area "
+        f"{r['smallest_area']:.3g}, {r['extra_boundary_nodes']} extra boundary nodes, "
+        f"contract {r['contract']} ({r['seconds']:.2f} s)"
+    )
+
+
+@cli.command("all")
+@click.argument("contour", type=click.Path(dir_okay=False, allow_dash=True))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, allow_dash=True),
+              help="Mesh file to write; the format follows the extension.")
+@_apply(select_options)
+@steps_option
+@solver_option
+@format_option
+@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
+@quiet_option
+@_handle_errors
+def all_cmd(contour, output, h, box, margin, strict, max_nodes, steps, solver, fmt, as_json,
+            quiet):
+    """Run select, deform and triangulate in one process."""
+    t0 = time.perf_counter()
+    fmt = _check_mesh_output(output, fmt, as_json)
+    c = _read_contour(contour)
+    res = pipeline.mesh_contour(c, h, box, margin, strict, max_nodes, steps, solver=solver)
+    _finish(c, res.mesh, res.report, output, fmt, as_json, quiet, t0)
+
+
+def main() -> None:
+    """Entry point: run the CLI; a closed downstream pipe ends quietly."""
+    try:
+        cli.main(prog_name="deformesh", standalone_mode=True)
+    except BrokenPipeError:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        sys.exit(1)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

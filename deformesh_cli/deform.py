@@ -1,0 +1,209 @@
+"""Stage 2: move the selected nodes onto the contour by the div-curl deformation.
+
+Pseudo-time runs over ``n`` steps.  At each step, on the *current* mesh, the
+LSFEM div-curl system (``div U = 0``, ``curl U = 0`` for the uniform size
+function ``f = 1``) is solved with Dirichlet data: at each path node the
+remaining displacement divided by the remaining steps, ``(Q - phi(P)) /
+(n - k)``, and ``U = 0`` on the background boundary.  Every node moves by
+``f * U`` (DESIGN.md section 3, "Arrival").
+
+After each step every triangle's signed area is checked.  If one would fold,
+the step is halved (the solution is linear in the Dirichlet data, so the
+half step is half the displacement) and the remaining pseudo-time re-planned;
+if even a step of ``2**-max_halvings`` folds, :class:`FoldError` says where.
+The last step puts the path nodes exactly on their targets.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import scipy.sparse.linalg as spla
+
+from .divcurl import Assembler
+from .errors import FoldError
+
+#: Default number of pseudo-time steps (the paper's example uses 10).
+DEFAULT_STEPS = 10
+
+
+@dataclass
+class DeformStats:
+    steps: int
+    solves: int = 0
+    halvings: int = 0
+    solver: str = ""
+    iterations: list[int] = field(default_factory=list)
+    min_area_ratio: list[float] = field(default_factory=list)
+
+
+def signed_areas(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    p0, p1, p2 = points[tri[:, 0]], points[tri[:, 1]], points[tri[:, 2]]
+    return 0.5 * (
+        (p1[:, 0] - p0[:, 0]) * (p2[:, 1] - p0[:, 1])
+        - (p2[:, 0] - p0[:, 0]) * (p1[:, 1] - p0[:, 1])
+    )
+
+
+#: Solvers offered by ``--solver``; "auto" picks "direct" below this many free nodes.
+SOLVERS = ("auto", "direct", "amg")
+AUTO_DIRECT_MAX = 40_000
+
+
+class LinearSolver:
+    """Solves the per-step scalar systems ``K X = rhs`` (two right-hand sides).
+
+    ``direct`` factorises with SuperLU (minimum-degree ordering on ``K + K^T``,
+    fastest for this matrix).  ``amg`` runs conjugate gradients preconditioned
+    by a smoothed-aggregation hierarchy (pyamg) built on the first step's
+    matrix and reused while it keeps converging fast (the mesh changes little
+    per step), warm-started from the previous step's displacement.
+    """
+
+    def __init__(self, method: str = "auto", rtol: float = 1e-8, rebuild_after: int = 40):
+        if method not in SOLVERS:
+            raise ValueError(f"unknown solver {method!r}")
+        self.method = method
+        self.rtol = rtol
+        self.rebuild_after = rebuild_after
+        self._ml = None
+        self.iterations: list[int] = []
+        self.setups = 0
+
+    def solve(self, K, rhs: np.ndarray, x0: np.ndarray | None = None) -> np.ndarray:
+        method = self.method
+        if method == "auto":
+            method = "direct" if K.shape[0] <= AUTO_DIRECT_MAX else "amg"
+        if method == "direct":
+            lu = spla.splu(K.tocsc(), permc_spec="MMD_AT_PLUS_A")
+            return lu.solve(rhs)
+        return self._solve_amg(K, rhs, x0)
+
+    def _solve_amg(self, K, rhs, x0):
+        import pyamg
+
+        if self._ml is None:
+            self._ml = pyamg.smoothed_aggregation_solver(K, symmetry="hermitian")
+            self.setups += 1
+        M = self._ml.aspreconditioner(cycle="V")
+        out = np.empty_like(rhs)
+        worst = 0
+        for k in range(rhs.shape[1]):
+            count = [0]
+
+            def cb(_x, count=count):
+                count[0] += 1
+
+            guess = None if x0 is None else x0[:, k]
+            x, info = spla.cg(K, rhs[:, k], x0=guess, rtol=self.rtol, atol=0.0, M=M,
+                              maxiter=500, callback=cb)
+            if info != 0:  # preconditioner too stale: rebuild once and retry
+                self._ml = pyamg.smoothed_aggregation_solver(K, symmetry="hermitian")
+                self.setups += 1
+                M = self._ml.aspreconditioner(cycle="V")
+                x, info = spla.cg(K, rhs[:, k], x0=guess, rtol=self.rtol, atol=0.0, M=M,
+                                  maxiter=2000, callback=cb)
+                if info != 0:
+                    raise RuntimeError("conjugate gradients did not converge")
+            out[:, k] = x
+            worst = max(worst, count[0])
+        self.iterations.append(worst)
+        if worst > self.rebuild_after:
+            self._ml = None
+        return out
+
+
+def deform(
+    points: np.ndarray,
+    tri: np.ndarray,
+    path_nodes: np.ndarray,
+    targets: np.ndarray,
+    fixed_nodes: np.ndarray,
+    steps: int = DEFAULT_STEPS,
+    max_halvings: int = 10,
+    callback: Callable[[float, DeformStats], None] | None = None,
+    describe: Callable[[int], str] | None = None,
+    solver: str = "auto",
+) -> tuple[np.ndarray, DeformStats]:
+    """Deform ``points`` so that ``points[path_nodes] == targets`` exactly, never folding.
+
+    Parameters
+    ----------
+    points : (N, 2) start coordinates (not modified).
+    tri : (T, 3) counter-clockwise triangles, all of positive area.
+    path_nodes, targets : nodes to move and where they must land.
+    fixed_nodes : nodes held in place (``U = 0``), typically the box boundary.
+    steps : pseudo-time steps ``n``.
+    callback : called with (pseudo-time done in [0, 1], stats) after each accepted step.
+    describe : turns a node id into words for error messages.
+    solver : one of :data:`SOLVERS`.
+
+    Returns the new coordinates and :class:`DeformStats`.
+    """
+    if steps < 1:
+        raise ValueError("steps must be >= 1")
+    n = len(points)
+    pos = np.array(points, dtype=np.float64, copy=True)
+    dirichlet = np.zeros(n, dtype=bool)
+    dirichlet[fixed_nodes] = True
+    dirichlet[path_nodes] = True
+    asm = Assembler(tri, n, dirichlet)
+    area0 = signed_areas(pos, tri)
+    ref = float(np.median(area0))
+    stats = DeformStats(steps=steps, solver=solver)
+    remaining = float(steps)  # pseudo-time left, in units of 1/steps
+    ud = np.zeros((n, 2))
+    lin = LinearSolver(solver)
+    prev = None  # last free-node displacement per unit of step, for warm starts
+    while remaining > 0:
+        dt = min(1.0, remaining)
+        frac = dt / remaining
+        ud[path_nodes] = (targets - pos[path_nodes]) * frac
+        disp = np.zeros((n, 2))
+        disp[path_nodes] = ud[path_nodes]
+        if asm.n_free:
+            K, rhs = asm.system(pos, ud)
+            # the remaining displacement shrank by the fraction taken last step
+            x0 = None if prev is None else prev * frac
+            disp[asm.free] = lin.solve(K, rhs, x0)
+        stats.solves += 1
+        theta = 1.0
+        while True:
+            new = pos + theta * disp
+            last = theta == 1.0 and frac == 1.0
+            if last:
+                new[path_nodes] = targets
+            area = signed_areas(new, tri)
+            if (area > 0).all():
+                break
+            if stats.halvings >= max_halvings * steps or theta <= 2.0**-max_halvings:
+                raise FoldError(_fold_message(new, tri, area, steps, remaining, last, describe))
+            theta *= 0.5
+            stats.halvings += 1
+        pos = new
+        if asm.n_free:
+            prev = disp[asm.free] / frac * (1.0 - theta * frac)
+        remaining = 0.0 if (theta == 1.0 and frac == 1.0) else remaining - theta * dt
+        stats.min_area_ratio.append(float(area.min() / ref))
+        stats.iterations = list(lin.iterations)
+        if callback is not None:
+            callback(1.0 - remaining / steps, stats)
+    return pos, stats
+
+
+def _fold_message(pos, tri, area, steps, remaining, last, describe) -> str:
+    t = int(np.argmin(area))
+    where = pos[tri[t]].mean(axis=0)
+    time = 1.0 - remaining / steps
+    node = describe(tri[t]) if describe else ""
+    if last:
+        return (
+            f"the final mesh would fold a triangle near ({where[0]:.6g}, {where[1]:.6g})"
+            f"{node}: its corners cannot all reach their contour points; give a smaller --h"
+        )
+    return (
+        f"the deformation folds a triangle near ({where[0]:.6g}, {where[1]:.6g}){node} at "
+        f"pseudo-time {time:.3f} even with the step refined; give a smaller --h or more --steps"
+    )

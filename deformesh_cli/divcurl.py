@@ -1,0 +1,113 @@
+"""Least-squares finite elements for the div-curl system on P1 triangles.
+
+The paper's step 1 solves ``div U = r``, ``curl U = 0`` by LSFEM: minimise
+``sum_T |T| ((div U - r)^2 + (curl U)^2)`` over piecewise-linear ``U``.  Per
+triangle, with barycentric gradients ``(gx, gy)`` and dofs ``[ux1..3, uy1..3]``,
+``div U = d.u`` with ``d = [gx, gy]`` and ``curl U = c.u`` with ``c = [-gy, gx]``;
+the element matrix is ``|T| (d d^T + c c^T)`` and the load ``|T| r d``.
+
+The ux-ux and uy-uy blocks are the P1 Laplace stiffness; the ux-uy block
+``|T| (gx gy^T - gy gx^T)`` is a discrete null Lagrangian: it couples only
+pairs of nodes that both lie on the outer boundary.  deformesh fixes every
+node of the background boundary (``U = 0`` there), so on the free dofs the
+system splits into two scalar problems with one matrix.  :class:`Assembler`
+exploits that; :func:`assemble_coupled` builds the general system (kept for
+slip boundaries, and used by the tests to show the split is exact).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+_LOCAL_R = np.repeat(np.arange(3), 3)
+_LOCAL_C = np.tile(np.arange(3), 3)
+
+
+def gradients(points: np.ndarray, tri: np.ndarray):
+    """Barycentric gradients ``gx, gy`` (t, 3) and twice the signed areas (t,)."""
+    p0, p1, p2 = points[tri[:, 0]], points[tri[:, 1]], points[tri[:, 2]]
+    a2 = (p1[:, 0] - p0[:, 0]) * (p2[:, 1] - p0[:, 1]) - (p2[:, 0] - p0[:, 0]) * (
+        p1[:, 1] - p0[:, 1]
+    )
+    b = np.column_stack([p1[:, 1] - p2[:, 1], p2[:, 1] - p0[:, 1], p0[:, 1] - p1[:, 1]])
+    c = np.column_stack([p2[:, 0] - p1[:, 0], p0[:, 0] - p2[:, 0], p1[:, 0] - p0[:, 0]])
+    return b / a2[:, None], c / a2[:, None], a2
+
+
+def stiffness_entries(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """P1 Laplace element matrices, flattened row-major to (t, 9)."""
+    gx, gy, a2 = gradients(points, tri)
+    area = 0.5 * a2
+    ke = gx[:, :, None] * gx[:, None, :] + gy[:, :, None] * gy[:, None, :]
+    return (ke * area[:, None, None]).reshape(-1, 9)
+
+
+def assemble_coupled(points: np.ndarray, tri: np.ndarray, rhs: np.ndarray | None = None):
+    """The full LSFEM system over dofs ``[ux_0..ux_N-1, uy_0..uy_N-1]``.
+
+    ``rhs`` is the divergence right-hand side per triangle (zero by default).
+    Returns ``(A, b)`` with ``A`` a (2N, 2N) CSR matrix.
+    """
+    n = len(points)
+    gx, gy, a2 = gradients(points, tri)
+    area = 0.5 * a2
+    d = np.concatenate([gx, gy], axis=1)  # (t, 6) divergence row
+    c = np.concatenate([-gy, gx], axis=1)  # (t, 6) curl row
+    ke = (d[:, :, None] * d[:, None, :] + c[:, :, None] * c[:, None, :]) * area[:, None, None]
+    dofs = np.concatenate([tri, tri + n], axis=1)
+    rows = np.repeat(dofs, 6, axis=1).ravel()
+    cols = np.tile(dofs, (1, 6)).ravel()
+    A = sp.csr_matrix((ke.ravel(), (rows, cols)), shape=(2 * n, 2 * n))
+    b = np.zeros(2 * n)
+    if rhs is not None:
+        np.add.at(b, dofs.ravel(), (d * (area * rhs)[:, None]).ravel())
+    return A, b
+
+
+class Assembler:
+    """Assemble the split div-curl system on a fixed connectivity, many times.
+
+    The sparsity pattern of the free-free block and the map from element
+    entries to CSR slots are computed once; each call to :meth:`system` only
+    recomputes the element matrices on the current coordinates.
+    """
+
+    def __init__(self, tri: np.ndarray, n_nodes: int, dirichlet: np.ndarray):
+        self.tri = tri
+        self.free = np.flatnonzero(~dirichlet)
+        nf = len(self.free)
+        self.n_free = nf
+        fidx = np.full(n_nodes, -1, dtype=np.int64)
+        fidx[self.free] = np.arange(nf)
+        r = tri[:, _LOCAL_R].ravel()
+        c = tri[:, _LOCAL_C].ravel()
+        fr, fc = fidx[r], fidx[c]
+        ff = (fr >= 0) & (fc >= 0)
+        self._ff = np.flatnonzero(ff)
+        keys = fr[ff] * nf + fc[ff]
+        ukeys, self._slot = np.unique(keys, return_inverse=True)
+        self._indices = (ukeys % nf).astype(np.int32)
+        rows = ukeys // nf
+        self._indptr = np.searchsorted(rows, np.arange(nf + 1)).astype(np.int32)
+        self._nnz = len(ukeys)
+        fd = (fr >= 0) & (fc < 0)
+        self._fd = np.flatnonzero(fd)
+        self._fd_row = fr[fd]
+        self._fd_col = c[fd]
+
+    def system(self, points: np.ndarray, u_dirichlet: np.ndarray):
+        """``K_ff`` (CSR) and right-hand sides (n_free, 2) for given Dirichlet values.
+
+        ``u_dirichlet`` is (N, 2); only its rows at Dirichlet nodes are read.
+        """
+        ke = stiffness_entries(points, self.tri).ravel()
+        data = np.bincount(self._slot, weights=ke[self._ff], minlength=self._nnz)
+        K = sp.csr_matrix((data, self._indices, self._indptr), shape=(self.n_free,) * 2)
+        w = ke[self._fd]
+        rhs = np.empty((self.n_free, 2))
+        for comp in range(2):
+            rhs[:, comp] = -np.bincount(
+                self._fd_row, weights=w * u_dirichlet[self._fd_col, comp], minlength=self.n_free
+            )
+        return K, rhs

@@ -1,0 +1,168 @@
+"""Writing meshes and files.  The only module that imports meshio.
+
+Every file is written atomically: to a temporary file in the target's folder,
+then ``os.replace``; a failure leaves no partial file behind.  Output formats
+come from :data:`FORMATS`, keyed by extension.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import sys
+import tempfile
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from .errors import DeformeshError, OptionError
+from .mesh import Mesh
+
+#: Physical group ids written to Gmsh files (name -> (id, dimension)).
+GROUPS = {"contour": (1, 1), "domain": (2, 2)}
+
+
+def _meshio_mesh(mesh: Mesh, dim3: bool = False):
+    import meshio
+
+    pts = mesh.points
+    if dim3:
+        pts = np.column_stack([pts, np.zeros(len(pts))])
+    point_data = {"contour_point": np.where(np.arange(mesh.n_nodes) < mesh.n_contour,
+                                            np.arange(mesh.n_nodes), -1).astype(np.int32)}
+    return meshio.Mesh(
+        pts,
+        [("triangle", mesh.triangles.astype(np.int64)), ("line", mesh.lines.astype(np.int64))],
+        point_data=point_data,
+    )
+
+
+def _write_gmsh22(mesh: Mesh, path: str) -> None:
+    m = _meshio_mesh(mesh)
+    dom, con = GROUPS["domain"], GROUPS["contour"]
+    nt, nl = len(mesh.triangles), len(mesh.lines)
+    m.cell_data = {
+        "gmsh:physical": [np.full(nt, dom[0], np.int32), np.full(nl, con[0], np.int32)],
+        "gmsh:geometrical": [np.full(nt, 1, np.int32), np.full(nl, 1, np.int32)],
+    }
+    m.point_data = {}
+    m.field_data = {name: np.array([tag, dim]) for name, (tag, dim) in GROUPS.items()}
+    import meshio
+
+    meshio.write(path, m, file_format="gmsh22", binary=False)
+
+
+def _write_meshio(fmt: str, dim3: bool = False) -> Callable[[Mesh, str], None]:
+    def write(mesh: Mesh, path: str) -> None:
+        import meshio
+
+        meshio.write(path, _meshio_mesh(mesh, dim3), file_format=fmt)
+
+    return write
+
+
+def _write_obj(mesh: Mesh, path: str) -> None:
+    """Wavefront OBJ with z = 0, faces and the boundary as ``l`` lines (1-based)."""
+    with open(path, "w", encoding="ascii", newline="\n") as f:
+        f.write("# deformesh mesh: nodes 1..%d are the contour points\n" % mesh.n_contour)
+        np.savetxt(f, mesh.points, fmt="v %.17g %.17g 0")
+        np.savetxt(f, mesh.triangles + 1, fmt="f %d %d %d")
+        np.savetxt(f, mesh.lines + 1, fmt="l %d %d")
+
+
+#: extension -> (description, writer)
+FORMATS: dict[str, tuple[str, Callable[[Mesh, str], None]]] = {
+    "vtk": ("VTK legacy", _write_meshio("vtk", dim3=True)),
+    "vtu": ("VTK XML unstructured grid", _write_meshio("vtu", dim3=True)),
+    "msh": ("Gmsh 2.2 ASCII with physical groups 'domain' and 'contour'", _write_gmsh22),
+    "obj": ("Wavefront OBJ (z = 0)", _write_obj),
+}
+
+
+def format_for(path: str, fmt: str | None) -> str:
+    """The output format: ``fmt`` if given, else the file's extension."""
+    if fmt is None:
+        if path == "-":
+            raise OptionError("writing a mesh to stdout needs --format")
+        fmt = Path(path).suffix.lower().lstrip(".")
+    fmt = fmt.lower().lstrip(".")
+    if fmt not in FORMATS:
+        raise OptionError(
+            f"unknown output format {fmt!r} for {path}; known: {', '.join(sorted(FORMATS))}"
+        )
+    return fmt
+
+
+@contextlib.contextmanager
+def atomic_path(path: str):
+    """Yield a temporary path next to ``path``; move it into place on success only."""
+    target = Path(path)
+    folder = target.parent if str(target.parent) else Path(".")
+    if not folder.is_dir():
+        raise DeformeshError(f"{path}: cannot write: folder {folder} does not exist")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
+    except OSError as exc:
+        raise DeformeshError(f"{path}: cannot write: {exc.strerror}") from None
+    os.close(fd)
+    try:
+        yield tmp
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def write_mesh(mesh: Mesh, path: str, fmt: str | None = None) -> str:
+    """Write ``mesh`` to ``path`` (``-`` is stdout) in ``fmt`` or by extension."""
+    fmt = format_for(path, fmt)
+    writer = FORMATS[fmt][1]
+    if path == "-":
+        with tempfile.TemporaryDirectory() as d:
+            tmp = os.path.join(d, f"mesh.{fmt}")
+            _quiet(writer, mesh, tmp)
+            write_bytes(Path(tmp).read_bytes(), "-")
+        return fmt
+    with atomic_path(path) as tmp:
+        try:
+            _quiet(writer, mesh, tmp)
+        except OSError as exc:
+            raise DeformeshError(f"{path}: cannot write: {exc}") from None
+    return fmt
+
+
+def _quiet(writer, mesh, path):
+    """Run a writer with meshio's console chatter kept off stdout."""
+    with contextlib.redirect_stdout(io.StringIO()):
+        writer(mesh, path)
+
+
+def write_bytes(data: bytes, path: str) -> None:
+    """Write bytes to a file atomically, or to stdout for ``-``."""
+    if path == "-":
+        out = sys.stdout.buffer
+        out.write(data)
+        out.flush()
+        return
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as f:
+            f.write(data)
+
+
+def read_bytes(path: str) -> bytes:
+    """Read a whole file, or all of stdin for ``-`` (works on non-seekable pipes)."""
+    if path == "-":
+        return sys.stdin.buffer.read()
+    p = Path(path)
+    if not p.exists():
+        raise DeformeshError(f"{path}: no such file")
+    if p.is_dir():
+        raise DeformeshError(f"{path}: is a directory")
+    try:
+        return p.read_bytes()
+    except OSError as exc:
+        raise DeformeshError(f"{path}: cannot read: {exc.strerror}") from None

@@ -1,0 +1,163 @@
+"""Mesh quality measures and the mesh contract.
+
+The contract (README, "The contract") is checked on every mesh written:
+
+1. node ``k`` is contour point ``k``, at exactly its input coordinates;
+2. the mesh boundary is the contour: every contour edge is a mesh boundary
+   edge, or a chain of boundary edges through extra nodes lying on it;
+3. every triangle has signed area > 0 (counter-clockwise, no fold);
+4. the mesh area equals the polygon area to round-off.
+
+(Byte-identical output on reruns is checked by the test suite.)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .contour import Contour, signed_area
+from .errors import ContractError
+from .mesh import Mesh
+
+#: Relative tolerance on area conservation (measured: ~1e-15).
+AREA_RTOL = 1e-10
+
+
+def signed_areas(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    p0, p1, p2 = points[tri[:, 0]], points[tri[:, 1]], points[tri[:, 2]]
+    return 0.5 * (
+        (p1[:, 0] - p0[:, 0]) * (p2[:, 1] - p0[:, 1])
+        - (p2[:, 0] - p0[:, 0]) * (p1[:, 1] - p0[:, 1])
+    )
+
+
+def angles(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Interior angles in degrees, (t, 3); angle ``k`` at corner ``k``."""
+    p = points[tri]
+    out = np.empty(tri.shape)
+    for k in range(3):
+        u = p[:, (k + 1) % 3] - p[:, k]
+        v = p[:, (k + 2) % 3] - p[:, k]
+        cross = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
+        dot = (u * v).sum(axis=1)
+        out[:, k] = np.degrees(np.arctan2(np.abs(cross), dot))
+    return out
+
+
+def radius_ratio(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """``2 r_in / r_circ``: 1 for an equilateral triangle, 0.83 for a right isosceles."""
+    p = points[tri]
+    a = np.linalg.norm(p[:, 1] - p[:, 2], axis=1)
+    b = np.linalg.norm(p[:, 2] - p[:, 0], axis=1)
+    c = np.linalg.norm(p[:, 0] - p[:, 1], axis=1)
+    s = 0.5 * (a + b + c)
+    area = np.abs(signed_areas(points, tri))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r_in = area / s
+        r_circ = a * b * c / (4 * area)
+        return np.nan_to_num(2 * r_in / r_circ)
+
+
+def stats(mesh: Mesh) -> dict:
+    """Summary numbers of a mesh (JSON-ready)."""
+    ang = angles(mesh.points, mesh.triangles)
+    area = signed_areas(mesh.points, mesh.triangles)
+    rr = radius_ratio(mesh.points, mesh.triangles)
+    return {
+        "nodes": int(mesh.n_nodes),
+        "triangles": int(len(mesh.triangles)),
+        "boundary_nodes": int(len(mesh.lines)),
+        "extra_boundary_nodes": int(mesh.n_extra),
+        "min_angle": float(ang.min()),
+        "max_angle": float(ang.max()),
+        "smallest_area": float(area.min()),
+        "mean_radius_ratio": float(rr.mean()),
+        "min_radius_ratio": float(rr.min()),
+        "area": float(area.sum()),
+    }
+
+
+def check_contract(mesh: Mesh, contour: Contour) -> None:
+    """Raise :class:`ContractError` naming the first clause ``mesh`` breaks."""
+    src = contour.source
+    m = contour.n
+    pts, tri = mesh.points, mesh.triangles
+    if mesh.n_contour != m or len(pts) < m:
+        raise ContractError(f"{src}: mesh has {mesh.n_contour} contour nodes, contour has {m}")
+    # 1. contour points are nodes 0..m-1, bit for bit
+    same = np.all(pts[:m] == contour.points, axis=1)
+    if not same.all():
+        k = int(np.argmin(same))
+        raise ContractError(
+            f"{src}: node {k} is at ({pts[k, 0]!r}, {pts[k, 1]!r}), not at {contour.where(k)}"
+        )
+    # 3. orientation / folding
+    area = signed_areas(pts, tri)
+    if len(tri) == 0:
+        raise ContractError(f"{src}: the mesh has no triangles")
+    if not (area > 0).all():
+        t = int(np.argmin(area))
+        c = pts[tri[t]].mean(axis=0)
+        raise ContractError(
+            f"{src}: triangle {t} near ({c[0]:.6g}, {c[1]:.6g}) has signed area {area[t]:.3g}"
+        )
+    # 2. the boundary is exactly the contour
+    _check_boundary(mesh, contour, area)
+    # 4. area conservation
+    poly = abs(signed_area(contour.points))
+    total = float(area.sum())
+    if abs(total - poly) > AREA_RTOL * poly:
+        raise ContractError(
+            f"{src}: mesh area {total:.17g} differs from the contour's {poly:.17g} "
+            f"(relative {abs(total - poly) / poly:.2e})"
+        )
+
+
+def _check_boundary(mesh: Mesh, contour: Contour, area: np.ndarray) -> None:
+    src = contour.source
+    m, tri, pts = contour.n, mesh.triangles, mesh.points
+    n = len(pts)
+    e = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    key = np.minimum(e[:, 0], e[:, 1]) * n + np.maximum(e[:, 0], e[:, 1])
+    uk, counts = np.unique(key, return_counts=True)
+    if (counts > 2).any():
+        raise ContractError(f"{src}: an edge is shared by more than two triangles")
+    # directed boundary edges (domain on the left) must equal the line cells
+    directed = e[np.isin(key, uk[counts == 1])]
+    lines = mesh.lines
+    if len(directed) != len(lines) or not np.array_equal(
+        np.unique(directed[:, 0] * n + directed[:, 1]), np.unique(lines[:, 0] * n + lines[:, 1])
+    ):
+        raise ContractError(
+            f"{src}: the mesh boundary ({len(directed)} edges) is not the contour's "
+            f"boundary chain ({len(lines)} edges)"
+        )
+    # the chain is closed, visits the contour points in counter-clockwise order,
+    # and any extra node lies on the contour edge it subdivides
+    if not np.array_equal(lines[:, 1], np.roll(lines[:, 0], -1)):
+        raise ContractError(f"{src}: boundary edges do not form one closed chain")
+    ring = lines[:, 0]
+    on_contour = ring < m
+    seq = ring[on_contour]
+    order = contour.ccw_order
+    start = int(np.flatnonzero(seq == order[0])[0]) if (seq == order[0]).any() else -1
+    if len(seq) != m or start < 0 or not np.array_equal(np.roll(seq, -start), order):
+        raise ContractError(f"{src}: the boundary does not visit the contour points in order")
+    extra_idx = np.flatnonzero(~on_contour)
+    if len(extra_idx):
+        pos = np.flatnonzero(on_contour)
+        before = ring[pos[np.searchsorted(pos, extra_idx) - 1]]
+        nxt = np.searchsorted(pos, extra_idx) % len(pos)
+        after = ring[pos[nxt]]
+        a, b, x = pts[before], pts[after], pts[ring[extra_idx]]
+        ab = b - a
+        t = ((x - a) * ab).sum(axis=1) / (ab * ab).sum(axis=1)
+        dist = np.linalg.norm(a + t[:, None] * ab - x, axis=1)
+        scale = float(np.abs(contour.points).max() + np.ptp(contour.points))
+        bad = (dist > 1e-12 * scale) | (t <= 0) | (t >= 1)
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise ContractError(
+                f"{src}: extra boundary node {ring[extra_idx[k]]} is off the contour edge "
+                f"from {contour.where(int(before[k]))} (distance {dist[k]:.3g})"
+            )

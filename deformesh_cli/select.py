@@ -1,0 +1,470 @@
+"""Stage 1: background grid, node selection (paper, Appendix A) and grid path.
+
+Data flow::
+
+    Contour --choose_grid--> Grid --select_nodes--> one node per contour point
+            --build_path--> closed grid path (gaps filled with extra boundary
+                            nodes on the contour edge) --validate--> forced
+                            cell diagonals --> background triangles
+
+The background triangulation is built *after* selection (DESIGN.md section
+3): a diagonal step of the path forces that cell's diagonal, and at an L-turn
+the corner cell is split through the corner node, so that no triangle has
+three consecutive path nodes (it would collapse as the contour flattens).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .contour import Contour
+from .errors import LimitError, OptionError, SelectionError
+
+#: Default cap on background grid nodes.  A full solve costs about 1.2 kB per
+#: node at peak (sparse LU of a 2D Laplacian), so 8e6 nodes stay well inside
+#: this machine's 24 GiB while leaving room for the rest of the pipeline.
+DEFAULT_MAX_NODES = 8_000_000
+
+#: Default margin between the contour's bounding box and the background box, in cells.
+DEFAULT_MARGIN_CELLS = 3
+
+#: How many times the default h is halved when the grid path touches itself.
+MAX_REFINEMENTS = 3
+
+DIAG_SLASH = 0  # cell split along (i, j)-(i+1, j+1)
+DIAG_BACKSLASH = 1  # cell split along (i+1, j)-(i, j+1)
+
+
+@dataclass(frozen=True)
+class Grid:
+    """A Cartesian background grid of ``nx`` by ``ny`` cells.
+
+    Node ``(i, j)`` sits at ``(x0 + i*hx, y0 + j*hy)`` and has id ``j*(nx+1) + i``.
+    """
+
+    x0: float
+    y0: float
+    hx: float
+    hy: float
+    nx: int
+    ny: int
+
+    @property
+    def n_nodes(self) -> int:
+        return (self.nx + 1) * (self.ny + 1)
+
+    @property
+    def box(self) -> tuple[float, float, float, float]:
+        return (self.x0, self.y0, self.x0 + self.nx * self.hx, self.y0 + self.ny * self.hy)
+
+    def node_id(self, i, j):
+        return np.asarray(j) * (self.nx + 1) + np.asarray(i)
+
+    def node_ij(self, nid):
+        nid = np.asarray(nid)
+        return nid % (self.nx + 1), nid // (self.nx + 1)
+
+    def coords(self, nid=None) -> np.ndarray:
+        """Undeformed coordinates of the given nodes (all nodes by default)."""
+        if nid is None:
+            nid = np.arange(self.n_nodes)
+        i, j = self.node_ij(nid)
+        return np.column_stack([self.x0 + i * self.hx, self.y0 + j * self.hy])
+
+    def boundary_nodes(self) -> np.ndarray:
+        i, j = self.node_ij(np.arange(self.n_nodes))
+        return np.flatnonzero((i == 0) | (j == 0) | (i == self.nx) | (j == self.ny))
+
+
+def estimate_nodes(width: float, height: float, h: float) -> float:
+    """Grid nodes for a box, computed in floating point (never overflows)."""
+    return (math.ceil(width / h - 1e-9) + 1.0) * (math.ceil(height / h - 1e-9) + 1.0)
+
+
+def choose_grid(
+    contour: Contour,
+    h: float | None = None,
+    box: tuple[float, float, float, float] | None = None,
+    margin: float | None = None,
+    max_nodes: int = DEFAULT_MAX_NODES,
+) -> tuple[Grid, dict]:
+    """Lay the background grid.
+
+    ``h`` defaults to Appendix A's ``0.9 * d_c / sqrt(2)`` with ``d_c`` the
+    smallest distance between two contour points.  The box defaults to the
+    contour's bounding box grown by ``margin`` (default 3 cells).  Cells are
+    never larger than ``h``: when the box is not a whole number of cells, the
+    step along that axis is shrunk slightly so the box is kept exactly.
+
+    Raises :class:`LimitError` (with the estimate and a hint) before allocating
+    anything when the grid would exceed ``max_nodes``.
+    """
+    p = contour.points
+    d_c, ka, kb = contour.min_spacing()
+    info: dict = {"d_c": d_c, "h_rule": "given"}
+    if h is None:
+        h = 0.9 * d_c / math.sqrt(2.0)
+        info["h_rule"] = "appendix-a"
+    if not (h > 0 and math.isfinite(h)):
+        raise OptionError(f"--h must be a positive number, got {h}")
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    if box is None:
+        m = DEFAULT_MARGIN_CELLS * h if margin is None else float(margin)
+        if not (m >= 0 and math.isfinite(m)):
+            raise OptionError(f"--margin must be a non-negative number, got {margin}")
+        box = (lo[0] - m, lo[1] - m, hi[0] + m, hi[1] + m)
+    else:
+        box = tuple(float(v) for v in box)
+        if not (box[0] < box[2] and box[1] < box[3]):
+            raise OptionError(f"--box {_fmt_box(box)}: need XMIN < XMAX and YMIN < YMAX")
+        out = (p[:, 0] < box[0]) | (p[:, 0] > box[2]) | (p[:, 1] < box[1]) | (p[:, 1] > box[3])
+        if out.any():
+            k = int(np.argmax(out))
+            raise OptionError(
+                f"{contour.source}: {contour.where(k)} lies outside --box {_fmt_box(box)}"
+            )
+    width, height = box[2] - box[0], box[3] - box[1]
+    est = estimate_nodes(width, height, h)
+    info["estimated_nodes"] = est
+    if est > max_nodes:
+        raise LimitError(_too_many_nodes(contour, est, h, info["h_rule"], d_c, ka, kb,
+                                         width, height, max_nodes))
+    nx = max(1, math.ceil(width / h - 1e-9))
+    ny = max(1, math.ceil(height / h - 1e-9))
+    grid = Grid(box[0], box[1], width / nx, height / ny, nx, ny)
+    info["h"] = h
+    return grid, info
+
+
+def _fmt_box(box) -> str:
+    return ",".join(f"{v:g}" for v in box)
+
+
+def _too_many_nodes(contour, est, h, rule, d_c, ka, kb, width, height, max_nodes) -> str:
+    seg = np.hypot(*(np.roll(contour.points, -1, axis=0) - contour.points).T)
+    typical = float(np.median(seg))
+    ratio = float(seg.max() / seg.min())
+    fit = math.sqrt(width * height / max_nodes) * 1.05
+    suggest = max(typical, fit)
+    why = (
+        f"h = {h:.3g} from the smallest spacing {d_c:.3g} (points {ka} and {kb})"
+        if rule == "appendix-a"
+        else f"--h {h:.3g}"
+    )
+    return (
+        f"{contour.source}: the background grid would need {est:.2g} nodes ({why}), "
+        f"over --max-nodes {max_nodes}; consecutive spacing varies {ratio:.3g}x along the "
+        f"contour: try --h {suggest:.3g} (points closer than h then share cells and extra "
+        "boundary nodes may be added), or raise --max-nodes"
+    )
+
+
+@dataclass
+class Selection:
+    """The result of stage 1: everything ``deform`` needs.
+
+    ``path_nodes[t]`` is the grid node moved onto ``path_targets[t]``;
+    ``path_source[t]`` is the input index of the contour point it carries, or
+    -1 for an extra boundary node placed on a contour edge.  The path runs
+    counter-clockwise.  ``diagonals[c]`` is the split of cell ``c``.
+    """
+
+    grid: Grid
+    path_nodes: np.ndarray
+    path_targets: np.ndarray
+    path_source: np.ndarray
+    diagonals: np.ndarray
+    h: float
+    h_rule: str
+    searched_further: int = 0
+    refinements: int = 0
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def extra_nodes(self) -> int:
+        return int(np.count_nonzero(self.path_source < 0))
+
+    def triangles(self) -> np.ndarray:
+        return grid_triangles(self.grid, self.diagonals)
+
+
+def grid_triangles(grid: Grid, diagonals: np.ndarray) -> np.ndarray:
+    """Counter-clockwise triangles of the grid, two per cell, split as ``diagonals`` says."""
+    nx, ny = grid.nx, grid.ny
+    ci, cj = np.meshgrid(np.arange(nx), np.arange(ny))
+    ci, cj = ci.ravel(), cj.ravel()
+    n00 = cj * (nx + 1) + ci
+    n10, n01, n11 = n00 + 1, n00 + nx + 1, n00 + nx + 2
+    slash = diagonals == DIAG_SLASH
+    t1 = np.where(slash[:, None], np.column_stack([n00, n10, n11]),
+                  np.column_stack([n00, n10, n01]))
+    t2 = np.where(slash[:, None], np.column_stack([n00, n11, n01]),
+                  np.column_stack([n10, n11, n01]))
+    tri = np.empty((2 * len(n00), 3), dtype=np.int64)
+    tri[0::2], tri[1::2] = t1, t2
+    return tri
+
+
+def select_nodes(grid: Grid, q: np.ndarray) -> tuple[np.ndarray, int]:
+    """Appendix A: for each point, the nearest free corner of the cell holding it.
+
+    Points are taken in the order given.  When all four corners are taken the
+    search widens ring by ring around the cell and takes the nearest free node
+    (the pseudo-code leaves such a point unassigned).  Returns grid node ids
+    and how many points needed the wider search.
+    """
+    taken: set[int] = set()
+    out = np.empty(len(q), dtype=np.int64)
+    further = 0
+    t = (q[:, 0] - grid.x0) / grid.hx
+    s = (q[:, 1] - grid.y0) / grid.hy
+    ci = np.clip(np.floor(t).astype(np.int64), 0, grid.nx - 1)
+    cj = np.clip(np.floor(s).astype(np.int64), 0, grid.ny - 1)
+    di = np.array([0, 1, 0, 1])
+    dj = np.array([0, 0, 1, 1])
+    for k in range(len(q)):
+        ii, jj = ci[k] + di, cj[k] + dj
+        d = np.hypot((ii - t[k]) * grid.hx, (jj - s[k]) * grid.hy)
+        chosen = -1
+        for c in np.argsort(d, kind="stable"):
+            nid = int(jj[c] * (grid.nx + 1) + ii[c])
+            if nid not in taken:
+                chosen = nid
+                break
+        if chosen < 0:
+            further += 1
+            chosen = _search_further(grid, t[k], s[k], int(ci[k]), int(cj[k]), taken)
+        taken.add(chosen)
+        out[k] = chosen
+    return out, further
+
+
+def _search_further(grid: Grid, t: float, s: float, i: int, j: int, taken: set[int]) -> int:
+    for r in range(1, max(grid.nx, grid.ny) + 1):
+        ii = np.arange(max(0, i - r), min(grid.nx, i + 1 + r) + 1)
+        jj = np.arange(max(0, j - r), min(grid.ny, j + 1 + r) + 1)
+        I, J = np.meshgrid(ii, jj)
+        I, J = I.ravel(), J.ravel()
+        ids = J * (grid.nx + 1) + I
+        free = np.array([int(n) not in taken for n in ids])
+        if free.any():
+            d = np.hypot((I - t) * grid.hx, (J - s) * grid.hy)
+            d[~free] = np.inf
+            return int(ids[np.lexsort((I, J, d))[0]])
+    raise SelectionError("no free grid node left")  # pragma: no cover - grid exhausted
+
+
+def build_path(grid: Grid, sel: np.ndarray, q: np.ndarray, src: np.ndarray):
+    """Close the selected nodes into a grid path of 8-neighbour steps.
+
+    Where two consecutive selected nodes are ``D >= 2`` cells apart, the
+    ``D - 1`` grid nodes of the digital line between them become extra
+    boundary nodes, carried to evenly spaced points of the contour edge.
+    Returns ``(nodes, targets, source)`` arrays over the path.
+    """
+    i, j = grid.node_ij(sel)
+    m = len(sel)
+    nodes, targets, source = [], [], []
+    for k in range(m):
+        k2 = (k + 1) % m
+        nodes.append(sel[k])
+        targets.append(q[k])
+        source.append(src[k])
+        di, dj = int(i[k2] - i[k]), int(j[k2] - j[k])
+        D = max(abs(di), abs(dj))
+        if D >= 2:
+            f = np.arange(1, D) / D
+            fi = i[k] + np.floor(di * f + 0.5).astype(np.int64)
+            fj = j[k] + np.floor(dj * f + 0.5).astype(np.int64)
+            nodes.extend(grid.node_id(fi, fj).tolist())
+            targets.extend(q[k] + f[:, None] * (q[k2] - q[k]))
+            source.extend([-1] * (D - 1))
+    return (np.asarray(nodes, dtype=np.int64), np.asarray(targets, dtype=np.float64),
+            np.asarray(source, dtype=np.int64))
+
+
+def force_diagonals(grid: Grid, nodes: np.ndarray):
+    """Cell splits forced by the path, or the index of the first conflict.
+
+    Returns ``(diagonals, None)`` or ``(None, path_index)`` where the path
+    touches itself: two crossing diagonal steps in one cell, or a cell asked
+    for both splits (for example a U-turn around one cell).
+    """
+    i, j = grid.node_ij(nodes)
+    i, j = np.asarray(i), np.asarray(j)
+    ni, nj = np.roll(i, -1), np.roll(j, -1)
+    pi, pj = np.roll(i, 1), np.roll(j, 1)
+    di, dj = ni - i, nj - j  # step out of each node
+    qi, qj = i - pi, j - pj  # step into each node
+    cells, dirs, where = [], [], []
+    # diagonal steps force their own diagonal
+    diag = (di != 0) & (dj != 0)
+    cells.append(np.minimum(j, nj)[diag] * grid.nx + np.minimum(i, ni)[diag])
+    dirs.append(np.where(di[diag] * dj[diag] > 0, DIAG_SLASH, DIAG_BACKSLASH))
+    where.append(np.flatnonzero(diag))
+    # L-turns split the corner cell through the corner node
+    axis_in = (qi == 0) ^ (qj == 0)
+    axis_out = (di == 0) ^ (dj == 0)
+    lturn = axis_in & axis_out & (qi * di + qj * dj == 0)
+    ci = np.minimum(np.minimum(pi, ni), i)[lturn]
+    cj = np.minimum(np.minimum(pj, nj), j)[lturn]
+    at_diag_slash = (i[lturn] - ci) == (j[lturn] - cj)
+    cells.append(cj * grid.nx + ci)
+    dirs.append(np.where(at_diag_slash, DIAG_SLASH, DIAG_BACKSLASH))
+    where.append(np.flatnonzero(lturn))
+    cells_a = np.concatenate(cells)
+    dirs_a = np.concatenate(dirs)
+    where_a = np.concatenate(where)
+    # a cell forced twice is a conflict unless both agree and come from one corner
+    order = np.lexsort((where_a, cells_a))
+    cs, ds, ws = cells_a[order], dirs_a[order], where_a[order]
+    dup = cs[1:] == cs[:-1]
+    if dup.any():
+        # two diagonal steps in one cell always cross or retrace; an L-turn
+        # sharing a cell with another rule means the path wraps that cell
+        return None, int(ws[1:][dup][0])
+    diagonals = np.full(grid.nx * grid.ny, DIAG_SLASH, dtype=np.uint8)
+    diagonals[cs] = ds
+    return diagonals, None
+
+
+def _nearest_point(src: np.ndarray, t: int) -> int:
+    """Input index of the contour point at or just before path position ``t``."""
+    m = len(src)
+    for back in range(m):
+        s = src[(t - back) % m]
+        if s >= 0:
+            return int(s)
+    return 0  # pragma: no cover
+
+
+def fit_path(contour: Contour, grid: Grid, strict: bool = False):
+    """Select nodes and build a valid path on ``grid``; raise SelectionError if impossible.
+
+    Returns ``(nodes, targets, source, diagonals, searched_further)``.
+    """
+    order = contour.ccw_order
+    q = contour.points[order]
+    sel, further = select_nodes(grid, q)
+    if strict:
+        i, j = grid.node_ij(sel)
+        gap = np.maximum(np.abs(np.roll(i, -1) - i), np.abs(np.roll(j, -1) - j)) >= 2
+        if gap.any():
+            k = int(np.argmax(gap))
+            a, b = int(order[k]), int(order[(k + 1) % len(order)])
+            raise SelectionError(
+                f"{contour.source}: {contour.where(a)} and point {b} select grid nodes more "
+                f"than one cell apart (h = {max(grid.hx, grid.hy):.4g}); --strict forbids "
+                "extra boundary nodes: give a larger --h or drop --strict"
+            )
+    nodes, targets, source = build_path(grid, sel, q, order)
+    uniq, first, counts = np.unique(nodes, return_index=True, return_counts=True)
+    if (counts > 1).any():
+        t = np.flatnonzero(nodes == uniq[np.argmax(counts > 1)])[-1]
+        raise SelectionError(_touch_msg(contour, grid, source, t, "visits one grid node twice"))
+    diagonals, bad = force_diagonals(grid, nodes)
+    if diagonals is None:
+        raise SelectionError(_touch_msg(contour, grid, source, bad, "touches itself"))
+    xy = grid.coords(nodes)
+    if _ring_area(xy) <= 0:
+        raise SelectionError(
+            f"{contour.source}: the grid path runs clockwise or encloses nothing "
+            f"(h = {max(grid.hx, grid.hy):.4g} is too coarse for this contour); give a smaller --h"
+        )
+    tri = _path_triangles(grid, diagonals, nodes)
+    if len(tri):
+        pos = np.full((grid.n_nodes, 2), np.nan)
+        pos[nodes] = targets
+        a = _tri_area(pos[tri])
+        bad_t = np.flatnonzero(~(a > 0))
+        if len(bad_t):
+            t = int(np.flatnonzero(nodes == tri[bad_t[0], 0])[0])
+            raise SelectionError(_touch_msg(
+                contour, grid, source, t,
+                "would need a triangle whose three corners are contour points in the "
+                "wrong order (it would fold)"))
+    return nodes, targets, source, diagonals, further
+
+
+def _ring_area(xy: np.ndarray) -> float:
+    x, y = xy[:, 0] - xy[0, 0], xy[:, 1] - xy[0, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+
+
+def _tri_area(p: np.ndarray) -> np.ndarray:
+    """Signed areas of triangles given as (t, 3, 2) coordinates."""
+    a, b, c = p[:, 0], p[:, 1], p[:, 2]
+    return 0.5 * ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1])
+                  - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+
+
+def _path_triangles(grid: Grid, diagonals: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """Triangles of the cells around the path whose three corners are all path nodes."""
+    i, j = grid.node_ij(nodes)
+    ci = np.clip(np.concatenate([i, i - 1, i, i - 1]), 0, grid.nx - 1)
+    cj = np.clip(np.concatenate([j, j, j - 1, j - 1]), 0, grid.ny - 1)
+    cells = np.unique(cj * grid.nx + ci)
+    sub = Grid(0, 0, 1, 1, grid.nx, grid.ny)
+    tri = grid_triangles(sub, diagonals)
+    tri = tri.reshape(-1, 2, 3)[cells].reshape(-1, 3)
+    on_path = np.zeros(grid.n_nodes, dtype=bool)
+    on_path[nodes] = True
+    return tri[on_path[tri].all(axis=1)]
+
+
+def _touch_msg(contour: Contour, grid: Grid, source: np.ndarray, t: int, what: str) -> str:
+    k = _nearest_point(source, t)
+    return (
+        f"{contour.source}: the grid path {what} near {contour.where(k)} "
+        f"(h = {max(grid.hx, grid.hy):.4g}); the contour comes closer to itself than the "
+        "grid can follow: give a smaller --h"
+    )
+
+
+def select(
+    contour: Contour,
+    h: float | None = None,
+    box: tuple[float, float, float, float] | None = None,
+    margin: float | None = None,
+    strict: bool = False,
+    max_nodes: int = DEFAULT_MAX_NODES,
+) -> Selection:
+    """Stage 1 in full: grid, selection, path, forced diagonals.
+
+    With the default ``h`` a path that touches itself is retried on a grid of
+    half the step (at most :data:`MAX_REFINEMENTS` times, within
+    ``max_nodes``); with a given ``h`` it is an error naming the place.
+    """
+    grid, info = choose_grid(contour, h, box, margin, max_nodes)
+    h_used = info["h"]
+    refinements = 0
+    notes: list[str] = []
+    while True:
+        try:
+            nodes, targets, source, diagonals, further = fit_path(contour, grid, strict)
+            break
+        except SelectionError as exc:
+            if h is not None or strict or refinements >= MAX_REFINEMENTS:
+                raise
+            try:
+                grid, info = choose_grid(contour, h_used / 2, box, margin, max_nodes)
+            except LimitError:
+                raise exc from None
+            notes.append(f"halved h to {h_used / 2:.4g}: {exc}")
+            h_used /= 2
+            refinements += 1
+    return Selection(
+        grid=grid,
+        path_nodes=nodes,
+        path_targets=targets,
+        path_source=source,
+        diagonals=diagonals,
+        h=h_used,
+        h_rule=info["h_rule"],
+        searched_further=further,
+        refinements=refinements,
+        notes=notes,
+    )

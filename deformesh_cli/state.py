@@ -1,0 +1,158 @@
+"""The intermediate file between ``select``, ``deform`` and ``triangulate``.
+
+A state file is an uncompressed ZIP archive (so it streams through pipes and
+can be inspected with ``unzip -l``) holding ``meta.json`` and ``.npy`` arrays.
+The layout is documented in the README ("The state file"); :data:`VERSION`
+changes whenever it does.  Archives are written with fixed timestamps, so the
+same input gives the same bytes.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import zipfile
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import __version__
+from .contour import Contour, make_contour
+from .errors import InputError
+from .select import Grid, Selection
+
+FORMAT = "deformesh-state"
+VERSION = 1
+STAGES = ("selected", "deformed")
+
+_ARRAYS = {
+    # name: (dtype kind, ndim, trailing shape)
+    "contour_points": ("f", 2, (2,)),
+    "contour_lines": ("i", 1, ()),
+    "path_nodes": ("i", 1, ()),
+    "path_targets": ("f", 2, (2,)),
+    "path_source": ("i", 1, ()),
+    "diagonals": ("u", 1, ()),
+}
+_EPOCH = (1980, 1, 1, 0, 0, 0)
+
+
+@dataclass
+class State:
+    stage: str
+    contour: Contour
+    selection: Selection
+    points: np.ndarray | None = None  # deformed coordinates, stage "deformed"
+    meta: dict | None = None
+
+
+def dumps(state: State) -> bytes:
+    """Serialise a state to bytes (deterministic)."""
+    sel, g = state.selection, state.selection.grid
+    meta = {
+        "format": FORMAT,
+        "version": VERSION,
+        "stage": state.stage,
+        "written_by": f"deformesh {__version__}",
+        "source": state.contour.source,
+        "grid": {"x0": g.x0, "y0": g.y0, "hx": g.hx, "hy": g.hy, "nx": g.nx, "ny": g.ny},
+        "h": sel.h,
+        "h_rule": sel.h_rule,
+        "searched_further": sel.searched_further,
+        "refinements": sel.refinements,
+        "notes": list(sel.notes),
+    }
+    if state.meta:
+        meta.update({k: v for k, v in state.meta.items() if k not in meta})
+    arrays = {
+        "contour_points": state.contour.points,
+        "contour_lines": state.contour.lines,
+        "path_nodes": sel.path_nodes,
+        "path_targets": sel.path_targets,
+        "path_source": sel.path_source,
+        "diagonals": sel.diagonals,
+    }
+    if state.stage == "deformed":
+        arrays["points"] = state.points
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_STORED) as zf:
+        zf.writestr(zipfile.ZipInfo("meta.json", _EPOCH),
+                    json.dumps(meta, indent=1, sort_keys=True))
+        for name, arr in arrays.items():
+            b = io.BytesIO()
+            np.lib.format.write_array(b, np.ascontiguousarray(arr), allow_pickle=False)
+            zf.writestr(zipfile.ZipInfo(f"{name}.npy", _EPOCH), b.getvalue())
+    return buf.getvalue()
+
+
+def loads(data: bytes, name: str = "<state>", want: str | None = None) -> State:
+    """Parse and check a state file; ``want`` is the stage the caller needs."""
+    if not data:
+        raise InputError(f"{name}: empty input, expected a deformesh state file")
+    try:
+        zf = zipfile.ZipFile(io.BytesIO(data))
+        meta = json.loads(zf.read("meta.json"))
+    except (zipfile.BadZipFile, KeyError, ValueError, EOFError):
+        hint = " (truncated?)" if data[:2] == b"PK" else ""
+        raise InputError(f"{name}: not a deformesh state file{hint}") from None
+    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+        raise InputError(f"{name}: not a deformesh state file (no '{FORMAT}' header)")
+    if meta.get("version") != VERSION:
+        raise InputError(
+            f"{name}: state file version {meta.get('version')} (written by "
+            f"{meta.get('written_by', 'unknown')}); this deformesh {__version__} reads "
+            f"version {VERSION}: re-run 'deformesh select'"
+        )
+    stage = meta.get("stage")
+    if stage not in STAGES:
+        raise InputError(f"{name}: unknown stage {stage!r} in state file")
+    if want is not None and stage != want:
+        advice = {"selected": "deformesh select", "deformed": "deformesh deform"}[want]
+        raise InputError(f"{name}: state is at stage '{stage}', expected '{want}' (from {advice})")
+    spec = dict(_ARRAYS)
+    if stage == "deformed":
+        spec["points"] = ("f", 2, (2,))
+    arrays = {}
+    try:
+        for key, (kind, ndim, tail) in spec.items():
+            with zf.open(f"{key}.npy") as fh:
+                a = np.lib.format.read_array(io.BytesIO(fh.read()), allow_pickle=False)
+            if a.dtype.kind not in (kind, "i" if kind == "u" else kind) or a.ndim != ndim \
+                    or a.shape[1:] != tail:
+                raise ValueError(key)
+            arrays[key] = a
+        g = meta["grid"]
+        grid = Grid(float(g["x0"]), float(g["y0"]), float(g["hx"]), float(g["hy"]),
+                    int(g["nx"]), int(g["ny"]))
+    except (KeyError, ValueError, TypeError, zipfile.BadZipFile, EOFError, OSError) as exc:
+        raise InputError(f"{name}: damaged state file ({exc.__class__.__name__}: {exc})") from None
+    n = grid.n_nodes
+    p = len(arrays["path_nodes"])
+    ok = (
+        grid.nx >= 1 and grid.ny >= 1 and grid.hx > 0 and grid.hy > 0
+        and len(arrays["diagonals"]) == grid.nx * grid.ny
+        and len(arrays["path_targets"]) == p and len(arrays["path_source"]) == p
+        and p >= 3 and arrays["path_nodes"].min() >= 0 and arrays["path_nodes"].max() < n
+        and len(arrays["contour_lines"]) == len(arrays["contour_points"])
+        and (stage != "deformed" or arrays["points"].shape == (n, 2))
+    )
+    if not ok:
+        raise InputError(f"{name}: inconsistent state file (array sizes do not match the grid)")
+    contour = make_contour(arrays["contour_points"], arrays["contour_lines"],
+                           str(meta.get("source", name)))
+    src = arrays["path_source"]
+    if src.max() >= contour.n or np.count_nonzero(src >= 0) != contour.n:
+        raise InputError(f"{name}: inconsistent state file (path does not match the contour)")
+    sel = Selection(
+        grid=grid,
+        path_nodes=arrays["path_nodes"].astype(np.int64),
+        path_targets=arrays["path_targets"].astype(np.float64),
+        path_source=src.astype(np.int64),
+        diagonals=arrays["diagonals"].astype(np.uint8),
+        h=float(meta.get("h", max(grid.hx, grid.hy))),
+        h_rule=str(meta.get("h_rule", "given")),
+        searched_further=int(meta.get("searched_further", 0)),
+        refinements=int(meta.get("refinements", 0)),
+        notes=list(meta.get("notes", [])),
+    )
+    return State(stage, contour, sel, arrays.get("points"), meta)
