@@ -10,7 +10,6 @@ to the first is dropped; clockwise input is re-oriented (``ccw_order``).
 
 from __future__ import annotations
 
-import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -133,6 +132,7 @@ def parse_csv(text: str, source: str = "<contour>") -> Contour:
     comments, blank lines, and ``,`` ``;`` tab or whitespace delimiters (the
     first data line decides).  Raises :class:`InputError` naming the line.
     """
+    text = text.removeprefix("\ufeff")
     rows: list[tuple[int, list[str]]] = []
     delim: str | None = None
     decided = False
@@ -240,8 +240,10 @@ def make_contour(points, lines=None, source: str = "<contour>") -> Contour:
         )
     area = signed_area(p)
     span = float(np.ptp(p, axis=0).max())
-    if abs(area) <= 1e-13 * span * span:
-        raise InputError(f"{source}: the contour encloses no area (all points collinear?)")
+    d = p - p[0]
+    far = d[np.argmax(np.hypot(d[:, 0], d[:, 1]))]
+    if np.abs(d[:, 0] * far[1] - d[:, 1] * far[0]).max() <= 1e-13 * span * span:
+        raise InputError(f"{source}: the contour encloses no area (all points are collinear)")
     _check_simple(c)
     if area < 0:
         notes.append("re-oriented clockwise input to counter-clockwise")
@@ -282,6 +284,3 @@ def describe_spacing(c: Contour) -> tuple[float, float]:
     d = np.hypot(*(np.roll(c.points, -1, axis=0) - c.points).T)
     return float(d.min()), float(d.max())
 
-
-def is_close_to_integer(v: float) -> bool:
-    return math.isclose(v, round(v), abs_tol=1e-9)

@@ -208,13 +208,45 @@ def grid_triangles(grid: Grid, diagonals: np.ndarray) -> np.ndarray:
     return tri
 
 
+class _Visibility:
+    """Whether the straight segment from contour point ``k`` to a node crosses the contour.
+
+    A node seen from ``Q_k`` only across another part of the contour would put
+    ``P_k`` on the wrong side of it (a thin trailing edge: an upper-surface
+    point taking a node below the lower surface) and the path would cross
+    itself.  Edges adjacent to ``Q_k`` touch it there and are ignored.
+    """
+
+    def __init__(self, q: np.ndarray):
+        import shapely
+
+        self.q = q
+        self.m = len(q)
+        self.shapely = shapely
+        self.edges = shapely.linestrings(np.stack([q, np.roll(q, -1, axis=0)], axis=1))
+        self.tree = shapely.STRtree(self.edges)
+
+    def visible(self, k: np.ndarray, xy: np.ndarray) -> np.ndarray:
+        """For pairs (contour point k[r], node at xy[r]) -> True when nothing is crossed."""
+        shp = self.shapely
+        segs = shp.linestrings(np.stack([self.q[k], xy], axis=1))
+        si, ei = self.tree.query(segs, predicate="intersects")
+        kk = k[si]
+        adjacent = (ei == kk) | (ei == (kk - 1) % self.m)
+        blocked = np.zeros(len(k), dtype=bool)
+        blocked[si[~adjacent]] = True
+        return ~blocked
+
+
 def select_nodes(grid: Grid, q: np.ndarray) -> tuple[np.ndarray, int]:
     """Appendix A: for each point, the nearest free corner of the cell holding it.
 
-    Points are taken in the order given.  When all four corners are taken the
-    search widens ring by ring around the cell and takes the nearest free node
-    (the pseudo-code leaves such a point unassigned).  Returns grid node ids
-    and how many points needed the wider search.
+    Points are taken in the order given.  A corner counts only if the point
+    sees it without crossing the contour (see :class:`_Visibility`).  When no
+    corner is free the search widens ring by ring around the cell and takes
+    the nearest free visible node (the pseudo-code leaves such a point
+    unassigned).  Returns grid node ids and how many points needed the wider
+    search.
     """
     taken: set[int] = set()
     out = np.empty(len(q), dtype=np.int64)
@@ -225,24 +257,43 @@ def select_nodes(grid: Grid, q: np.ndarray) -> tuple[np.ndarray, int]:
     cj = np.clip(np.floor(s).astype(np.int64), 0, grid.ny - 1)
     di = np.array([0, 1, 0, 1])
     dj = np.array([0, 0, 1, 1])
+    II, JJ = ci[:, None] + di, cj[:, None] + dj
+    dist = np.hypot((II - t[:, None]) * grid.hx, (JJ - s[:, None]) * grid.hy)
+    vis = _Visibility(q)
+    corner_xy = np.column_stack([grid.x0 + II.ravel() * grid.hx, grid.y0 + JJ.ravel() * grid.hy])
+    seen = vis.visible(np.repeat(np.arange(len(q)), 4), corner_xy).reshape(-1, 4)
+    rank = np.argsort(dist, axis=1, kind="stable")
+    ids = JJ * (grid.nx + 1) + II
+    tangent = q - np.roll(q, 1, axis=0)
+    prev_ij = None
     for k in range(len(q)):
-        ii, jj = ci[k] + di, cj[k] + dj
-        d = np.hypot((ii - t[k]) * grid.hx, (jj - s[k]) * grid.hy)
         chosen = -1
-        for c in np.argsort(d, kind="stable"):
-            nid = int(jj[c] * (grid.nx + 1) + ii[c])
-            if nid not in taken:
+        for c in rank[k]:
+            nid = int(ids[k, c])
+            if seen[k, c] and nid not in taken and _forward(grid, prev_ij, II[k, c], JJ[k, c],
+                                                             tangent[k]):
                 chosen = nid
                 break
         if chosen < 0:
             further += 1
-            chosen = _search_further(grid, t[k], s[k], int(ci[k]), int(cj[k]), taken)
+            chosen = _search_further(grid, vis, k, t[k], s[k], int(ci[k]), int(cj[k]), taken,
+                                     prev_ij, tangent[k])
         taken.add(chosen)
         out[k] = chosen
+        prev_ij = (chosen % (grid.nx + 1), chosen // (grid.nx + 1))
     return out, further
 
 
-def _search_further(grid: Grid, t: float, s: float, i: int, j: int, taken: set[int]) -> int:
+def _forward(grid: Grid, prev_ij, i, j, tangent) -> bool:
+    """A node does not lie behind the previous selected node along the contour's direction."""
+    if prev_ij is None:
+        return True
+    return (i - prev_ij[0]) * grid.hx * tangent[0] + (j - prev_ij[1]) * grid.hy * tangent[1] >= 0
+
+
+def _search_further(grid: Grid, vis: _Visibility, k: int, t: float, s: float, i: int, j: int,
+                    taken: set[int], prev_ij=None, tangent=None) -> int:
+    """Nearest free, visible and forward node in widening rings; forward is dropped past r=3."""
     for r in range(1, max(grid.nx, grid.ny) + 1):
         ii = np.arange(max(0, i - r), min(grid.nx, i + 1 + r) + 1)
         jj = np.arange(max(0, j - r), min(grid.ny, j + 1 + r) + 1)
@@ -250,40 +301,100 @@ def _search_further(grid: Grid, t: float, s: float, i: int, j: int, taken: set[i
         I, J = I.ravel(), J.ravel()
         ids = J * (grid.nx + 1) + I
         free = np.array([int(n) not in taken for n in ids])
+        if r <= 3 and prev_ij is not None:
+            free &= _forward(grid, prev_ij, I, J, tangent)
         if free.any():
-            d = np.hypot((I - t) * grid.hx, (J - s) * grid.hy)
-            d[~free] = np.inf
-            return int(ids[np.lexsort((I, J, d))[0]])
+            xy = np.column_stack([grid.x0 + I[free] * grid.hx, grid.y0 + J[free] * grid.hy])
+            ok = vis.visible(np.full(len(xy), k), xy)
+            if ok.any():
+                d = np.hypot((I[free] - t) * grid.hx, (J[free] - s) * grid.hy)
+                d[~ok] = np.inf
+                return int(ids[free][np.lexsort((I[free], J[free], d))[0]])
     raise SelectionError("no free grid node left")  # pragma: no cover - grid exhausted
 
 
 def build_path(grid: Grid, sel: np.ndarray, q: np.ndarray, src: np.ndarray):
     """Close the selected nodes into a grid path of 8-neighbour steps.
 
-    Where two consecutive selected nodes are ``D >= 2`` cells apart, the
-    ``D - 1`` grid nodes of the digital line between them become extra
-    boundary nodes, carried to evenly spaced points of the contour edge.
-    Returns ``(nodes, targets, source)`` arrays over the path.
+    Where two consecutive selected nodes are ``D >= 2`` cells apart, the grid
+    nodes of a shortest 8-connected route between them become extra boundary
+    nodes, carried to evenly spaced points of the contour edge.  The route is
+    the digital straight line when its nodes are free, otherwise the route
+    closest to that line that avoids every node already on the path (see
+    :func:`_route`).  Returns ``(nodes, targets, source)`` arrays over the path.
     """
     i, j = grid.node_ij(sel)
     m = len(sel)
+    used = set(int(n) for n in sel)
     nodes, targets, source = [], [], []
     for k in range(m):
         k2 = (k + 1) % m
-        nodes.append(sel[k])
+        nodes.append(int(sel[k]))
         targets.append(q[k])
-        source.append(src[k])
-        di, dj = int(i[k2] - i[k]), int(j[k2] - j[k])
-        D = max(abs(di), abs(dj))
-        if D >= 2:
-            f = np.arange(1, D) / D
-            fi = i[k] + np.floor(di * f + 0.5).astype(np.int64)
-            fj = j[k] + np.floor(dj * f + 0.5).astype(np.int64)
-            nodes.extend(grid.node_id(fi, fj).tolist())
-            targets.extend(q[k] + f[:, None] * (q[k2] - q[k]))
-            source.extend([-1] * (D - 1))
+        source.append(int(src[k]))
+        a, b = (int(i[k]), int(j[k])), (int(i[k2]), int(j[k2]))
+        D = max(abs(b[0] - a[0]), abs(b[1] - a[1]))
+        if D < 2:
+            continue
+        f = np.arange(1, D) / D
+        fi = a[0] + np.floor((b[0] - a[0]) * f + 0.5).astype(np.int64)
+        fj = a[1] + np.floor((b[1] - a[1]) * f + 0.5).astype(np.int64)
+        fill = grid.node_id(fi, fj).tolist()
+        if any(n in used for n in fill):
+            fill = _route(grid, a, b, used) or fill  # keep the collision for the error
+        f = np.arange(1, len(fill) + 1) / (len(fill) + 1)
+        nodes.extend(fill)
+        used.update(fill)
+        targets.extend(q[k] + f[:, None] * (q[k2] - q[k]))
+        source.extend([-1] * len(fill))
     return (np.asarray(nodes, dtype=np.int64), np.asarray(targets, dtype=np.float64),
             np.asarray(source, dtype=np.int64))
+
+
+def _route(grid: Grid, a, b, used: set[int], pad: int = 2) -> list[int] | None:
+    """Interior nodes of the shortest 8-connected route a -> b avoiding ``used``.
+
+    Dijkstra in the window around a and b grown by ``pad`` cells; each step
+    costs 1 plus a small penalty for distance from the straight line, so among
+    routes of equal length the one nearest the line wins.  None if no route.
+    """
+    import heapq
+
+    i0, i1 = max(0, min(a[0], b[0]) - pad), min(grid.nx, max(a[0], b[0]) + pad)
+    j0, j1 = max(0, min(a[1], b[1]) - pad), min(grid.ny, max(a[1], b[1]) + pad)
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    norm = float(np.hypot(dx, dy))
+    w = grid.nx + 1
+
+    def off_line(i, j):
+        return abs((i - a[0]) * dy - (j - a[1]) * dx) / norm
+
+    best = {a: 0.0}
+    came: dict = {}
+    heap = [(0.0, a)]
+    while heap:
+        cost, u = heapq.heappop(heap)
+        if u == b:
+            out = []
+            while came[u] != a:
+                u = came[u]
+                out.append(u[1] * w + u[0])
+            return out[::-1]
+        if cost > best[u]:
+            continue
+        for di in (-1, 0, 1):
+            for dj in (-1, 0, 1):
+                v = (u[0] + di, u[1] + dj)
+                if v == u or not (i0 <= v[0] <= i1 and j0 <= v[1] <= j1):
+                    continue
+                if v != b and v[1] * w + v[0] in used:
+                    continue
+                c = cost + 1.0 + 0.01 * off_line(*v)
+                if c < best.get(v, np.inf):
+                    best[v] = c
+                    came[v] = u
+                    heapq.heappush(heap, (c, v))
+    return None
 
 
 def force_diagonals(grid: Grid, nodes: np.ndarray):
@@ -424,6 +535,27 @@ def _touch_msg(contour: Contour, grid: Grid, source: np.ndarray, t: int, what: s
     )
 
 
+#: Grid offsets tried, in cells, when a path touches itself (before halving h).
+SHIFTS = ((0.0, 0.0), (0.5, 0.5), (0.5, 0.0), (0.0, 0.5), (0.25, 0.75), (0.75, 0.25))
+
+
+def _shifted(grid: Grid, shift: tuple[float, float], box_given: bool) -> Grid:
+    """The same grid moved by a fraction of a cell (one more cell so it still covers).
+
+    With a box the user gave, the box is kept and the cell count grows by one
+    instead, which moves the nodes relative to the contour just as well.
+    """
+    if shift == (0.0, 0.0):
+        return grid
+    sx, sy = shift
+    if box_given:
+        x1, y1 = grid.x0 + grid.nx * grid.hx, grid.y0 + grid.ny * grid.hy
+        nx, ny = grid.nx + (sx > 0), grid.ny + (sy > 0)
+        return Grid(grid.x0, grid.y0, (x1 - grid.x0) / nx, (y1 - grid.y0) / ny, nx, ny)
+    return Grid(grid.x0 - sx * grid.hx, grid.y0 - sy * grid.hy, grid.hx, grid.hy,
+                grid.nx + (sx > 0), grid.ny + (sy > 0))
+
+
 def select(
     contour: Contour,
     h: float | None = None,
@@ -434,37 +566,49 @@ def select(
 ) -> Selection:
     """Stage 1 in full: grid, selection, path, forced diagonals.
 
-    With the default ``h`` a path that touches itself is retried on a grid of
-    half the step (at most :data:`MAX_REFINEMENTS` times, within
-    ``max_nodes``); with a given ``h`` it is an error naming the place.
+    When the grid path touches itself, the grid is first shifted by a
+    fraction of a cell (:data:`SHIFTS`: alignment decides which contour
+    points compete for a node), then, for the default ``h`` only, the step is
+    halved (at most :data:`MAX_REFINEMENTS` times, within ``max_nodes``).  If
+    nothing works the error names the place.
     """
     grid, info = choose_grid(contour, h, box, margin, max_nodes)
     h_used = info["h"]
     refinements = 0
     notes: list[str] = []
+    first_error: SelectionError | None = None
     while True:
-        try:
-            nodes, targets, source, diagonals, further = fit_path(contour, grid, strict)
-            break
-        except SelectionError as exc:
-            if h is not None or strict or refinements >= MAX_REFINEMENTS:
-                raise
+        for shift in SHIFTS:
+            g = _shifted(grid, shift, box is not None)
+            if g.n_nodes > max_nodes:
+                continue
             try:
-                grid, info = choose_grid(contour, h_used / 2, box, margin, max_nodes)
-            except LimitError:
-                raise exc from None
-            notes.append(f"halved h to {h_used / 2:.4g}: {exc}")
-            h_used /= 2
-            refinements += 1
-    return Selection(
-        grid=grid,
-        path_nodes=nodes,
-        path_targets=targets,
-        path_source=source,
-        diagonals=diagonals,
-        h=h_used,
-        h_rule=info["h_rule"],
-        searched_further=further,
-        refinements=refinements,
-        notes=notes,
-    )
+                nodes, targets, source, diagonals, further = fit_path(contour, g, strict)
+            except SelectionError as exc:
+                first_error = first_error or exc
+                if strict:
+                    raise
+                continue
+            if shift != (0.0, 0.0):
+                notes.append(f"shifted the grid by {shift} cells: {first_error}")
+            return Selection(
+                grid=g,
+                path_nodes=nodes,
+                path_targets=targets,
+                path_source=source,
+                diagonals=diagonals,
+                h=h_used,
+                h_rule=info["h_rule"],
+                searched_further=further,
+                refinements=refinements,
+                notes=notes,
+            )
+        if h is not None or refinements >= MAX_REFINEMENTS:
+            raise first_error
+        try:
+            grid, info = choose_grid(contour, h_used / 2, box, margin, max_nodes)
+        except LimitError:
+            raise first_error from None
+        notes.append(f"halved h to {h_used / 2:.4g}: {first_error}")
+        h_used /= 2
+        refinements += 1

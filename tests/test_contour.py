@@ -1,0 +1,101 @@
+import numpy as np
+import pytest
+
+from deformesh_cli.contour import load_contour, make_contour, parse_csv, signed_area
+from deformesh_cli.errors import InputError
+
+SQUARE = [(0, 0), (1, 0), (1, 1), (0, 1)]
+
+
+def csv(rows, header="x,y"):
+    return "\n".join([header] + [f"{x},{y}" for x, y in rows]) + "\n"
+
+
+def test_header_comments_bom_crlf_and_closing_point():
+    text = "\ufeff# a square\r\nx,y\r\n" + "".join(f"{x},{y}\r\n" for x, y in SQUARE + [(0, 0)])
+    c = parse_csv(text, "sq.csv")
+    assert c.n == 4
+    assert np.array_equal(c.points, np.array(SQUARE, float))
+    assert list(c.lines) == [3, 4, 5, 6]
+    assert not c.clockwise
+
+
+@pytest.mark.parametrize("sep", [",", ";", "\t", "  "])
+def test_delimiters_without_header(sep):
+    c = parse_csv("\n".join(f"{x}{sep}{y}" for x, y in SQUARE), "s")
+    assert c.n == 4 and c.area == 1.0
+
+
+def test_clockwise_is_reoriented_but_input_order_kept():
+    cw = SQUARE[::-1]
+    c = parse_csv(csv(cw), "cw.csv")
+    assert c.clockwise
+    assert np.array_equal(c.points, np.array(cw, float))  # node k stays input point k
+    assert signed_area(c.ccw_points) > 0
+    assert c.ccw_order[0] == 0
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("", "empty"),
+        ("x,y\n", "no points after the header"),
+        ("a,b\n0,0\n1,0\n0,1\n", "must name columns x and y"),
+        ("x,y\n0,0\n1,zero\n0,1\n", "line 3: y value 'zero' is not a number"),
+        ("x,y\n0,0\n1,nan\n0,1\n", "line 3: point 1 has a non-finite coordinate"),
+        ("x,y\n0,0\n1,inf\n0,1\n", "non-finite"),
+        ("x,y\n0,0\n1,1\n", "fewer than 3 distinct points"),
+        ("x,y\n0,0\n1,0\n1,0\n0,1\n", "point 2 (line 4) at (1, 0) repeats the previous point"),
+        ("x,y\n0,0\n1,0\n2,0\n", "encloses no area"),
+        ("x,y\n0,0\n1,0\n0,1\n", None),
+        ("x,y\n0,0\n1\n0,1\n", "line 3: expected 2 columns, got 1"),
+    ],
+)
+def test_bad_csv_messages(text, message):
+    if message is None:
+        assert parse_csv(text, "f.csv").n == 3
+        return
+    with pytest.raises(InputError) as e:
+        parse_csv(text, "f.csv")
+    assert str(e.value).startswith("f.csv")
+    assert message in str(e.value)
+
+
+def test_self_intersection_names_edges_and_place():
+    bowtie = [(0, 0), (2, 2), (2, 0), (0, 2)]
+    with pytest.raises(InputError) as e:
+        parse_csv(csv(bowtie), "bow.csv")
+    msg = str(e.value)
+    assert "intersects itself near (1, 1)" in msg
+    assert "point 0 (line 2)" in msg and "point 2 (line 4)" in msg
+
+
+def test_touching_contour_is_refused():
+    # a figure eight through (1, 1) twice
+    pts = [(0, 0), (1, 1), (2, 0), (2, 2), (1, 1), (0, 2)]
+    with pytest.raises(InputError, match="intersects itself"):
+        make_contour(pts, source="eight")
+
+
+def test_load_contour_file_errors(tmp_path):
+    with pytest.raises(InputError, match="no such file"):
+        load_contour(tmp_path / "missing.csv")
+    with pytest.raises(InputError, match="is a directory"):
+        load_contour(tmp_path)
+    b = tmp_path / "bin.csv"
+    b.write_bytes(b"\x00\x01\x02garbage")
+    with pytest.raises(InputError, match="binary file"):
+        load_contour(b)
+    s = tmp_path / "c.svg"
+    s.write_text("<svg/>")
+    with pytest.raises(InputError, match="SVG input is not supported yet"):
+        load_contour(s)
+
+
+def test_min_spacing_is_over_all_pairs():
+    # points 1 and 4 are close although not consecutive
+    pts = [(0, 0), (1, 0), (1, 1), (0.55, 1), (0.5, 0.2), (0.45, 1), (0, 1)]
+    c = make_contour(pts)
+    d, a, b = c.min_spacing()
+    assert d == pytest.approx(0.1)
+    assert {a, b} == {3, 5}

@@ -1,0 +1,143 @@
+import math
+
+import numpy as np
+import pytest
+
+from deformesh_cli import state
+from deformesh_cli.contour import load_contour, make_contour
+from deformesh_cli.errors import LimitError, OptionError, SelectionError
+from deformesh_cli.select import (
+    DIAG_BACKSLASH,
+    DIAG_SLASH,
+    Grid,
+    build_path,
+    choose_grid,
+    force_diagonals,
+    grid_triangles,
+    select,
+    select_nodes,
+)
+
+from .conftest import SAMPLES, shared
+
+PAPER_P = [(1, 4), (1, 3), (2, 2), (3, 2), (4, 2), (4, 3), (5, 3), (6, 4), (7, 4), (8, 5),
+           (7, 6), (6, 7), (5, 8), (4, 8), (4, 9), (3, 9), (2, 10), (1, 11)]
+
+
+def test_paper_example_selects_exactly_p1_to_p18(run, tmp_path):
+    out = tmp_path / "pe.state"
+    r = run("select", SAMPLES / "paper_example.csv", "--h", 1, "--box", "1,1,9,12", "-o", out)
+    assert r.exit_code == 0, r.stderr
+    st = state.loads(out.read_bytes(), str(out), want="selected")
+    g = st.selection.grid
+    assert (g.x0, g.y0, g.hx, g.hy, g.nx, g.ny) == (1, 1, 1, 1, 8, 11)
+    src = st.selection.path_source
+    xy = g.coords(st.selection.path_nodes)
+    by_point = {int(k): tuple(p) for k, p in zip(src, xy) if k >= 0}
+    assert [by_point[k] for k in range(18)] == [tuple(map(float, p)) for p in PAPER_P]
+    # and the six vertical-boundary nodes select themselves
+    assert [by_point[k] for k in range(18, 24)] == [(1.0, y) for y in range(10, 4, -1)]
+    assert st.selection.extra_nodes == 0
+
+
+def test_default_h_is_appendix_a_rule():
+    c = load_contour(shared("circle_100.csv"))
+    g, info = choose_grid(c)
+    d_c = c.min_spacing()[0]
+    assert info["h"] == pytest.approx(0.9 * d_c / math.sqrt(2))
+    assert max(g.hx, g.hy) <= info["h"] * (1 + 1e-12)  # cells never larger than h
+    lo = c.points.min(axis=0)
+    assert g.x0 == pytest.approx(lo[0] - 3 * info["h"])  # default margin: 3 cells
+
+
+def test_box_must_contain_contour_and_be_ordered():
+    c = make_contour([(0, 0), (2, 0), (2, 2), (0, 2)])
+    with pytest.raises(OptionError, match=r"point 1 .* lies outside --box"):
+        choose_grid(c, 0.5, box=(0, 0, 1.5, 3))
+    with pytest.raises(OptionError, match="XMIN < XMAX"):
+        choose_grid(c, 0.5, box=(3, 0, 0, 3))
+
+
+def test_grid_limit_refused_with_estimate_and_hint():
+    c = load_contour(shared("naca0012_1000.csv"))
+    with pytest.raises(LimitError) as e:
+        choose_grid(c)
+    msg = str(e.value)
+    assert "3.6e+10 nodes" in msg and "--max-nodes" in msg and "try --h" in msg
+
+
+def test_nearest_free_corner_and_wider_search():
+    g = Grid(0, 0, 1, 1, 4, 4)
+    # four points in one cell take its four corners, a fifth searches further
+    q = np.array([(1.1, 1.1), (1.9, 1.1), (1.9, 1.9), (1.1, 1.9), (1.5, 1.5)])
+    nodes, further = select_nodes(g, q)
+    assert len(set(nodes.tolist())) == 5
+    assert [tuple(g.coords([n])[0]) for n in nodes[:4]] == [(1, 1), (2, 1), (2, 2), (1, 2)]
+    assert further == 1
+
+
+def test_gap_fill_puts_extra_nodes_on_the_contour_edge():
+    g = Grid(0, 0, 1, 1, 10, 10)
+    q = np.array([(1.0, 1.0), (5.0, 2.0), (5.0, 5.0)])
+    sel = g.node_id([1, 5, 5], [1, 2, 5])
+    nodes, targets, source = build_path(g, sel, q, np.arange(3))
+    ij = np.column_stack(g.node_ij(nodes))
+    steps = np.abs(np.diff(np.vstack([ij, ij[:1]]), axis=0)).max(axis=1)
+    assert (steps[:-1] == 1).all()  # 8-neighbour steps (the closing edge is left open here)
+    extra = source < 0
+    assert extra.sum() == 3 + 2 + (4 - 1)
+    # extra targets are evenly spaced on their contour edge
+    first = targets[1:4]
+    assert np.allclose(first, [(2, 1.25), (3, 1.5), (4, 1.75)])
+
+
+def test_lturn_splits_corner_cell_through_corner_node():
+    g = Grid(0, 0, 1, 1, 3, 3)
+    # a path round one cell: its four L-turns ask cell (1,1) for both splits
+    ring = [(1, 1), (2, 1), (2, 2), (1, 2)]
+    diag, bad = force_diagonals(g, g.node_id(*np.array(ring).T))
+    assert diag is None and bad is not None
+    cell = lambda i, j: j * g.nx + i  # noqa: E731
+    path = [(0, 0), (1, 0), (2, 0), (3, 0), (3, 1), (3, 2), (2, 3), (1, 3), (0, 2), (0, 1)]
+    nodes = g.node_id(*np.array(path).T)
+    diag, bad = force_diagonals(g, nodes)
+    assert bad is None
+    assert diag[cell(2, 0)] == DIAG_BACKSLASH  # L-turn at (3,0): split through (3,0)
+    assert diag[cell(2, 2)] == DIAG_BACKSLASH  # diagonal step (3,2)->(2,3)
+    assert diag[cell(0, 1)] == DIAG_SLASH  # diagonal step (1,3)->(0,2) is '/'
+    tri = grid_triangles(g, diag)
+    pts = g.coords()
+    a = 0.5 * np.cross(pts[tri[:, 1]] - pts[tri[:, 0]], pts[tri[:, 2]] - pts[tri[:, 0]])
+    assert (a > 0).all()
+    # no triangle has three consecutive path nodes at an L-turn
+    on = set(nodes.tolist())
+    for t in tri:
+        assert not set(t.tolist()) <= on or not {int(nodes[3]), int(nodes[4])} <= set(t)
+
+
+def test_crossing_diagonal_steps_are_a_conflict():
+    g = Grid(0, 0, 1, 1, 3, 3)
+    path = [(0, 0), (1, 1), (1, 0), (0, 1)]  # steps (0,0)->(1,1) and (1,0)->(0,1) cross
+    nodes = g.node_id(*np.array(path).T)
+    diag, bad = force_diagonals(g, nodes)
+    assert diag is None and bad is not None
+
+
+def test_strict_refuses_extra_nodes():
+    c = load_contour(shared("circle_100.csv"))
+    with pytest.raises(SelectionError, match="--strict"):
+        select(c, strict=True)
+    # with h near the spacing consecutive nodes are neighbours and strict passes
+    spacing = float(np.hypot(*(c.points[1] - c.points[0])))
+    sel = select(c, h=spacing, strict=True)
+    assert sel.extra_nodes == 0
+
+
+def test_touching_path_with_given_h_fails_clearly():
+    # a slot narrower than h: the two sides compete for the same nodes
+    pts = [(0, 0), (3, 0), (3, 1), (1.6, 1), (1.6, 0.1), (1.5, 0.1), (1.5, 1), (0, 1)]
+    c = make_contour(pts, source="slot.csv")
+    with pytest.raises(SelectionError) as e:
+        select(c, h=0.5)
+    assert str(e.value).startswith("slot.csv: the grid path")
+    assert "give a smaller --h" in str(e.value)
