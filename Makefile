@@ -2,7 +2,7 @@
 PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
-SAMPLE ?= samples/bean.csv
+SAMPLE ?= samples/peanut.csv
 OUT    ?= out
 
 .PHONY: demo test bench install clean

@@ -5,6 +5,7 @@ import pytest
 
 from deformesh_cli import state
 from deformesh_cli.contour import load_contour, make_contour
+from deformesh_cli.quality import signed_areas
 from deformesh_cli.errors import LimitError, OptionError, SelectionError
 from deformesh_cli.select import (
     DIAG_BACKSLASH,
@@ -106,9 +107,7 @@ def test_lturn_splits_corner_cell_through_corner_node():
     assert diag[cell(2, 2)] == DIAG_BACKSLASH  # diagonal step (3,2)->(2,3)
     assert diag[cell(0, 1)] == DIAG_SLASH  # diagonal step (1,3)->(0,2) is '/'
     tri = grid_triangles(g, diag)
-    pts = g.coords()
-    a = 0.5 * np.cross(pts[tri[:, 1]] - pts[tri[:, 0]], pts[tri[:, 2]] - pts[tri[:, 0]])
-    assert (a > 0).all()
+    assert (signed_areas(g.coords(), tri) > 0).all()
     # no triangle has three consecutive path nodes at an L-turn
     on = set(nodes.tolist())
     for t in tri:
