@@ -30,3 +30,6 @@ test: $(VENV)/.installed-test
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache .hypothesis
+
+bench: $(VENV)/.installed
+	$(BIN)/python benchmarks/run_issue2.py --repeat 3

@@ -1,0 +1,93 @@
+"""Time `deformesh all` as a whole process on the issue-2 contours; write RESULTS.md.
+
+Usage: python benchmarks/run_issue2.py [--repeat N]   (make bench)
+Whole processes, median of N runs, peak RSS from the child's rusage.
+"""
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+SHARED = ROOT.parent / "shared" / "contours"
+EXE = str(Path(sys.executable).parent / "deformesh")
+
+CASES = [
+    ("samples/circle.csv", []), ("samples/naca0012.csv", []), ("samples/peanut.csv", []),
+    ("samples/half_disk.csv", ["--box=-1.25,0,1.25,1.25"]),
+    ("samples/paper_example.csv", ["--h", "1", "--box", "1,1,9,12"]),
+    ("circle_100.csv", []), ("circle_1000.csv", []), ("bean_100.csv", []),
+    ("star_100.csv", []), ("channel_100.csv", []),
+    ("naca0012_100.csv", ["--h", "0.01"]),
+    ("naca0012_1000.csv", []),  # refused: measures the time to refuse
+]
+
+
+def run_once(path, opts, out):
+    """One whole process; its own peak RSS from wait4."""
+    with tempfile.TemporaryFile("w+") as fo, tempfile.TemporaryFile("w+") as fe:
+        t = time.perf_counter()
+        p = subprocess.Popen([EXE, "all", str(path), "-o", out, "--json", "-q", *opts],
+                             stdout=fo, stderr=fe)
+        _, status, usage = os.wait4(p.pid, 0)
+        dt = time.perf_counter() - t
+        code = os.waitstatus_to_exitcode(status)
+        fo.seek(0)
+        fe.seek(0)
+        rec = json.loads(fo.read()) if code == 0 else {"error": fe.read().strip()}
+    return dt, usage.ru_maxrss / 1024, code, rec
+
+
+def machine() -> str:
+    cpu = next((ln.split(":", 1)[1].strip() for ln in open("/proc/cpuinfo")
+                if ln.startswith("model name")), platform.processor())
+    mem = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30
+    return f"{platform.node()}: {cpu}, {os.cpu_count()} cores, {mem:.0f} GiB, Python {platform.python_version()}"
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args()
+    rows = []
+    with tempfile.TemporaryDirectory() as d:
+        for name, opts in CASES:
+            path = ROOT / name if name.startswith("samples/") else SHARED / name
+            times, rec, code, rss = [], {}, 0, 0.0
+            for _ in range(args.repeat):
+                dt, rss_i, code, rec = run_once(path, opts, os.path.join(d, "m.vtk"))
+                times.append(dt)
+                rss = max(rss, rss_i)
+            rows.append((name, " ".join(opts), statistics.median(times), rss, code, rec))
+            print(f"{name}: {statistics.median(times):.2f} s exit {code}", file=sys.stderr)
+    lines = [
+        "# Benchmarks", "",
+        f"Machine: {machine()}.  Date: {time.strftime('%Y-%m-%d')}.", "",
+        "## Issue 2: `deformesh all` per contour (whole process, median of "
+        f"{args.repeat}, written by `make bench`)", "",
+        "Peak RSS of each process from wait4. A refusal's time is the whole process "
+        "(Python start-up and imports included).", "",
+        "| contour | options | seconds | peak RSS MB | exit | grid nodes | triangles | min angle | extra boundary nodes |",
+        "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    for name, opts, t, rss, code, rec in rows:
+        if code == 0:
+            lines.append(f"| {name} | {opts} | {t:.2f} | {rss:.0f} | 0 | {rec['grid_nodes']} | "
+                         f"{rec['triangles']} | {rec['min_angle']:.1f} | {rec['extra_boundary_nodes']} |")
+        else:
+            msg = rec["error"].split(": error: ", 1)[-1][:90]
+            lines.append(f"| {name} | {opts} | {t:.2f} | {rss:.0f} | {code} | refused: {msg}... | | | |")
+    out = ROOT / "benchmarks" / "RESULTS.md"
+    out.write_text("\n".join(lines) + "\n")
+    print(f"wrote {out}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
