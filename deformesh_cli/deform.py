@@ -24,6 +24,7 @@ import scipy.sparse.linalg as spla
 
 from .divcurl import Assembler
 from .errors import FoldError
+from .quality import signed_areas
 
 #: Default number of pseudo-time steps (the paper's example uses 10).
 DEFAULT_STEPS = 10
@@ -37,14 +38,6 @@ class DeformStats:
     solver: str = ""
     iterations: list[int] = field(default_factory=list)
     min_area_ratio: list[float] = field(default_factory=list)
-
-
-def signed_areas(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    p0, p1, p2 = points[tri[:, 0]], points[tri[:, 1]], points[tri[:, 2]]
-    return 0.5 * (
-        (p1[:, 0] - p0[:, 0]) * (p2[:, 1] - p0[:, 1])
-        - (p2[:, 0] - p0[:, 0]) * (p1[:, 1] - p0[:, 1])
-    )
 
 
 #: Solvers offered by ``--solver``; "auto" picks "direct" below this many free nodes.
