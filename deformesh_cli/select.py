@@ -229,7 +229,10 @@ class _Visibility:
     def visible(self, k: np.ndarray, xy: np.ndarray) -> np.ndarray:
         """For pairs (contour point k[r], node at xy[r]) -> True when nothing is crossed."""
         shp = self.shapely
-        segs = shp.linestrings(np.stack([self.q[k], xy], axis=1))
+        # stop just short of the node: a node lying on the contour (at another
+        # point, say) touches it there without being across it
+        end = self.q[k] + (xy - self.q[k]) * (1.0 - 1e-9)
+        segs = shp.linestrings(np.stack([self.q[k], end], axis=1))
         si, ei = self.tree.query(segs, predicate="intersects")
         kk = k[si]
         adjacent = (ei == kk) | (ei == (kk - 1) % self.m)
