@@ -277,10 +277,3 @@ def _check_simple(c: Contour) -> None:
         f"{c.source}: the contour intersects itself near ({x:.6g}, {y:.6g}): edge from "
         f"{c.where(a)} {verb} edge from {c.where(b)}"
     )
-
-
-def describe_spacing(c: Contour) -> tuple[float, float]:
-    """Smallest and largest distance between consecutive points."""
-    d = np.hypot(*(np.roll(c.points, -1, axis=0) - c.points).T)
-    return float(d.min()), float(d.max())
-

@@ -37,7 +37,6 @@ class DeformStats:
     halvings: int = 0
     solver: str = ""
     iterations: list[int] = field(default_factory=list)
-    min_area_ratio: list[float] = field(default_factory=list)
 
 
 #: Solvers offered by ``--solver``; "auto" picks "direct" below this many free nodes.
@@ -143,8 +142,6 @@ def deform(
     dirichlet[fixed_nodes] = True
     dirichlet[path_nodes] = True
     asm = Assembler(tri, n, dirichlet)
-    area0 = signed_areas(pos, tri)
-    ref = float(np.median(area0))
     stats = DeformStats(steps=steps, solver=solver)
     remaining = float(steps)  # pseudo-time left, in units of 1/steps
     ud = np.zeros((n, 2))
@@ -179,7 +176,6 @@ def deform(
         if asm.n_free:
             prev = disp[asm.free] / frac * (1.0 - theta * frac)
         remaining = 0.0 if (theta == 1.0 and frac == 1.0) else remaining - theta * dt
-        stats.min_area_ratio.append(float(area.min() / ref))
         stats.iterations = list(lin.iterations)
         if callback is not None:
             callback(1.0 - remaining / steps, stats)

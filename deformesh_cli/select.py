@@ -20,8 +20,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .contour import Contour
+from .contour import Contour, signed_area
 from .errors import LimitError, OptionError, SelectionError
+from .quality import signed_areas
 
 #: Default cap on background grid nodes.  A full solve costs about 1.2 kB per
 #: node at peak (sparse LU of a 2D Laplacian), so 8e6 nodes stay well inside
@@ -483,7 +484,7 @@ def fit_path(contour: Contour, grid: Grid, strict: bool = False):
     if diagonals is None:
         raise SelectionError(_touch_msg(contour, grid, source, bad, "touches itself"))
     xy = grid.coords(nodes)
-    if _ring_area(xy) <= 0:
+    if signed_area(xy) <= 0:
         raise SelectionError(
             f"{contour.source}: the grid path runs clockwise or encloses nothing "
             f"(h = {max(grid.hx, grid.hy):.4g} is too coarse for this contour); give a smaller --h"
@@ -492,7 +493,7 @@ def fit_path(contour: Contour, grid: Grid, strict: bool = False):
     if len(tri):
         pos = np.full((grid.n_nodes, 2), np.nan)
         pos[nodes] = targets
-        a = _tri_area(pos[tri])
+        a = signed_areas(pos, tri)
         bad_t = np.flatnonzero(~(a > 0))
         if len(bad_t):
             t = int(np.flatnonzero(nodes == tri[bad_t[0], 0])[0])
@@ -501,18 +502,6 @@ def fit_path(contour: Contour, grid: Grid, strict: bool = False):
                 "would need a triangle whose three corners are contour points in the "
                 "wrong order (it would fold)"))
     return nodes, targets, source, diagonals, further
-
-
-def _ring_area(xy: np.ndarray) -> float:
-    x, y = xy[:, 0] - xy[0, 0], xy[:, 1] - xy[0, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
-
-
-def _tri_area(p: np.ndarray) -> np.ndarray:
-    """Signed areas of triangles given as (t, 3, 2) coordinates."""
-    a, b, c = p[:, 0], p[:, 1], p[:, 2]
-    return 0.5 * ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1])
-                  - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
 
 
 def _path_triangles(grid: Grid, diagonals: np.ndarray, nodes: np.ndarray) -> np.ndarray:

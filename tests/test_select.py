@@ -108,10 +108,12 @@ def test_lturn_splits_corner_cell_through_corner_node():
     assert diag[cell(0, 1)] == DIAG_SLASH  # diagonal step (1,3)->(0,2) is '/'
     tri = grid_triangles(g, diag)
     assert (signed_areas(g.coords(), tri) > 0).all()
-    # no triangle has three consecutive path nodes at an L-turn
-    on = set(nodes.tolist())
-    for t in tri:
-        assert not set(t.tolist()) <= on or not {int(nodes[3]), int(nodes[4])} <= set(t)
+    # at the L-turn (2,0)->(3,0)->(3,1) no triangle has those three path nodes
+    lturn = set(g.node_id([2, 3, 3], [0, 0, 1]).tolist())
+    assert not any(lturn <= set(t.tolist()) for t in tri)
+    # with the default '/' split instead, that triangle would exist
+    plain = grid_triangles(g, np.zeros(g.nx * g.ny, np.uint8))
+    assert any(lturn <= set(t.tolist()) for t in plain)
 
 
 def test_crossing_diagonal_steps_are_a_conflict():
