@@ -195,8 +195,11 @@ def _finish(contour, mesh, report, output, fmt, as_json, quiet, t0):
     io.write_mesh(mesh, output, fmt)
     report = {"input": contour.source, "output": output, "format": fmt, **report,
               "seconds": round(time.perf_counter() - t0, 3)}
+    report["notes"] = list(contour.notes) + list(report.get("notes", []))
     if as_json:
         click.echo(json.dumps(report, sort_keys=False))
+    for note in report["notes"]:
+        _say(quiet, f"note: {contour.source}: {note}")
     _say(quiet, summary_line(report))
 
 

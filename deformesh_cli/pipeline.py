@@ -97,4 +97,6 @@ def selection_report(sel: Selection) -> dict:
         "box": [float(v) for v in g.box],
         "searched_further": int(sel.searched_further),
         "refinements": int(sel.refinements),
+        "path_rule": sel.path_rule,
+        "notes": list(sel.notes),
     }

@@ -112,6 +112,7 @@ def choose_grid(
     if not (h > 0 and math.isfinite(h)):
         raise OptionError(f"--h must be a positive number, got {h}")
     lo, hi = p.min(axis=0), p.max(axis=0)
+    default_margin = box is None and margin is None
     if box is None:
         m = DEFAULT_MARGIN_CELLS * h if margin is None else float(margin)
         if not (m >= 0 and math.isfinite(m)):
@@ -131,8 +132,10 @@ def choose_grid(
     est = estimate_nodes(width, height, h)
     info["estimated_nodes"] = est
     if est > max_nodes:
+        margin_cells = DEFAULT_MARGIN_CELLS if default_margin else 0
+        size = (hi - lo) if default_margin else (width, height)
         raise LimitError(_too_many_nodes(contour, est, h, info["h_rule"], d_c, ka, kb,
-                                         width, height, max_nodes))
+                                         tuple(float(v) for v in size), margin_cells, max_nodes))
     nx = max(1, math.ceil(width / h - 1e-9))
     ny = max(1, math.ceil(height / h - 1e-9))
     grid = Grid(box[0], box[1], width / nx, height / ny, nx, ny)
@@ -144,22 +147,43 @@ def _fmt_box(box) -> str:
     return ",".join(f"{v:g}" for v in box)
 
 
-def _too_many_nodes(contour, est, h, rule, d_c, ka, kb, width, height, max_nodes) -> str:
+#: Consecutive spacings varying less than this count as even in the refusal's hint.
+EVEN_SPACING_RATIO = 4.0
+
+
+def _too_many_nodes(contour, est, h, rule, d_c, ka, kb, box_size, margin_cells,
+                    max_nodes) -> str:
+    """The refusal message, with a hint that only names an ``--h`` known to be workable.
+
+    Every contour point needs a grid node of its own, so ``h`` cannot be much
+    larger than the spacing where points crowd: the largest safe guess is the
+    smallest spacing between consecutive points (for evenly spaced contours
+    that is the spacing itself, which gives no extra nodes at all, DESIGN.md
+    section 3).  ``box_size`` is the box without the margin when
+    ``margin_cells`` is set (the default margin of that many cells), else the
+    fixed box.
+    """
     seg = np.hypot(*(np.roll(contour.points, -1, axis=0) - contour.points).T)
-    typical = float(np.median(seg))
     ratio = float(seg.max() / seg.min())
-    fit = math.sqrt(width * height / max_nodes) * 1.05
-    suggest = max(typical, fit)
     why = (
         f"h = {h:.3g} from the smallest spacing {d_c:.3g} (points {ka} and {kb})"
         if rule == "appendix-a"
         else f"--h {h:.3g}"
     )
+    head = (f"{contour.source}: the background grid would need {est:.2g} nodes ({why}), "
+            f"over --max-nodes {max_nodes}")
+    h_try = float(seg.min())
+    grow = 2 * margin_cells * h_try
+    est_try = estimate_nodes(box_size[0] + grow, box_size[1] + grow, h_try)
+    if h_try > h and est_try <= max_nodes:
+        return (f"{head}: try --h {h_try:.3g} (the smallest spacing between consecutive "
+                "points; with a larger h crowded points get no node of their own)")
+    fix = ("resample the contour more evenly (this version lays one uniform grid)"
+           if ratio > EVEN_SPACING_RATIO else "use fewer contour points")
     return (
-        f"{contour.source}: the background grid would need {est:.2g} nodes ({why}), "
-        f"over --max-nodes {max_nodes}; consecutive spacing varies {ratio:.3g}x along the "
-        f"contour: try --h {suggest:.3g} (points closer than h then share cells and extra "
-        "boundary nodes may be added), or raise --max-nodes"
+        f"{head}; even h = {h_try:.3g}, the smallest spacing between consecutive points, "
+        f"would need {est_try:.2g} nodes (the spacing varies {ratio:.3g}x along the contour): "
+        f"{fix} or raise --max-nodes"
     )
 
 
@@ -183,6 +207,7 @@ class Selection:
     searched_further: int = 0
     refinements: int = 0
     notes: list[str] = field(default_factory=list)
+    path_rule: str = "appendix-a"
 
     @property
     def extra_nodes(self) -> int:
@@ -242,6 +267,14 @@ class _Visibility:
         return ~blocked
 
 
+class NoFreeNode(SelectionError):
+    """No free node that point ``k`` (counter-clockwise index) can see is left on the grid."""
+
+    def __init__(self, k: int):
+        super().__init__(f"no free grid node left for point {k}")
+        self.k = k
+
+
 def select_nodes(grid: Grid, q: np.ndarray) -> tuple[np.ndarray, int]:
     """Appendix A: for each point, the nearest free corner of the cell holding it.
 
@@ -282,6 +315,8 @@ def select_nodes(grid: Grid, q: np.ndarray) -> tuple[np.ndarray, int]:
             further += 1
             chosen = _search_further(grid, vis, k, t[k], s[k], int(ci[k]), int(cj[k]), taken,
                                      prev_ij, tangent[k])
+            if chosen < 0:
+                raise NoFreeNode(k)
         taken.add(chosen)
         out[k] = chosen
         prev_ij = (chosen % (grid.nx + 1), chosen // (grid.nx + 1))
@@ -297,7 +332,10 @@ def _forward(grid: Grid, prev_ij, i, j, tangent) -> bool:
 
 def _search_further(grid: Grid, vis: _Visibility, k: int, t: float, s: float, i: int, j: int,
                     taken: set[int], prev_ij=None, tangent=None) -> int:
-    """Nearest free, visible and forward node in widening rings; forward is dropped past r=3."""
+    """Nearest free, visible and forward node in widening rings; forward is dropped past r=3.
+
+    Returns -1 when the whole grid has been searched.
+    """
     for r in range(1, max(grid.nx, grid.ny) + 1):
         ii = np.arange(max(0, i - r), min(grid.nx, i + 1 + r) + 1)
         jj = np.arange(max(0, j - r), min(grid.ny, j + 1 + r) + 1)
@@ -314,7 +352,7 @@ def _search_further(grid: Grid, vis: _Visibility, k: int, t: float, s: float, i:
                 d = np.hypot((I[free] - t) * grid.hx, (J[free] - s) * grid.hy)
                 d[~ok] = np.inf
                 return int(ids[free][np.lexsort((I[free], J[free], d))[0]])
-    raise SelectionError("no free grid node left")  # pragma: no cover - grid exhausted
+    return -1
 
 
 def build_path(grid: Grid, sel: np.ndarray, q: np.ndarray, src: np.ndarray):
@@ -401,25 +439,32 @@ def _route(grid: Grid, a, b, used: set[int], pad: int = 2) -> list[int] | None:
     return None
 
 
-def force_diagonals(grid: Grid, nodes: np.ndarray):
+def force_diagonals(grid: Grid, nodes: np.ndarray, targets: np.ndarray | None = None):
     """Cell splits forced by the path, or the index of the first conflict.
 
     Returns ``(diagonals, None)`` or ``(None, path_index)`` where the path
     touches itself: two crossing diagonal steps in one cell, or a cell asked
-    for both splits (for example a U-turn around one cell).
+    for both splits by rules that do not come from one U-turn.
+
+    A U-turn (two consecutive L-turns around one cell: the end of a strip one
+    cell wide, as at a sharp trailing edge) leaves no split without a
+    triangle of three consecutive path nodes; there the split whose worse
+    triangle is fuller at ``targets`` is taken (``'/'`` without targets).
     """
     i, j = grid.node_ij(nodes)
     i, j = np.asarray(i), np.asarray(j)
+    L = len(nodes)
     ni, nj = np.roll(i, -1), np.roll(j, -1)
     pi, pj = np.roll(i, 1), np.roll(j, 1)
     di, dj = ni - i, nj - j  # step out of each node
     qi, qj = i - pi, j - pj  # step into each node
-    cells, dirs, where = [], [], []
+    cells, dirs, where, kind = [], [], [], []
     # diagonal steps force their own diagonal
     diag = (di != 0) & (dj != 0)
     cells.append(np.minimum(j, nj)[diag] * grid.nx + np.minimum(i, ni)[diag])
     dirs.append(np.where(di[diag] * dj[diag] > 0, DIAG_SLASH, DIAG_BACKSLASH))
     where.append(np.flatnonzero(diag))
+    kind.append(np.zeros(int(diag.sum()), dtype=np.int8))
     # L-turns split the corner cell through the corner node
     axis_in = (qi == 0) ^ (qj == 0)
     axis_out = (di == 0) ^ (dj == 0)
@@ -430,20 +475,54 @@ def force_diagonals(grid: Grid, nodes: np.ndarray):
     cells.append(cj * grid.nx + ci)
     dirs.append(np.where(at_diag_slash, DIAG_SLASH, DIAG_BACKSLASH))
     where.append(np.flatnonzero(lturn))
+    kind.append(np.ones(int(lturn.sum()), dtype=np.int8))
     cells_a = np.concatenate(cells)
     dirs_a = np.concatenate(dirs)
     where_a = np.concatenate(where)
-    # a cell forced twice is a conflict unless both agree and come from one corner
+    kind_a = np.concatenate(kind)
     order = np.lexsort((where_a, cells_a))
-    cs, ds, ws = cells_a[order], dirs_a[order], where_a[order]
-    dup = cs[1:] == cs[:-1]
-    if dup.any():
+    cs, ds, ws, ks = cells_a[order], dirs_a[order], where_a[order], kind_a[order]
+    uniq, start, count = np.unique(cs, return_index=True, return_counts=True)
+    multi = np.flatnonzero(count > 1)
+    uturn_cells, uturn_at = [], []
+    for g in multi:
+        s0 = start[g]
+        w0, w1 = int(ws[s0]), int(ws[s0 + 1])
+        # exactly two L-turns at consecutive path positions: a U-turn
+        if count[g] == 2 and ks[s0] == 1 and ks[s0 + 1] == 1 and (w1 - w0) % L in (1, L - 1):
+            uturn_cells.append(int(uniq[g]))
+            uturn_at.append(w1 if (w1 - w0) % L == 1 else w0)  # the second corner
+            continue
         # two diagonal steps in one cell always cross or retrace; an L-turn
         # sharing a cell with another rule means the path wraps that cell
-        return None, int(ws[1:][dup][0])
+        return None, int(ws[s0 + 1])
     diagonals = np.full(grid.nx * grid.ny, DIAG_SLASH, dtype=np.uint8)
-    diagonals[cs] = ds
+    single = np.isin(cs, uturn_cells, invert=True)
+    diagonals[cs[single]] = ds[single]
+    for cell in uturn_cells:
+        diagonals[cell] = _uturn_split(grid, cell, nodes, targets)
     return diagonals, None
+
+
+def _uturn_split(grid: Grid, cell: int, nodes: np.ndarray, targets: np.ndarray | None) -> int:
+    """The split of a U-turn cell whose worse triangle is fuller at the targets."""
+    if targets is None:
+        return DIAG_SLASH
+    ci, cj = cell % grid.nx, cell // grid.nx
+    n00 = cj * (grid.nx + 1) + ci
+    n10, n01, n11 = n00 + 1, n00 + grid.nx + 1, n00 + grid.nx + 2
+    where = {int(n): t for t, n in enumerate(nodes)}
+    xy = {n: targets[where[n]] for n in (n00, n10, n01, n11)}
+
+    def fullness(a, b, c):
+        pa, pb, pc = xy[a], xy[b], xy[c]
+        area = (pb[0] - pa[0]) * (pc[1] - pa[1]) - (pb[1] - pa[1]) * (pc[0] - pa[0])
+        longest = max(np.sum((pb - pa) ** 2), np.sum((pc - pb) ** 2), np.sum((pa - pc) ** 2))
+        return area / longest if longest > 0 else -np.inf
+
+    slash = min(fullness(n00, n10, n11), fullness(n00, n11, n01))
+    back = min(fullness(n00, n10, n01), fullness(n10, n11, n01))
+    return DIAG_SLASH if slash >= back else DIAG_BACKSLASH
 
 
 def _nearest_point(src: np.ndarray, t: int) -> int:
@@ -456,52 +535,106 @@ def _nearest_point(src: np.ndarray, t: int) -> int:
     return 0  # pragma: no cover
 
 
-def fit_path(contour: Contour, grid: Grid, strict: bool = False):
+def fit_path(contour: Contour, grid: Grid, strict: bool = False, method: str = "greedy"):
     """Select nodes and build a valid path on ``grid``; raise SelectionError if impossible.
 
+    ``method`` is ``"greedy"`` (Appendix A, point by point) or ``"trace"``
+    (the outline of the cells the contour crosses, see :mod:`.trace`).
     Returns ``(nodes, targets, source, diagonals, searched_further)``.
     """
     order = contour.ccw_order
     q = contour.points[order]
-    sel, further = select_nodes(grid, q)
-    if strict:
-        i, j = grid.node_ij(sel)
-        gap = np.maximum(np.abs(np.roll(i, -1) - i), np.abs(np.roll(j, -1) - j)) >= 2
-        if gap.any():
-            k = int(np.argmax(gap))
-            a, b = int(order[k]), int(order[(k + 1) % len(order)])
+    if method == "trace":
+        nodes, targets, source = _trace(contour, grid, q, order)
+        further = 0
+    else:
+        try:
+            sel, further = select_nodes(grid, q)
+        except NoFreeNode as exc:
             raise SelectionError(
-                f"{contour.source}: {contour.where(a)} and point {b} select grid nodes more "
-                f"than one cell apart (h = {max(grid.hx, grid.hy):.4g}); --strict forbids "
-                "extra boundary nodes: give a larger --h or drop --strict"
-            )
-    nodes, targets, source = build_path(grid, sel, q, order)
-    uniq, first, counts = np.unique(nodes, return_index=True, return_counts=True)
+                f"{contour.source}: no free grid node left that {contour.where(int(order[exc.k]))} "
+                f"can see (h = {max(grid.hx, grid.hy):.4g}); the contour has more points here "
+                "than the grid has nodes: give a smaller --h") from None
+        if strict:
+            _check_strict(contour, grid, sel, order)
+        nodes, targets, source = build_path(grid, sel, q, order)
+    if strict and (source < 0).any():
+        t = int(np.argmax(source < 0))
+        after = source[t:][source[t:] >= 0]
+        raise SelectionError(_strict_msg(contour, grid, _nearest_point(source, t),
+                                         int(after[0]) if len(after) else int(source[0])))
+    problem = check_path(grid, nodes, targets)
+    if problem is not None:
+        t, what = problem
+        if what == "clockwise":
+            raise SelectionError(
+                f"{contour.source}: the grid path runs clockwise or encloses nothing "
+                f"(h = {max(grid.hx, grid.hy):.4g} is too coarse for this contour); "
+                "give a smaller --h")
+        raise SelectionError(_touch_msg(contour, grid, source, t, what))
+    diagonals, _ = force_diagonals(grid, nodes, targets)
+    return nodes, targets, source, diagonals, further
+
+
+def check_path(grid: Grid, nodes: np.ndarray, targets: np.ndarray):
+    """``None`` if the path can be deformed onto its targets, else ``(path index, what)``.
+
+    The path must visit each node once, force no cell twice (it would touch
+    itself), run counter-clockwise, and every triangle with all three
+    corners on the path must keep its orientation at the targets.
+    """
+    uniq, counts = np.unique(nodes, return_counts=True)
     if (counts > 1).any():
-        t = np.flatnonzero(nodes == uniq[np.argmax(counts > 1)])[-1]
-        raise SelectionError(_touch_msg(contour, grid, source, t, "visits one grid node twice"))
-    diagonals, bad = force_diagonals(grid, nodes)
+        t = int(np.flatnonzero(nodes == uniq[np.argmax(counts > 1)])[-1])
+        return t, "visits one grid node twice"
+    diagonals, bad = force_diagonals(grid, nodes, targets)
     if diagonals is None:
-        raise SelectionError(_touch_msg(contour, grid, source, bad, "touches itself"))
-    xy = grid.coords(nodes)
-    if signed_area(xy) <= 0:
-        raise SelectionError(
-            f"{contour.source}: the grid path runs clockwise or encloses nothing "
-            f"(h = {max(grid.hx, grid.hy):.4g} is too coarse for this contour); give a smaller --h"
-        )
+        return bad, "touches itself"
+    if signed_area(grid.coords(nodes)) <= 0:
+        return 0, "clockwise"
     tri = _path_triangles(grid, diagonals, nodes)
     if len(tri):
         pos = np.full((grid.n_nodes, 2), np.nan)
         pos[nodes] = targets
-        a = signed_areas(pos, tri)
-        bad_t = np.flatnonzero(~(a > 0))
+        e = pos[tri] - np.roll(pos[tri], 1, axis=1)
+        longest = np.max(np.sum(e**2, axis=2), axis=1)
+        # a relative floor: three collinear targets give round-off areas
+        bad_t = np.flatnonzero(~(signed_areas(pos, tri) > 1e-12 * longest))
         if len(bad_t):
             t = int(np.flatnonzero(nodes == tri[bad_t[0], 0])[0])
-            raise SelectionError(_touch_msg(
-                contour, grid, source, t,
-                "would need a triangle whose three corners are contour points in the "
-                "wrong order (it would fold)"))
-    return nodes, targets, source, diagonals, further
+            return t, ("would need a triangle whose three corners are contour points in the "
+                       "wrong order (it would fold)")
+    return None
+
+
+def _check_strict(contour: Contour, grid: Grid, sel: np.ndarray, order: np.ndarray) -> None:
+    i, j = grid.node_ij(sel)
+    gap = np.maximum(np.abs(np.roll(i, -1) - i), np.abs(np.roll(j, -1) - j)) >= 2
+    if gap.any():
+        k = int(np.argmax(gap))
+        raise SelectionError(_strict_msg(contour, grid, int(order[k]),
+                                         int(order[(k + 1) % len(order)])))
+
+
+def _strict_msg(contour: Contour, grid: Grid, a: int, b: int) -> str:
+    return (
+        f"{contour.source}: {contour.where(a)} and point {b} select grid nodes more "
+        f"than one cell apart (h = {max(grid.hx, grid.hy):.4g}); --strict forbids "
+        "extra boundary nodes: give a larger --h or drop --strict"
+    )
+
+
+def _trace(contour: Contour, grid: Grid, q: np.ndarray, order: np.ndarray):
+    from .trace import TraceError, trace_path
+
+    try:
+        return trace_path(grid, q, order)
+    except TraceError as exc:
+        where = f" near {contour.where(int(order[exc.k]))}" if exc.k is not None else ""
+        raise SelectionError(
+            f"{contour.source}: the grid path traced around the contour {exc.what}{where} "
+            f"(h = {max(grid.hx, grid.hy):.4g}); give a smaller --h"
+        ) from None
 
 
 def _path_triangles(grid: Grid, diagonals: np.ndarray, nodes: np.ndarray) -> np.ndarray:
@@ -555,13 +688,15 @@ def select(
     margin: float | None = None,
     strict: bool = False,
     max_nodes: int = DEFAULT_MAX_NODES,
+    methods: tuple[str, ...] = ("greedy", "trace"),
 ) -> Selection:
     """Stage 1 in full: grid, selection, path, forced diagonals.
 
     When the grid path touches itself, the grid is first shifted by a
     fraction of a cell (:data:`SHIFTS`: alignment decides which contour
-    points compete for a node), then, for the default ``h`` only, the step is
-    halved (at most :data:`MAX_REFINEMENTS` times, within ``max_nodes``).  If
+    points compete for a node); if no shift works, the path is traced around
+    the contour instead (:mod:`.trace`, again on each shift); then, for the
+    default ``h`` only, the step is halved (at most :data:`MAX_REFINEMENTS` times, within ``max_nodes``).  If
     nothing works the error names the place.
     """
     grid, info = choose_grid(contour, h, box, margin, max_nodes)
@@ -570,19 +705,22 @@ def select(
     notes: list[str] = []
     first_error: SelectionError | None = None
     while True:
-        for shift in SHIFTS:
+        for method, shift in [(m, sh) for m in methods for sh in SHIFTS]:
             g = _shifted(grid, shift, box is not None)
             if g.n_nodes > max_nodes:
                 continue
             try:
-                nodes, targets, source, diagonals, further = fit_path(contour, g, strict)
+                nodes, targets, source, diagonals, further = fit_path(contour, g, strict, method)
             except SelectionError as exc:
                 first_error = first_error or exc
                 if strict:
                     raise
                 continue
+            if method == "trace":
+                notes.append("traced the grid path around the contour: Appendix A's selection "
+                             "gave no simple path on any grid shift")
             if shift != (0.0, 0.0):
-                notes.append(f"shifted the grid by {shift} cells: {first_error}")
+                notes.append(f"shifted the grid by {shift} cells: the first try failed")
             return Selection(
                 grid=g,
                 path_nodes=nodes,
@@ -594,6 +732,7 @@ def select(
                 searched_further=further,
                 refinements=refinements,
                 notes=notes,
+                path_rule="appendix-a" if method == "greedy" else "traced",
             )
         if h is not None or refinements >= MAX_REFINEMENTS:
             raise first_error
@@ -601,6 +740,6 @@ def select(
             grid, info = choose_grid(contour, h_used / 2, box, margin, max_nodes)
         except LimitError:
             raise first_error from None
-        notes.append(f"halved h to {h_used / 2:.4g}: {first_error}")
+        notes.append(f"halved h to {h_used / 2:.4g}: no simple grid path at h = {h_used:.4g}")
         h_used /= 2
         refinements += 1

@@ -60,6 +60,7 @@ def dumps(state: State) -> bytes:
         "h_rule": sel.h_rule,
         "searched_further": sel.searched_further,
         "refinements": sel.refinements,
+        "path_rule": sel.path_rule,
         "notes": list(sel.notes),
     }
     if state.meta:
@@ -154,5 +155,6 @@ def loads(data: bytes, name: str = "<state>", want: str | None = None) -> State:
         searched_further=int(meta.get("searched_further", 0)),
         refinements=int(meta.get("refinements", 0)),
         notes=list(meta.get("notes", [])),
+        path_rule=str(meta.get("path_rule", "appendix-a")),
     )
     return State(stage, contour, sel, arrays.get("points"), meta)

@@ -58,17 +58,19 @@ def test_paper_example_meshes(run, tmp_path):
     assert rec["extra_boundary_nodes"] == 0 and rec["grid_nodes"] == 9 * 12
 
 
-@pytest.mark.xfail(strict=True, reason="several points per cell at the nose and tail: the greedy "
-                   "selection cannot yet fit a simple path (open item of issue 2)")
 def test_naca0012_100_with_h_001(run, tmp_path):
-    _mesh_ok(run, shared("naca0012_100.csv"), tmp_path / "m.vtk", "--h", "0.01")
+    # several points per cell at the sharp trailing edge: Appendix A's greedy
+    # choice cannot be joined into a simple path there, the traced path can
+    rec = _mesh_ok(run, shared("naca0012_100.csv"), tmp_path / "m.vtk", "--h", "0.01")
+    assert rec["path_rule"] == "traced"
+    assert any("traced the grid path" in n for n in rec["notes"])
 
 
 def test_uneven_contour_refused_with_estimate_and_no_file(run, tmp_path):
     out = tmp_path / "naca.vtk"
     r = run("all", shared("naca0012_1000.csv"), "-o", out)
     assert r.exit_code == 1
-    assert "3.6e+10 nodes" in r.stderr and "try --h" in r.stderr
+    assert "3.6e+10 nodes" in r.stderr and "resample the contour" in r.stderr
     assert r.stderr.count("\n") == 1
     assert not out.exists() and list(tmp_path.iterdir()) == []
 

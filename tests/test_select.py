@@ -64,7 +64,20 @@ def test_grid_limit_refused_with_estimate_and_hint():
     with pytest.raises(LimitError) as e:
         choose_grid(c)
     msg = str(e.value)
-    assert "3.6e+10 nodes" in msg and "--max-nodes" in msg and "try --h" in msg
+    assert "3.6e+10 nodes" in msg and "--max-nodes" in msg
+    # no uniform grid within the limit can give each crowded point its own node
+    assert "try --h" not in msg and "resample the contour more evenly" in msg
+
+
+def test_grid_limit_hint_names_an_h_that_works():
+    import re
+
+    c = load_contour(shared("circle_100.csv"))
+    with pytest.raises(LimitError) as e:
+        choose_grid(c, max_nodes=2000)
+    h = float(re.search(r"try --h ([0-9.e+-]+) ", str(e.value)).group(1))
+    sel = select(c, h=h, max_nodes=2000)
+    assert sel.grid.n_nodes <= 2000 and sel.extra_nodes == 0
 
 
 def test_nearest_free_corner_and_wider_search():
@@ -135,10 +148,16 @@ def test_strict_refuses_extra_nodes():
 
 
 def test_touching_path_with_given_h_fails_clearly():
-    # a slot narrower than h: the two sides compete for the same nodes
-    pts = [(0, 0), (3, 0), (3, 1), (1.6, 1), (1.6, 0.1), (1.5, 0.1), (1.5, 1), (0, 1)]
-    c = make_contour(pts, source="slot.csv")
-    with pytest.raises(SelectionError) as e:
-        select(c, h=0.5)
-    assert str(e.value).startswith("slot.csv: the grid path")
-    assert "give a smaller --h" in str(e.value)
+    # a slot narrower than h whose sides carry more points than the grid has
+    # nodes there: neither Appendix A's choice nor the traced outline fits
+    ys = np.arange(3.0, 0.15, -0.1)
+    pts = ([(0, 0), (3, 0), (3, 3)] + [(1.6, y) for y in ys] + [(1.6, 0.1), (1.5, 0.1)]
+           + [(1.5, y) for y in ys[::-1]] + [(0, 3)])
+    c = make_contour(np.array(pts), source="slot.csv")
+    for h in (0.5, 0.2):
+        with pytest.raises(SelectionError) as e:
+            select(c, h=h)
+        assert str(e.value).startswith("slot.csv: ")
+        assert "give a smaller --h" in str(e.value)
+    # a grid as fine as the slot follows it
+    assert select(c, h=0.1).path_rule == "appendix-a"

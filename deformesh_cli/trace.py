@@ -1,0 +1,263 @@
+"""Selection by tracing: the fallback when Appendix A's greedy choice fails.
+
+Appendix A gives each contour point the nearest free corner of its cell, one
+point at a time.  Where several points crowd into a few cells (a sharp
+trailing edge, a cusp, cosine-clustered airfoil points) those choices can no
+longer be joined into a simple path.  Tracing decides the path first and the
+points second:
+
+1. **Region.**  The cells the contour runs through, plus everything they
+   enclose, form a region of cells.  Diagonal-only contacts ("pinches") are
+   closed by adding the cell nearer the contour, and holes are filled, until
+   the region's outline is one simple closed grid path.  A feature thinner
+   than a cell becomes a strip one cell wide, so its two sides get distinct
+   nodes.
+2. **Assignment.**  Contour points are assigned to outline nodes in order
+   (a monotone, cyclic assignment), each node taking at most one point, by
+   dynamic programming that minimises the sum of squared distances.
+3. **Corners.**  An outline corner that carries no point is cut when the cell
+   it turns around has no other path node: the path then takes the cell's
+   diagonal, as Appendix A's paths do on slanted stretches.
+
+Outline nodes left without a point become extra boundary nodes on the
+contour edge between their neighbours, exactly as gaps do in
+:func:`deformesh_cli.select.build_path`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import SelectionError
+
+
+class TraceError(SelectionError):
+    """Tracing failed; ``k`` is the (counter-clockwise) index of the point concerned, if any."""
+
+    def __init__(self, what: str, k: int | None = None):
+        super().__init__(what)
+        self.what = what
+        self.k = k
+
+#: Candidate outline nodes tried for the first contour point.
+START_CANDIDATES = 6
+
+#: A point further than this many cell diagonals from its node is refused.
+MAX_REACH = 2.0
+
+
+def region_cells(grid, q: np.ndarray) -> np.ndarray:
+    """Boolean ``(ny, nx)`` array: cells crossed by the contour plus what they enclose."""
+    nx, ny = grid.nx, grid.ny
+    a, b = q, np.roll(q, -1, axis=0)
+    seg = np.hypot(*((b - a) / (grid.hx, grid.hy)).T)
+    # sample each edge at an eighth of a cell so no crossed cell is skipped
+    # except by a sliver at its corner (a pinch, closed below)
+    n = np.maximum(1, np.ceil(seg * 8).astype(np.int64))
+    k = np.repeat(np.arange(len(q)), n + 1)
+    f = np.concatenate([np.arange(c + 1) / c for c in n])
+    xy = a[k] + f[:, None] * (b[k] - a[k])
+    ci = np.clip(np.floor((xy[:, 0] - grid.x0) / grid.hx).astype(np.int64), 0, nx - 1)
+    cj = np.clip(np.floor((xy[:, 1] - grid.y0) / grid.hy).astype(np.int64), 0, ny - 1)
+    cells = np.zeros((ny, nx), dtype=bool)
+    cells[cj, ci] = True
+    return _close(grid, cells, q)
+
+
+def _close(grid, cells: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Fill holes and close pinches until the region's outline is simple."""
+    from scipy import ndimage
+
+    cells = ndimage.binary_fill_holes(cells)
+    ring = None
+    while True:
+        pi, pj = _pinches(cells)
+        if len(pi) == 0:
+            return cells
+        # each pinch has two candidate cells (columns 0 and 1): add the one
+        # whose centre is nearer the contour (the first on a tie)
+        if ring is None:
+            import shapely
+
+            ring = shapely.linearrings(q)
+        centres = np.stack([grid.x0 + (pi + 0.5) * grid.hx, grid.y0 + (pj + 0.5) * grid.hy], -1)
+        d = shapely.distance(shapely.points(centres), ring)
+        pick = (d[:, 1] < d[:, 0]).astype(np.int64)
+        r = np.arange(len(pi))
+        cells[pj[r, pick], pi[r, pick]] = True
+        cells = ndimage.binary_fill_holes(cells)
+
+
+def _pinches(cells: np.ndarray):
+    """The two empty cells of each 2x2 block whose region cells touch only at a corner.
+
+    Returns ``(i, j)`` arrays of shape ``(n, 2)``.
+    """
+    a, b = cells[:-1, :-1], cells[:-1, 1:]
+    c, d = cells[1:, :-1], cells[1:, 1:]
+    slash = a & d & ~b & ~c  # lower-left and upper-right: add lower-right or upper-left
+    back = b & c & ~a & ~d  # lower-right and upper-left: add lower-left or upper-right
+    js, is_ = np.nonzero(slash)
+    jb, ib = np.nonzero(back)
+    pi = np.concatenate([np.column_stack([is_ + 1, is_]), np.column_stack([ib, ib + 1])])
+    pj = np.concatenate([np.column_stack([js, js + 1]), np.column_stack([jb, jb + 1])])
+    return pi, pj
+
+
+def outline(grid, cells: np.ndarray) -> np.ndarray:
+    """The region's outline as a counter-clockwise cycle of grid node ids."""
+    from scipy import ndimage
+
+    labels, count = ndimage.label(cells)
+    if count != 1:
+        raise TraceError("falls apart into separate pieces")
+    nx = grid.nx
+    w = nx + 1
+    pad = np.pad(cells, 1)
+    cj, ci = np.nonzero(cells)
+    pj, pi = cj + 1, ci + 1
+    src, dst = [], []
+    n00 = cj * w + ci
+    for free, s, d in (
+        (~pad[pj - 1, pi], n00, n00 + 1),  # bottom edge, left to right
+        (~pad[pj, pi + 1], n00 + 1, n00 + w + 1),  # right edge, upwards
+        (~pad[pj + 1, pi], n00 + w + 1, n00 + w),  # top edge, right to left
+        (~pad[pj, pi - 1], n00 + w, n00),  # left edge, downwards
+    ):
+        src.append(s[free])
+        dst.append(d[free])
+    src_a, dst_a = np.concatenate(src), np.concatenate(dst)
+    order = np.argsort(src_a, kind="stable")
+    src_a, dst_a = src_a[order], dst_a[order]
+    if (src_a[1:] == src_a[:-1]).any():  # pragma: no cover - pinches were closed
+        raise TraceError("touches itself")
+    nxt = dict(zip(src_a.tolist(), dst_a.tolist()))
+    start = int(src_a[0])
+    path = [start]
+    node = nxt[start]
+    while node != start:
+        path.append(node)
+        node = nxt[node]
+    if len(path) != len(src_a):
+        raise TraceError("encloses a hole")
+    return np.asarray(path, dtype=np.int64)
+
+
+def assign(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
+    """Positions ``t_k`` on the closed path ``P`` for the points ``Q``, in cyclic order.
+
+    Minimises ``sum |P[t_k] - Q[k]|^2`` over ``t_0 < t_1 < ... < t_{m-1} <
+    t_0 + L`` (indices modulo ``L``).  The first point's position is tried
+    among its :data:`START_CANDIDATES` nearest path nodes.
+    """
+    L, m = len(P), len(Q)
+    if m > L:
+        raise TraceError(f"has {L} nodes for {m} contour points")
+    d0 = np.sum((P - Q[0]) ** 2, axis=1)
+    starts = np.argsort(d0, kind="stable")[:START_CANDIDATES]
+    best_total, best = np.inf, None
+    idx = np.arange(L)
+    for s in starts:
+        Ps = np.roll(P, -int(s), axis=0)
+        cost = np.full(L, np.inf)
+        cost[0] = d0[s]
+        back = np.zeros((m, L), dtype=np.int32)
+        for k in range(1, m):
+            prev = np.concatenate([[np.inf], cost[:-1]])  # strictly earlier position
+            run = np.minimum.accumulate(prev)
+            newmin = prev < np.concatenate([[np.inf], run[:-1]])
+            back[k] = np.maximum.accumulate(np.where(newmin, idx, 0)) - 1
+            cost = run + np.sum((Ps - Q[k]) ** 2, axis=1)
+            cost[: k] = np.inf
+            cost[L - (m - k) + 1:] = np.inf
+        t = int(np.argmin(cost))
+        if cost[t] < best_total:
+            best_total = cost[t]
+            pos = np.empty(m, dtype=np.int64)
+            for k in range(m - 1, 0, -1):
+                pos[k] = t
+                t = int(back[k, t])
+            pos[0] = 0
+            best = (pos + s) % L
+    return best
+
+
+def cut_corners(grid, path: np.ndarray, carried: np.ndarray):
+    """Drop outline corners carrying no point where the path can take the cell's diagonal.
+
+    ``carried`` marks path positions that carry a contour point.  Convex
+    corners (left turns) are cut first, then concave ones.  A corner is cut
+    only when its cell's fourth corner is not on the path, so no cell gets
+    two path diagonals.  Returns the kept positions.
+    """
+    w = grid.nx + 1
+    nodes = path.tolist()
+    keep = list(range(len(nodes)))
+    on_path = set(nodes)
+    for want_left in (True, False):
+        changed = True
+        while changed:
+            changed = False
+            t = 0
+            while t < len(keep) and len(keep) > 4:
+                a, c, b = (nodes[keep[(t - 1) % len(keep)]], nodes[keep[t]],
+                           nodes[keep[(t + 1) % len(keep)]])
+                if carried[keep[t]]:
+                    t += 1
+                    continue
+                ai, aj, ci, cj, bi, bj = a % w, a // w, c % w, c // w, b % w, b // w
+                if abs(ai - bi) != 1 or abs(aj - bj) != 1:
+                    t += 1
+                    continue
+                cross = (ci - ai) * (bj - cj) - (cj - aj) * (bi - ci)
+                if (cross > 0) != want_left:
+                    t += 1
+                    continue
+                fourth = (ai + bi - ci) + (aj + bj - cj) * w
+                if fourth in on_path:
+                    t += 1
+                    continue
+                on_path.discard(c)
+                del keep[t]
+                changed = True
+    return np.asarray(keep, dtype=np.int64)
+
+
+def trace_path(grid, q: np.ndarray, src: np.ndarray):
+    """Path by tracing (see module docstring): ``(nodes, targets, source)`` arrays.
+
+    ``q`` holds the contour points counter-clockwise and ``src`` their input
+    indices.  Raises :class:`TraceError` when the contour cannot be traced on
+    this grid; the caller words the message.
+    """
+    cells = region_cells(grid, q)
+    path = outline(grid, cells)
+    P = grid.coords(path)
+    pos = assign(P, q)
+    reach = np.hypot(*(P[pos] - q).T) / np.hypot(grid.hx, grid.hy)
+    if reach.max() > MAX_REACH:
+        k = int(np.argmax(reach))
+        raise TraceError(f"passes {reach[k]:.2g} cell diagonals from its point", k)
+    carried = np.zeros(len(path), dtype=bool)
+    carried[pos] = True
+    point_at = np.full(len(path), -1, dtype=np.int64)
+    point_at[pos] = np.arange(len(q))
+    keep = cut_corners(grid, path, carried)
+    path, point_at = path[keep], point_at[keep]
+    # rotate so the path starts at point 0
+    first = int(np.flatnonzero(point_at == 0)[0])
+    path, point_at = np.roll(path, -first), np.roll(point_at, -first)
+    at = np.flatnonzero(point_at >= 0)
+    m = len(q)
+    targets = np.empty((len(path), 2))
+    source = np.full(len(path), -1, dtype=np.int64)
+    for r, t in enumerate(at):
+        k = point_at[t]
+        t2 = at[r + 1] if r + 1 < len(at) else len(path)
+        targets[t] = q[k]
+        source[t] = src[k]
+        gap = t2 - t - 1
+        if gap:
+            f = np.arange(1, gap + 1) / (gap + 1)
+            targets[t + 1:t2] = q[k] + f[:, None] * (q[(k + 1) % m] - q[k])
+    return path, targets, source

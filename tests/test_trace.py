@@ -1,0 +1,110 @@
+"""The traced path (select's fallback when Appendix A's choice cannot form a simple path)."""
+
+import itertools
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from deformesh_cli import pipeline
+from deformesh_cli.contour import make_contour, signed_area
+from deformesh_cli.errors import FoldError, SelectionError
+from deformesh_cli.quality import check_contract
+from deformesh_cli.select import Grid, select
+from deformesh_cli.trace import assign, outline, region_cells
+
+from .test_properties import star_polygons
+
+
+def _is_simple_ccw_cycle(grid, path):
+    i, j = grid.node_ij(path)
+    di, dj = np.roll(i, -1) - i, np.roll(j, -1) - j
+    return (len(np.unique(path)) == len(path)
+            and np.all(np.abs(di) + np.abs(dj) == 1)
+            and signed_area(grid.coords(path)) > 0)
+
+
+def test_region_of_a_diagonal_sliver_is_closed_and_its_outline_simple():
+    # a sliver along the diagonal through grid nodes: the cells it crosses
+    # touch only at corners until the region closes the pinches
+    grid = Grid(0.0, 0.0, 1.0, 1.0, 6, 6)
+    q = np.array([(0.5, 0.5), (4.5, 4.5), (4.4, 4.5)])
+    cells = region_cells(grid, q)
+    assert cells.sum() > 5  # more than the diagonal chain of crossed cells
+    path = outline(grid, cells)
+    assert _is_simple_ccw_cycle(grid, path)
+    assert cells[np.floor(q[:, 1]).astype(int), np.floor(q[:, 0]).astype(int)].all()
+
+
+def test_outline_of_two_corner_touching_cells_needs_closing():
+    grid = Grid(0.0, 0.0, 1.0, 1.0, 4, 4)
+    cells = np.zeros((4, 4), dtype=bool)
+    cells[1, 1] = cells[2, 2] = True
+    with pytest.raises(SelectionError):
+        outline(grid, cells)
+
+
+def _brute_force(P, Q):
+    L, m = len(P), len(Q)
+    best = np.inf
+    for s in range(L):
+        for rest in itertools.combinations(range(1, L), m - 1):
+            pos = [(s + r) % L for r in (0, *rest)]
+            best = min(best, sum(np.sum((P[p] - Q[k]) ** 2) for k, p in enumerate(pos)))
+    return best
+
+
+@given(st.integers(3, 6), st.integers(1, 4), st.integers(0, 2**32 - 1))
+def test_assign_is_cyclic_monotone_and_optimal(L, m, seed):
+    rng = np.random.default_rng(seed)
+    m = min(m, L)
+    P, Q = rng.random((L, 2)), rng.random((m, 2))
+    pos = assign(P, Q)
+    steps = (np.roll(pos, -1) - pos) % L
+    assert len(set(pos.tolist())) == m
+    assert steps[:-1].min(initial=1) >= 1 and steps.sum() == (L if m > 1 else 0)
+    cost = sum(np.sum((P[p] - Q[k]) ** 2) for k, p in enumerate(pos))
+    assert cost == pytest.approx(_brute_force(P, Q), rel=1e-12, abs=1e-12)
+
+
+def test_assign_refuses_more_points_than_nodes():
+    with pytest.raises(SelectionError):
+        assign(np.zeros((3, 2)), np.zeros((4, 2)))
+
+
+@pytest.mark.parametrize("h", [0.1, 0.05])
+def test_thin_wedge_is_traced_where_appendix_a_fails(h):
+    # a sliver much thinner than a cell with its points crowded at the tip
+    x = np.array([0.0, 0.3, 0.6, 0.8, 0.9, 0.95, 0.98, 0.995, 1.0])
+    top = np.column_stack([x[::-1][1:], 0.002 * (1 - x[::-1][1:])])
+    bottom = np.column_stack([x[1:-1], -0.002 * (1 - x[1:-1])])
+    pts = np.vstack([[(1.0, 0.0)], top, bottom])
+    c = make_contour(pts, source="wedge")
+    with pytest.raises(SelectionError):
+        select(c, h=h, methods=("greedy",))
+    sel = select(c, h=h)
+    assert sel.path_rule == "traced"
+    d = pipeline.run_deform(c, sel)
+    mesh, _ = pipeline.run_triangulate(c, d)
+    check_contract(mesh, c)
+
+
+@given(star_polygons(), st.floats(0.01, 0.2))
+def test_traced_paths_mesh_with_the_contract(pts, rel_h):
+    c = make_contour(pts, source="random")
+    size = float(np.ptp(c.points, axis=0).max())
+    try:
+        sel = select(c, h=rel_h * size, methods=("trace",), max_nodes=60_000)
+    except SelectionError as exc:
+        assert str(exc).startswith("random: the grid path")
+        return
+    assert sel.path_rule == "traced"
+    path = sel.path_nodes
+    assert len(np.unique(path)) == len(path)
+    try:
+        d = pipeline.run_deform(c, sel)
+    except FoldError:
+        return
+    mesh, _ = pipeline.run_triangulate(c, d)
+    check_contract(mesh, c)
