@@ -625,16 +625,22 @@ def _strict_msg(contour: Contour, grid: Grid, a: int, b: int) -> str:
 
 
 def _trace(contour: Contour, grid: Grid, q: np.ndarray, order: np.ndarray):
-    from .trace import TraceError, trace_path
+    """The traced path by the first region rule whose path passes :func:`check_path`."""
+    from .trace import REGION_RULES, TraceError, trace_path
 
-    try:
-        return trace_path(grid, q, order)
-    except TraceError as exc:
-        where = f" near {contour.where(int(order[exc.k]))}" if exc.k is not None else ""
-        raise SelectionError(
-            f"{contour.source}: the grid path traced around the contour {exc.what}{where} "
-            f"(h = {max(grid.hx, grid.hy):.4g}); give a smaller --h"
-        ) from None
+    last_error = None
+    for rule in REGION_RULES:
+        try:
+            nodes, targets, source = trace_path(grid, q, order, rule)
+        except TraceError as exc:
+            where = f" near {contour.where(int(order[exc.k]))}" if exc.k is not None else ""
+            last_error = SelectionError(
+                f"{contour.source}: the grid path traced around the contour {exc.what}{where} "
+                f"(h = {max(grid.hx, grid.hy):.4g}); give a smaller --h")
+            continue
+        if check_path(grid, nodes, targets) is None or rule == REGION_RULES[-1]:
+            return nodes, targets, source  # the caller words a failure
+    raise last_error
 
 
 def _path_triangles(grid: Grid, diagonals: np.ndarray, nodes: np.ndarray) -> np.ndarray:

@@ -6,18 +6,24 @@ trailing edge, a cusp, cosine-clustered airfoil points) those choices can no
 longer be joined into a simple path.  Tracing decides the path first and the
 points second:
 
-1. **Region.**  The cells the contour runs through, plus everything they
-   enclose, form a region of cells.  Diagonal-only contacts ("pinches") are
-   closed by adding the cell nearer the contour, and holes are filled, until
-   the region's outline is one simple closed grid path.  A feature thinner
-   than a cell becomes a strip one cell wide, so its two sides get distinct
-   nodes.
+1. **Region.**  A set of cells whose outline will be the path.  First rule:
+   cells whose centre is inside plus cells holding a contour point, bridged
+   by the cells an edge crosses where consecutive points fall in different
+   pieces; this hugs the contour and keeps narrow notches open.  Second
+   rule, if the first gives no valid path: every cell the contour crosses,
+   plus what they enclose; a feature thinner than a cell then becomes a
+   strip one cell wide, so its two sides get distinct nodes.  Either way
+   holes are filled and diagonal-only contacts ("pinches") are closed by
+   adding the cell nearer the contour, so the outline is one simple closed
+   grid path.
 2. **Assignment.**  Contour points are assigned to outline nodes in order
    (a monotone, cyclic assignment), each node taking at most one point, by
    dynamic programming that minimises the sum of squared distances.
-3. **Corners.**  An outline corner that carries no point is cut when the cell
-   it turns around has no other path node: the path then takes the cell's
-   diagonal, as Appendix A's paths do on slanted stretches.
+3. **Spurs and corners.**  Where the path runs three sides of a cell and the
+   two middle nodes carry no point, it takes the fourth side instead.  An
+   outline corner that carries no point is cut when the cell it turns around
+   has no other path node: the path then takes the cell's diagonal, as
+   Appendix A's paths do on slanted stretches.
 
 Outline nodes left without a point become extra boundary nodes on the
 contour edge between their neighbours, exactly as gaps do in
@@ -46,22 +52,61 @@ START_CANDIDATES = 6
 MAX_REACH = 2.0
 
 
-def region_cells(grid, q: np.ndarray) -> np.ndarray:
-    """Boolean ``(ny, nx)`` array: cells crossed by the contour plus what they enclose."""
+#: Region rules tried in turn: cells whose centre is inside plus cells
+#: holding a contour point, bridged along the contour where that falls apart
+#: (hugs the contour, keeps narrow notches open); then every cell the contour
+#: crosses (never loses a thin part).
+REGION_RULES = ("centres", "crossed")
+
+
+def region_cells(grid, q: np.ndarray, rule: str = "crossed") -> np.ndarray:
+    """Boolean ``(ny, nx)`` array of region cells by ``rule`` (see :data:`REGION_RULES`)."""
     nx, ny = grid.nx, grid.ny
+    ci, cj, edge = _crossed(grid, q)
+    cells = np.zeros((ny, nx), dtype=bool)
+    if rule == "crossed":
+        cells[cj, ci] = True
+        return _close(grid, cells, q)
+    import shapely
+    from scipy import ndimage
+
+    I, J = np.meshgrid(np.arange(nx), np.arange(ny))
+    cells |= shapely.contains_xy(shapely.polygons(q), grid.x0 + (I + 0.5) * grid.hx,
+                                 grid.y0 + (J + 0.5) * grid.hy)
+    pi, pj = _cell_of(grid, q)
+    cells[pj, pi] = True
+    cells = _close(grid, cells, q)
+    # bridge: where consecutive points lie in different pieces, add the cells
+    # their edge crosses, until one piece is left
+    for _ in range(len(q)):
+        labels, count = ndimage.label(cells)
+        if count <= 1:
+            break
+        lab = labels[pj, pi]
+        split = np.flatnonzero(lab != np.roll(lab, -1))
+        add = np.isin(edge, split)
+        cells[cj[add], ci[add]] = True
+        cells = _close(grid, cells, q)
+    return cells
+
+
+def _cell_of(grid, xy: np.ndarray):
+    ci = np.clip(np.floor((xy[:, 0] - grid.x0) / grid.hx).astype(np.int64), 0, grid.nx - 1)
+    cj = np.clip(np.floor((xy[:, 1] - grid.y0) / grid.hy).astype(np.int64), 0, grid.ny - 1)
+    return ci, cj
+
+
+def _crossed(grid, q: np.ndarray):
+    """Cells the contour's edges cross: ``(i, j, edge)`` arrays, one row per sample."""
     a, b = q, np.roll(q, -1, axis=0)
     seg = np.hypot(*((b - a) / (grid.hx, grid.hy)).T)
     # sample each edge at an eighth of a cell so no crossed cell is skipped
-    # except by a sliver at its corner (a pinch, closed below)
+    # except by a sliver at its corner (a pinch, closed later)
     n = np.maximum(1, np.ceil(seg * 8).astype(np.int64))
     k = np.repeat(np.arange(len(q)), n + 1)
     f = np.concatenate([np.arange(c + 1) / c for c in n])
-    xy = a[k] + f[:, None] * (b[k] - a[k])
-    ci = np.clip(np.floor((xy[:, 0] - grid.x0) / grid.hx).astype(np.int64), 0, nx - 1)
-    cj = np.clip(np.floor((xy[:, 1] - grid.y0) / grid.hy).astype(np.int64), 0, ny - 1)
-    cells = np.zeros((ny, nx), dtype=bool)
-    cells[cj, ci] = True
-    return _close(grid, cells, q)
+    ci, cj = _cell_of(grid, a[k] + f[:, None] * (b[k] - a[k]))
+    return ci, cj, k
 
 
 def _close(grid, cells: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -183,54 +228,69 @@ def assign(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
 
 
 def cut_corners(grid, path: np.ndarray, carried: np.ndarray):
-    """Drop outline corners carrying no point where the path can take the cell's diagonal.
+    """Drop outline nodes carrying no point where the path can do without them.
 
-    ``carried`` marks path positions that carry a contour point.  Convex
-    corners (left turns) are cut first, then concave ones.  A corner is cut
-    only when its cell's fourth corner is not on the path, so no cell gets
-    two path diagonals.  Returns the kept positions.
+    ``carried`` marks path positions that carry a contour point.  First,
+    spurs: where the path runs three sides of one cell (a -> b -> c -> d)
+    and neither b nor c carries a point, both go and the path takes the
+    fourth side (such a cell sticks out past the contour or dents into it;
+    kept, its U-turn would need a flat triangle of three contour-edge
+    nodes).  Then corners: a corner carrying no point is cut to the cell's
+    diagonal, convex corners (left turns) first, then concave ones, only when
+    the cell's fourth corner is not on the path (no cell gets two path
+    diagonals).  Returns the kept positions.
     """
     w = grid.nx + 1
     nodes = path.tolist()
+    ij = [(n % w, n // w) for n in nodes]
     keep = list(range(len(nodes)))
     on_path = set(nodes)
+
+    def step(u, v):
+        return ij[v][0] - ij[u][0], ij[v][1] - ij[u][1]
+
+    t = 0
+    while t < len(keep) and len(keep) > 6:
+        n = len(keep)
+        a, b, c, d = (keep[(t + r) % n] for r in range(4))
+        s1, s2, s3 = step(a, b), step(b, c), step(c, d)
+        if (not carried[b] and not carried[c] and abs(s1[0]) + abs(s1[1]) == 1
+                and abs(s2[0]) + abs(s2[1]) == 1 and s1[0] * s2[0] + s1[1] * s2[1] == 0
+                and s3 == (-s1[0], -s1[1])):
+            on_path.difference_update((nodes[b], nodes[c]))
+            for pos in sorted(((t + 1) % n, (t + 2) % n), reverse=True):
+                del keep[pos]
+            t = max(t - 2, 0)
+            continue
+        t += 1
     for want_left in (True, False):
         changed = True
         while changed:
             changed = False
             t = 0
             while t < len(keep) and len(keep) > 4:
-                a, c, b = (nodes[keep[(t - 1) % len(keep)]], nodes[keep[t]],
-                           nodes[keep[(t + 1) % len(keep)]])
-                if carried[keep[t]]:
-                    t += 1
-                    continue
-                ai, aj, ci, cj, bi, bj = a % w, a // w, c % w, c // w, b % w, b // w
-                if abs(ai - bi) != 1 or abs(aj - bj) != 1:
-                    t += 1
-                    continue
-                cross = (ci - ai) * (bj - cj) - (cj - aj) * (bi - ci)
-                if (cross > 0) != want_left:
-                    t += 1
-                    continue
+                a, c, b = keep[(t - 1) % len(keep)], keep[t], keep[(t + 1) % len(keep)]
+                (ai, aj), (ci, cj), (bi, bj) = ij[a], ij[c], ij[b]
                 fourth = (ai + bi - ci) + (aj + bj - cj) * w
-                if fourth in on_path:
+                if (carried[c] or abs(ai - bi) != 1 or abs(aj - bj) != 1
+                        or ((ci - ai) * (bj - cj) - (cj - aj) * (bi - ci) > 0) != want_left
+                        or fourth in on_path):
                     t += 1
                     continue
-                on_path.discard(c)
+                on_path.discard(nodes[c])
                 del keep[t]
                 changed = True
     return np.asarray(keep, dtype=np.int64)
 
 
-def trace_path(grid, q: np.ndarray, src: np.ndarray):
+def trace_path(grid, q: np.ndarray, src: np.ndarray, rule: str = "crossed"):
     """Path by tracing (see module docstring): ``(nodes, targets, source)`` arrays.
 
     ``q`` holds the contour points counter-clockwise and ``src`` their input
     indices.  Raises :class:`TraceError` when the contour cannot be traced on
     this grid; the caller words the message.
     """
-    cells = region_cells(grid, q)
+    cells = region_cells(grid, q, rule)
     path = outline(grid, cells)
     P = grid.coords(path)
     pos = assign(P, q)
