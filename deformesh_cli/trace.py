@@ -45,12 +45,12 @@ class TraceError(SelectionError):
         self.what = what
         self.k = k
 
+
 #: Candidate outline nodes tried for the first contour point.
 START_CANDIDATES = 6
 
 #: A point further than this many cell diagonals from its node is refused.
 MAX_REACH = 2.0
-
 
 #: Region rules tried in turn: cells whose centre is inside plus cells
 #: holding a contour point, bridged along the contour where that falls apart
