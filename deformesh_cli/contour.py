@@ -1,11 +1,14 @@
-"""Contour input: CSV text -> a validated, counter-clockwise closed ring.
+"""Contour input: CSV text -> validated closed rings.
 
-A :class:`Contour` keeps the points in the order the user gave them (so that
-mesh node ``k`` is input point ``k``) and remembers the line each came from,
-so every message can say where a problem is.  Validation happens here, before
-any meshing: at least 3 distinct points, finite numbers, no repeated
-consecutive point, non-zero area, no self-intersection.  A closing point equal
-to the first is dropped; clockwise input is re-oriented (``ccw_order``).
+A :class:`Contour` is one or more closed rings (an outer boundary, holes,
+separate parts).  It keeps the points in the order the user gave them (so
+that mesh node ``k`` is input point ``k``) and remembers the line each came
+from, so every message can say where a problem is.  Validation happens here,
+before any meshing: per ring at least 3 distinct points, finite numbers, no
+repeated consecutive point, non-zero area, no self-intersection; between
+rings, no crossing or touching.  A closing point equal to a ring's first is
+dropped; clockwise rings are walked counter-clockwise (``ccw_order``).
+Nesting decides roles: a ring inside an odd number of others is a hole.
 """
 
 from __future__ import annotations
@@ -24,51 +27,103 @@ _DELIMITERS = (",", ";", "\t")
 
 @dataclass(frozen=True)
 class Contour:
-    """A closed contour, validated.
+    """Closed rings, validated.
 
     Attributes
     ----------
     points : (m, 2) float64
-        The points in input order, the closing duplicate removed.
+        The points in input order, ring after ring, closing duplicates removed.
     lines : (m,) int64
         1-based line of the source each point came from (0 if not from a file).
     source : str
         Name used in messages (a path, or ``<stdin>``).
-    clockwise : bool
-        True when the input was clockwise (it is meshed counter-clockwise).
+    starts : tuple of int
+        Ring ``r`` is ``points[starts[r]:starts[r + 1]]``.
+    ring_clockwise : tuple of bool
+        Per ring: given clockwise (it is walked counter-clockwise).
+    depth : tuple of int
+        Per ring: how many other rings enclose it (odd: a hole).
     """
 
     points: np.ndarray
     lines: np.ndarray
     source: str = "<contour>"
-    clockwise: bool = False
     notes: tuple[str, ...] = field(default=())
+    starts: tuple[int, ...] = ()
+    ring_clockwise: tuple[bool, ...] = ()
+    depth: tuple[int, ...] = ()
+
+    def __post_init__(self):
+        if not self.starts:
+            object.__setattr__(self, "starts", (0, len(self.points)))
+        if not self.ring_clockwise:
+            object.__setattr__(self, "ring_clockwise", (False,) * self.n_rings)
+        if not self.depth:
+            object.__setattr__(self, "depth", (0,) * self.n_rings)
 
     @property
     def n(self) -> int:
         return len(self.points)
 
     @property
-    def ccw_order(self) -> np.ndarray:
-        """Indices of the input points in counter-clockwise order, starting at point 0."""
-        idx = np.arange(self.n)
-        if self.clockwise:
-            idx = np.concatenate([[0], idx[:0:-1]])
+    def n_rings(self) -> int:
+        return len(self.starts) - 1
+
+    @property
+    def clockwise(self) -> bool:
+        """The first ring was given clockwise."""
+        return self.ring_clockwise[0]
+
+    @property
+    def ring(self) -> np.ndarray:
+        """Ring id of every point."""
+        return np.repeat(np.arange(self.n_rings), np.diff(self.starts))
+
+    def ring_order(self, r: int) -> np.ndarray:
+        """Input indices of ring ``r`` counter-clockwise, starting at its first point."""
+        a, b = self.starts[r], self.starts[r + 1]
+        idx = np.arange(a, b)
+        if self.ring_clockwise[r]:
+            idx = np.concatenate([[a], idx[:0:-1]])
         return idx
+
+    @property
+    def ccw_order(self) -> np.ndarray:
+        """Every ring's :meth:`ring_order`, ring after ring."""
+        return np.concatenate([self.ring_order(r) for r in range(self.n_rings)])
 
     @property
     def ccw_points(self) -> np.ndarray:
         return self.points[self.ccw_order]
 
+    def is_hole(self, r: int) -> bool:
+        return self.depth[r] % 2 == 1
+
     @property
     def area(self) -> float:
-        return abs(signed_area(self.points))
+        """Area enclosed: outer rings minus holes."""
+        return float(sum((-1 if self.is_hole(r) else 1) * abs(signed_area(self.points[
+            self.starts[r]:self.starts[r + 1]])) for r in range(self.n_rings)))
+
+    def ring_name(self, r: int) -> str:
+        """``contour``, ``contour_2``, ... for outer rings; ``hole_1``, ... for holes."""
+        holes = [q for q in range(self.n_rings) if self.is_hole(q)]
+        if self.is_hole(r):
+            return f"hole_{holes.index(r) + 1}"
+        outer = [q for q in range(self.n_rings) if not self.is_hole(q)]
+        k = outer.index(r)
+        return "contour" if k == 0 else f"contour_{k + 1}"
 
     def where(self, k: int) -> str:
-        """Human description of input point ``k``: index, line and coordinates."""
+        """Human description of input point ``k``: index, ring, line and coordinates."""
         x, y = self.points[k]
         line = int(self.lines[k])
-        at = f" (line {line})" if line else ""
+        parts = []
+        if self.n_rings > 1:
+            parts.append(f"ring {int(np.searchsorted(self.starts, k, side='right')) - 1}")
+        if line:
+            parts.append(f"line {line}")
+        at = f" ({', '.join(parts)})" if parts else ""
         return f"point {k}{at} at ({x:.6g}, {y:.6g})"
 
     def min_spacing(self) -> tuple[float, int, int]:
@@ -203,39 +258,70 @@ def parse_csv(text: str, source: str = "<contour>") -> Contour:
             f"{source}: line {lines[r]}: point {r} has a non-finite coordinate "
             f"({xy[r, 0]}, {xy[r, 1]})"
         )
-    if len(np.unique(rings)) > 1:
-        r = int(np.argmax(rings != rings[0]))
+    change = np.flatnonzero(rings[1:] != rings[:-1]) + 1
+    seen = rings[np.concatenate([[0], change])]
+    if len(np.unique(seen)) != len(seen):
+        dup = int(seen[np.flatnonzero([v in seen[:i] for i, v in enumerate(seen)])[0]])
+        r = int(change[np.flatnonzero(seen[1:] == dup)[0]])
         raise InputError(
-            f"{source}: line {lines[r]}: several rings (holes) are not supported yet; "
-            "give one closed contour"
+            f"{source}: line {lines[r]}: ring {dup} starts again after another ring; "
+            "give each ring's points together"
         )
-    return make_contour(xy, lines, source)
+    return make_contour(xy, lines, source, ring_starts=np.concatenate([[0], change]))
 
 
-def make_contour(points, lines=None, source: str = "<contour>") -> Contour:
-    """Validate points of one closed ring and return a :class:`Contour`."""
+def make_contour(points, lines=None, source: str = "<contour>", ring_starts=None) -> Contour:
+    """Validate the points of one or more closed rings and return a :class:`Contour`.
+
+    ``ring_starts`` gives the index where each ring starts (default: one ring).
+    """
     p = np.array(points, dtype=np.float64, copy=True)
     if p.ndim != 2 or p.shape[1] != 2:
         raise InputError(f"{source}: expected (m, 2) points, got shape {p.shape}")
     ln = np.zeros(len(p), dtype=np.int64) if lines is None else np.asarray(lines, np.int64)
-    notes: list[str] = []
     if not np.isfinite(p).all():
         r = int(np.argmax(~np.isfinite(p).all(axis=1)))
         raise InputError(f"{source}: point {r} has a non-finite coordinate")
-    if len(p) > 1 and np.array_equal(p[0], p[-1]):
-        p, ln = p[:-1], ln[:-1]
-        notes.append("dropped the closing point (equal to the first)")
+    bounds = list(ring_starts if ring_starts is not None else [0]) + [len(p)]
+    notes: list[str] = []
+    pts, lns, starts, cw = [], [], [0], []
+    for r in range(len(bounds) - 1):
+        rp, rl = p[bounds[r]:bounds[r + 1]], ln[bounds[r]:bounds[r + 1]]
+        name = f"ring {r}: " if len(bounds) > 2 else ""
+        if len(rp) > 1 and np.array_equal(rp[0], rp[-1]):
+            rp, rl = rp[:-1], rl[:-1]
+            notes.append(f"{name}dropped the closing point (equal to the first)")
+        ring = _check_ring(rp, rl, source, name, starts[-1])
+        if ring < 0:
+            notes.append(f"{name}re-oriented clockwise input to counter-clockwise")
+        pts.append(rp)
+        lns.append(rl)
+        starts.append(starts[-1] + len(rp))
+        cw.append(ring < 0)
+    p, ln = np.concatenate(pts), np.concatenate(lns)
+    c = Contour(p, ln, source, starts=tuple(starts), ring_clockwise=tuple(cw))
+    depth = _check_rings_apart(c)
+    return Contour(p, ln, source, notes=tuple(notes), starts=tuple(starts),
+                   ring_clockwise=tuple(cw), depth=depth)
+
+
+def _check_ring(p: np.ndarray, ln: np.ndarray, source: str, name: str, offset: int) -> float:
+    """Validate one ring (global indices start at ``offset``); return its signed area."""
     if len(np.unique(p, axis=0)) < 3:
         raise InputError(
-            f"{source}: fewer than 3 distinct points ({len(np.unique(p, axis=0))}); "
+            f"{source}: {name}fewer than 3 distinct points ({len(np.unique(p, axis=0))}); "
             "a contour needs at least 3"
         )
     c = Contour(p, ln, source)
+
+    def where(k):
+        return c.where(k).replace(f"point {k}", f"point {k + offset}", 1)
+
     same = np.all(p == np.roll(p, -1, axis=0), axis=1)
     if same.any():
         k = int(np.argmax(same))
         raise InputError(
-            f"{source}: {c.where((k + 1) % len(p))} repeats the previous point; "
+            f"{source}: {where((k + 1) % len(p))} repeats the previous point; "
             "remove the duplicate"
         )
     area = signed_area(p)
@@ -243,15 +329,38 @@ def make_contour(points, lines=None, source: str = "<contour>") -> Contour:
     d = p - p[0]
     far = d[np.argmax(np.hypot(d[:, 0], d[:, 1]))]
     if np.abs(d[:, 0] * far[1] - d[:, 1] * far[0]).max() <= 1e-13 * span * span:
-        raise InputError(f"{source}: the contour encloses no area (all points are collinear)")
-    _check_simple(c)
-    if area < 0:
-        notes.append("re-oriented clockwise input to counter-clockwise")
-    return Contour(p, ln, source, clockwise=area < 0, notes=tuple(notes))
+        raise InputError(f"{source}: {name}the contour encloses no area (all points are "
+                         "collinear)")
+    _check_simple(c, where)
+    return area
 
 
-def _check_simple(c: Contour) -> None:
+def _check_rings_apart(c: Contour) -> tuple[int, ...]:
+    """Raise if two rings cross or touch; return each ring's nesting depth."""
+    R = c.n_rings
+    if R == 1:
+        return (0,)
+    rings = [c.points[c.starts[r]:c.starts[r + 1]] for r in range(R)]
+    geoms = np.array([shapely.LinearRing(q) for q in rings], dtype=object)
+    tree = shapely.STRtree(geoms)
+    a, b = tree.query(geoms, predicate="intersects")
+    keep = a < b
+    if keep.any():
+        i, j = int(a[keep][0]), int(b[keep][0])
+        x, y = shapely.get_coordinates(shapely.intersection(geoms[i], geoms[j]))[0]
+        raise InputError(
+            f"{c.source}: ring {j} touches or crosses ring {i} near ({x:.6g}, {y:.6g}); "
+            "rings must be apart"
+        )
+    polys = shapely.polygons(geoms)
+    first = shapely.points([q[0] for q in rings])
+    inside = shapely.contains(polys[:, None], first[None, :])  # [outer, inner]
+    return tuple(int(inside[:, r].sum()) for r in range(R))
+
+
+def _check_simple(c: Contour, where=None) -> None:
     """Raise InputError naming the first pair of crossing or touching edges."""
+    where = where or c.where
     p = c.points
     closed = np.vstack([p, p[:1]])
     if shapely.is_simple(shapely.linearrings(closed)):
@@ -270,10 +379,10 @@ def _check_simple(c: Contour) -> None:
         raise InputError(f"{c.source}: the contour intersects itself")
     order = np.lexsort((j[bad], i[bad]))
     a, b = int(i[bad][order[0]]), int(j[bad][order[0]])
-    where = shapely.get_coordinates(shapely.intersection(segs[a], segs[b]))
-    x, y = where[0] if len(where) else p[a]
+    at = shapely.get_coordinates(shapely.intersection(segs[a], segs[b]))
+    x, y = at[0] if len(at) else p[a]
     verb = "overlaps" if (b == a + 1 or (a == 0 and b == m - 1)) else "crosses"
     raise InputError(
         f"{c.source}: the contour intersects itself near ({x:.6g}, {y:.6g}): edge from "
-        f"{c.where(a)} {verb} edge from {c.where(b)}"
+        f"{where(a)} {verb} edge from {where(b)}"
     )

@@ -20,8 +20,11 @@ import numpy as np
 from .errors import DeformeshError, OptionError
 from .mesh import Mesh
 
-#: Physical group ids written to Gmsh files (name -> (id, dimension)).
-GROUPS = {"contour": (1, 1), "domain": (2, 2)}
+def groups(mesh: Mesh) -> dict[str, tuple[int, int]]:
+    """Physical groups (name -> (tag, dimension)): the boundary groups 1, 2, ... then ``domain``."""
+    out = {name: (k + 1, 1) for k, name in enumerate(mesh.groups)}
+    out["domain"] = (len(mesh.groups) + 1, 2)
+    return out
 
 
 def _meshio_mesh(mesh: Mesh, dim3: bool = False):
@@ -41,14 +44,15 @@ def _meshio_mesh(mesh: Mesh, dim3: bool = False):
 
 def _write_gmsh22(mesh: Mesh, path: str) -> None:
     m = _meshio_mesh(mesh)
-    dom, con = GROUPS["domain"], GROUPS["contour"]
-    nt, nl = len(mesh.triangles), len(mesh.lines)
+    g = groups(mesh)
+    nt = len(mesh.triangles)
+    line_tag = (mesh.line_group + 1).astype(np.int32)
     m.cell_data = {
-        "gmsh:physical": [np.full(nt, dom[0], np.int32), np.full(nl, con[0], np.int32)],
-        "gmsh:geometrical": [np.full(nt, 1, np.int32), np.full(nl, 1, np.int32)],
+        "gmsh:physical": [np.full(nt, g["domain"][0], np.int32), line_tag],
+        "gmsh:geometrical": [np.full(nt, 1, np.int32), line_tag],
     }
     m.point_data = {}
-    m.field_data = {name: np.array([tag, dim]) for name, (tag, dim) in GROUPS.items()}
+    m.field_data = {name: np.array([tag, dim]) for name, (tag, dim) in g.items()}
     import meshio
 
     meshio.write(path, m, file_format="gmsh22", binary=False)
@@ -76,7 +80,7 @@ def _write_obj(mesh: Mesh, path: str) -> None:
 FORMATS: dict[str, tuple[str, Callable[[Mesh, str], None]]] = {
     "vtk": ("VTK legacy", _write_meshio("vtk", dim3=True)),
     "vtu": ("VTK XML unstructured grid", _write_meshio("vtu", dim3=True)),
-    "msh": ("Gmsh 2.2 ASCII with physical groups 'domain' and 'contour'", _write_gmsh22),
+    "msh": ("Gmsh 2.2 ASCII with named physical groups", _write_gmsh22),
     "obj": ("Wavefront OBJ (z = 0)", _write_obj),
 }
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -13,8 +13,13 @@ class Mesh:
 
     Node numbering: nodes ``0 .. n_contour-1`` are the input contour points in
     input order, then come the extra boundary nodes (in boundary order), then
-    the interior nodes.  ``lines`` are the boundary edges, counter-clockwise
-    around the domain (the domain is on their left), in boundary order.
+    the nodes on the box sides of an exterior mesh (counter-clockwise from
+    the lower left corner), then the interior nodes.  ``lines`` are the
+    boundary edges with the domain on their left, ring by ring in boundary
+    order; ``line_group[e]`` indexes ``groups``, the boundary names
+    (``contour``, ``hole_1``, ..., and ``bottom``, ``right``, ``top``,
+    ``left`` for the box of an exterior mesh).  The triangles form the 2D
+    group ``domain``.
     """
 
     points: np.ndarray  # (n, 2) float64
@@ -22,6 +27,13 @@ class Mesh:
     lines: np.ndarray  # (l, 2) int64
     n_contour: int
     n_extra: int = 0
+    line_group: np.ndarray | None = None  # (l,) int64
+    groups: tuple[str, ...] = field(default=("contour",))
+    n_box: int = 0
+
+    def __post_init__(self):
+        if self.line_group is None:
+            self.line_group = np.zeros(len(self.lines), dtype=np.int64)
 
     @property
     def n_nodes(self) -> int:

@@ -36,8 +36,9 @@ class MeshResult:
 
 
 def run_select(contour: Contour, h=None, box=None, margin=None, strict=False,
-               max_nodes=DEFAULT_MAX_NODES) -> Selection:
-    return select(contour, h=h, box=box, margin=margin, strict=strict, max_nodes=max_nodes)
+               max_nodes=DEFAULT_MAX_NODES, exterior=False) -> Selection:
+    return select(contour, h=h, box=box, margin=margin, strict=strict, max_nodes=max_nodes,
+                  exterior=exterior)
 
 
 def run_deform(contour: Contour, sel: Selection, steps: int = DEFAULT_STEPS,
@@ -67,10 +68,8 @@ def _describer(contour: Contour, sel: Selection):
 
 def run_triangulate(contour: Contour, d: Deformed) -> tuple[Mesh, dict]:
     sel = d.selection
-    mesh = triangulate.extract(
-        contour, sel.grid.coords(), d.points, sel.triangles(), sel.path_nodes, sel.path_source
-    )
-    quality.check_contract(mesh, contour)
+    mesh = triangulate.extract(contour, sel, d.points)
+    quality.check_contract(mesh, contour, sel.grid.box if sel.exterior else None)
     report = quality.stats(mesh)
     report["contract"] = "ok"
     return mesh, report
@@ -78,9 +77,12 @@ def run_triangulate(contour: Contour, d: Deformed) -> tuple[Mesh, dict]:
 
 def mesh_contour(contour: Contour, h=None, box=None, margin=None, strict=False,
                  max_nodes=DEFAULT_MAX_NODES, steps=DEFAULT_STEPS, callback=None,
-                 solver: str = "auto") -> MeshResult:
-    """Mesh the inside of ``contour``; the result meets the contract or this raises."""
-    sel = run_select(contour, h, box, margin, strict, max_nodes)
+                 solver: str = "auto", exterior: bool = False) -> MeshResult:
+    """Mesh the inside of ``contour`` (or the box minus it, ``exterior``).
+
+    The result meets the contract or this raises.
+    """
+    sel = run_select(contour, h, box, margin, strict, max_nodes, exterior)
     d = run_deform(contour, sel, steps, callback, solver)
     mesh, report = run_triangulate(contour, d)
     report.update(selection_report(sel))
@@ -98,5 +100,6 @@ def selection_report(sel: Selection) -> dict:
         "searched_further": int(sel.searched_further),
         "refinements": int(sel.refinements),
         "path_rule": sel.path_rule,
+        "exterior": bool(sel.exterior),
         "notes": list(sel.notes),
     }

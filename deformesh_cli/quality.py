@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .contour import Contour, signed_area
+from .contour import Contour
 from .errors import ContractError
 from .mesh import Mesh
 
@@ -77,8 +77,12 @@ def stats(mesh: Mesh) -> dict:
     }
 
 
-def check_contract(mesh: Mesh, contour: Contour) -> None:
-    """Raise :class:`ContractError` naming the first clause ``mesh`` breaks."""
+def check_contract(mesh: Mesh, contour: Contour, box=None) -> None:
+    """Raise :class:`ContractError` naming the first clause ``mesh`` breaks.
+
+    ``box`` (XMIN, YMIN, XMAX, YMAX) marks an exterior mesh: the domain is the
+    box minus the contour, and the box sides are boundaries too.
+    """
     src = contour.source
     m = contour.n
     pts, tri = mesh.points, mesh.triangles
@@ -101,21 +105,23 @@ def check_contract(mesh: Mesh, contour: Contour) -> None:
         raise ContractError(
             f"{src}: triangle {t} near ({c[0]:.6g}, {c[1]:.6g}) has signed area {area[t]:.3g}"
         )
-    # 2. the boundary is exactly the contour
-    _check_boundary(mesh, contour, area)
+    # 2. the boundary is exactly the rings (and the box)
+    _check_boundary(mesh, contour, box)
     # 4. area conservation
-    poly = abs(signed_area(contour.points))
+    poly = contour.area
+    if box is not None:
+        poly = (box[2] - box[0]) * (box[3] - box[1]) - poly
     total = float(area.sum())
     if abs(total - poly) > AREA_RTOL * poly:
         raise ContractError(
-            f"{src}: mesh area {total:.17g} differs from the contour's {poly:.17g} "
+            f"{src}: mesh area {total:.17g} differs from the domain's {poly:.17g} "
             f"(relative {abs(total - poly) / poly:.2e})"
         )
 
 
-def _check_boundary(mesh: Mesh, contour: Contour, area: np.ndarray) -> None:
+def _check_boundary(mesh: Mesh, contour: Contour, box) -> None:
     src = contour.source
-    m, tri, pts = contour.n, mesh.triangles, mesh.points
+    tri, pts = mesh.triangles, mesh.points
     n = len(pts)
     e = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
     key = np.minimum(e[:, 0], e[:, 1]) * n + np.maximum(e[:, 0], e[:, 1])
@@ -132,19 +138,34 @@ def _check_boundary(mesh: Mesh, contour: Contour, area: np.ndarray) -> None:
             f"{src}: the mesh boundary ({len(directed)} edges) is not the contour's "
             f"boundary chain ({len(lines)} edges)"
         )
-    # the chain is closed, visits the contour points in counter-clockwise order,
-    # and any extra node lies on the contour edge it subdivides
-    if not np.array_equal(lines[:, 1], np.roll(lines[:, 0], -1)):
-        raise ContractError(f"{src}: boundary edges do not form one closed chain")
+    for r in range(contour.n_rings):
+        ring_lines = lines[mesh.line_group == r]
+        order = contour.ring_order(r)
+        if contour.is_hole(r) != (box is not None):  # domain outside: walked clockwise
+            ring_lines = ring_lines[::-1, ::-1]
+        _check_chain(mesh, contour, ring_lines, order, r)
+    if box is not None:
+        _check_box(mesh, contour, box)
+
+
+def _check_chain(mesh: Mesh, contour: Contour, lines: np.ndarray, order: np.ndarray,
+                 r: int) -> None:
+    """One ring's lines: a closed chain through its points in ``order``, extras on edges."""
+    src, pts, m = contour.source, mesh.points, contour.n
+    name = contour.ring_name(r)
+    if len(lines) == 0 or not np.array_equal(lines[:, 1], np.roll(lines[:, 0], -1)):
+        raise ContractError(f"{src}: the {name} boundary edges do not form one closed chain")
     ring = lines[:, 0]
     on_contour = ring < m
     seq = ring[on_contour]
-    order = contour.ccw_order
     start = int(np.flatnonzero(seq == order[0])[0]) if (seq == order[0]).any() else -1
-    if len(seq) != m or start < 0 or not np.array_equal(np.roll(seq, -start), order):
-        raise ContractError(f"{src}: the boundary does not visit the contour points in order")
+    if len(seq) != len(order) or start < 0 or not np.array_equal(np.roll(seq, -start), order):
+        raise ContractError(f"{src}: the {name} boundary does not visit its points in order")
     extra_idx = np.flatnonzero(~on_contour)
     if len(extra_idx):
+        if (ring[extra_idx] >= m + mesh.n_extra).any():
+            raise ContractError(f"{src}: the {name} boundary has a node that is not an extra "
+                                "boundary node")
         pos = np.flatnonzero(on_contour)
         before = ring[pos[np.searchsorted(pos, extra_idx) - 1]]
         nxt = np.searchsorted(pos, extra_idx) % len(pos)
@@ -161,3 +182,21 @@ def _check_boundary(mesh: Mesh, contour: Contour, area: np.ndarray) -> None:
                 f"{src}: extra boundary node {ring[extra_idx[k]]} is off the contour edge "
                 f"from {contour.where(int(before[k]))} (distance {dist[k]:.3g})"
             )
+
+
+def _check_box(mesh: Mesh, contour: Contour, box) -> None:
+    """The box sides: a closed counter-clockwise chain on the box, each side in its group."""
+    src, pts = contour.source, mesh.points
+    groups = list(mesh.groups)
+    side_lines = mesh.line_group >= contour.n_rings
+    lines = mesh.lines[side_lines]
+    if len(lines) == 0 or not np.array_equal(lines[:, 1], np.roll(lines[:, 0], -1)):
+        raise ContractError(f"{src}: the box boundary edges do not form one closed chain")
+    x0, y0, x1, y1 = box
+    at = {"bottom": (1, y0), "right": (0, x1), "top": (1, y1), "left": (0, x0)}
+    for g, (axis, value) in at.items():
+        sel = mesh.line_group[side_lines] == groups.index(g)
+        ends = pts[lines[sel].ravel(), axis]
+        if not sel.any() or not np.all(ends == value):
+            raise ContractError(f"{src}: the {g} boundary does not lie on the box side "
+                                f"at {'xy'[axis]} = {value:g}")

@@ -91,12 +91,15 @@ def choose_grid(
     box: tuple[float, float, float, float] | None = None,
     margin: float | None = None,
     max_nodes: int = DEFAULT_MAX_NODES,
+    exterior: bool = False,
 ) -> tuple[Grid, dict]:
     """Lay the background grid.
 
     ``h`` defaults to Appendix A's ``0.9 * d_c / sqrt(2)`` with ``d_c`` the
     smallest distance between two contour points.  The box defaults to the
-    contour's bounding box grown by ``margin`` (default 3 cells).  Cells are
+    contour's bounding box grown by ``margin`` (default 3 cells; for an
+    ``exterior`` mesh, the contour's larger extent).  An exterior mesh needs
+    at least one cell between the contour and the box.  Cells are
     never larger than ``h``: when the box is not a whole number of cells, the
     step along that axis is shrunk slightly so the box is kept exactly.
 
@@ -115,6 +118,8 @@ def choose_grid(
     default_margin = box is None and margin is None
     if box is None:
         m = DEFAULT_MARGIN_CELLS * h if margin is None else float(margin)
+        if exterior and margin is None:
+            m = float(np.ptp(p, axis=0).max())
         if not (m >= 0 and math.isfinite(m)):
             raise OptionError(f"--margin must be a non-negative number, got {margin}")
         box = (lo[0] - m, lo[1] - m, hi[0] + m, hi[1] + m)
@@ -132,13 +137,22 @@ def choose_grid(
     est = estimate_nodes(width, height, h)
     info["estimated_nodes"] = est
     if est > max_nodes:
-        margin_cells = DEFAULT_MARGIN_CELLS if default_margin else 0
-        size = (hi - lo) if default_margin else (width, height)
+        margin_cells = DEFAULT_MARGIN_CELLS if default_margin and not exterior else 0
+        size = (hi - lo) if default_margin and not exterior else (width, height)
         raise LimitError(_too_many_nodes(contour, est, h, info["h_rule"], d_c, ka, kb,
                                          tuple(float(v) for v in size), margin_cells, max_nodes))
     nx = max(1, math.ceil(width / h - 1e-9))
     ny = max(1, math.ceil(height / h - 1e-9))
     grid = Grid(box[0], box[1], width / nx, height / ny, nx, ny)
+    if exterior:
+        gap = np.minimum(np.minimum(p[:, 0] - box[0], box[2] - p[:, 0]) / grid.hx,
+                         np.minimum(p[:, 1] - box[1], box[3] - p[:, 1]) / grid.hy)
+        if gap.min() < 1.0:
+            k = int(np.argmin(gap))
+            raise OptionError(
+                f"{contour.source}: {contour.where(k)} is less than one cell from the box "
+                f"{_fmt_box(box)}; an exterior mesh needs room around the contour: give a "
+                "larger --box or --margin")
     info["h"] = h
     return grid, info
 
@@ -193,8 +207,10 @@ class Selection:
 
     ``path_nodes[t]`` is the grid node moved onto ``path_targets[t]``;
     ``path_source[t]`` is the input index of the contour point it carries, or
-    -1 for an extra boundary node placed on a contour edge.  The path runs
-    counter-clockwise.  ``diagonals[c]`` is the split of cell ``c``.
+    -1 for an extra boundary node placed on a contour edge; ``path_ring[t]``
+    is its ring.  Each ring's path runs counter-clockwise, ring after ring.
+    ``diagonals[c]`` is the split of cell ``c``.  ``exterior``: the mesh is
+    the box minus the contour.
     """
 
     grid: Grid
@@ -208,6 +224,12 @@ class Selection:
     refinements: int = 0
     notes: list[str] = field(default_factory=list)
     path_rule: str = "appendix-a"
+    path_ring: np.ndarray | None = None
+    exterior: bool = False
+
+    def __post_init__(self):
+        if self.path_ring is None:
+            self.path_ring = np.zeros(len(self.path_nodes), dtype=np.int64)
 
     @property
     def extra_nodes(self) -> int:
@@ -235,21 +257,25 @@ def grid_triangles(grid: Grid, diagonals: np.ndarray) -> np.ndarray:
 
 
 class _Visibility:
-    """Whether the straight segment from contour point ``k`` to a node crosses the contour.
+    """Whether the straight segment from a contour point to a node crosses a contour.
 
     A node seen from ``Q_k`` only across another part of the contour would put
     ``P_k`` on the wrong side of it (a thin trailing edge: an upper-surface
     point taking a node below the lower surface) and the path would cross
-    itself.  Edges adjacent to ``Q_k`` touch it there and are ignored.
+    itself.  Every ring's edges block; the two edges at ``Q_k`` touch it
+    there and are ignored.  ``q`` holds all rings' points, ring after ring;
+    ``nxt[k]`` is the point after ``k`` on its ring.
     """
 
-    def __init__(self, q: np.ndarray):
+    def __init__(self, q: np.ndarray, nxt: np.ndarray | None = None):
         import shapely
 
         self.q = q
-        self.m = len(q)
+        self.nxt = np.roll(np.arange(len(q)), -1) if nxt is None else nxt
+        self.prv = np.empty_like(self.nxt)
+        self.prv[self.nxt] = np.arange(len(q))
         self.shapely = shapely
-        self.edges = shapely.linestrings(np.stack([q, np.roll(q, -1, axis=0)], axis=1))
+        self.edges = shapely.linestrings(np.stack([q, q[self.nxt]], axis=1))
         self.tree = shapely.STRtree(self.edges)
 
     def visible(self, k: np.ndarray, xy: np.ndarray) -> np.ndarray:
@@ -261,7 +287,7 @@ class _Visibility:
         segs = shp.linestrings(np.stack([self.q[k], end], axis=1))
         si, ei = self.tree.query(segs, predicate="intersects")
         kk = k[si]
-        adjacent = (ei == kk) | (ei == (kk - 1) % self.m)
+        adjacent = (ei == kk) | (ei == self.prv[kk])
         blocked = np.zeros(len(k), dtype=bool)
         blocked[si[~adjacent]] = True
         return ~blocked
@@ -275,7 +301,8 @@ class NoFreeNode(SelectionError):
         self.k = k
 
 
-def select_nodes(grid: Grid, q: np.ndarray) -> tuple[np.ndarray, int]:
+def select_nodes(grid: Grid, q: np.ndarray, taken: set[int] | None = None,
+                 vis: _Visibility | None = None, offset: int = 0) -> tuple[np.ndarray, int]:
     """Appendix A: for each point, the nearest free corner of the cell holding it.
 
     Points are taken in the order given.  A corner counts only if the point
@@ -283,9 +310,10 @@ def select_nodes(grid: Grid, q: np.ndarray) -> tuple[np.ndarray, int]:
     corner is free the search widens ring by ring around the cell and takes
     the nearest free visible node (the pseudo-code leaves such a point
     unassigned).  Returns grid node ids and how many points needed the wider
-    search.
+    search.  With several rings, ``taken`` holds the nodes earlier rings took
+    (it is updated), ``vis`` sees all rings, and ``q`` is ring ``vis.q[offset:]``.
     """
-    taken: set[int] = set()
+    taken = set() if taken is None else taken
     out = np.empty(len(q), dtype=np.int64)
     further = 0
     t = (q[:, 0] - grid.x0) / grid.hx
@@ -296,9 +324,9 @@ def select_nodes(grid: Grid, q: np.ndarray) -> tuple[np.ndarray, int]:
     dj = np.array([0, 0, 1, 1])
     II, JJ = ci[:, None] + di, cj[:, None] + dj
     dist = np.hypot((II - t[:, None]) * grid.hx, (JJ - s[:, None]) * grid.hy)
-    vis = _Visibility(q)
+    vis = _Visibility(q) if vis is None else vis
     corner_xy = np.column_stack([grid.x0 + II.ravel() * grid.hx, grid.y0 + JJ.ravel() * grid.hy])
-    seen = vis.visible(np.repeat(np.arange(len(q)), 4), corner_xy).reshape(-1, 4)
+    seen = vis.visible(np.repeat(np.arange(len(q)) + offset, 4), corner_xy).reshape(-1, 4)
     rank = np.argsort(dist, axis=1, kind="stable")
     ids = JJ * (grid.nx + 1) + II
     tangent = q - np.roll(q, 1, axis=0)
@@ -313,8 +341,8 @@ def select_nodes(grid: Grid, q: np.ndarray) -> tuple[np.ndarray, int]:
                 break
         if chosen < 0:
             further += 1
-            chosen = _search_further(grid, vis, k, t[k], s[k], int(ci[k]), int(cj[k]), taken,
-                                     prev_ij, tangent[k])
+            chosen = _search_further(grid, vis, k + offset, t[k], s[k], int(ci[k]), int(cj[k]),
+                                     taken, prev_ij, tangent[k])
             if chosen < 0:
                 raise NoFreeNode(k)
         taken.add(chosen)
@@ -355,7 +383,8 @@ def _search_further(grid: Grid, vis: _Visibility, k: int, t: float, s: float, i:
     return -1
 
 
-def build_path(grid: Grid, sel: np.ndarray, q: np.ndarray, src: np.ndarray):
+def build_path(grid: Grid, sel: np.ndarray, q: np.ndarray, src: np.ndarray,
+               taken: set[int] | None = None):
     """Close the selected nodes into a grid path of 8-neighbour steps.
 
     Where two consecutive selected nodes are ``D >= 2`` cells apart, the grid
@@ -363,11 +392,12 @@ def build_path(grid: Grid, sel: np.ndarray, q: np.ndarray, src: np.ndarray):
     nodes, carried to evenly spaced points of the contour edge.  The route is
     the digital straight line when its nodes are free, otherwise the route
     closest to that line that avoids every node already on the path (see
-    :func:`_route`).  Returns ``(nodes, targets, source)`` arrays over the path.
+    :func:`_route`); nodes in ``taken`` (other rings) are avoided too.
+    Returns ``(nodes, targets, source)`` arrays over the path.
     """
     i, j = grid.node_ij(sel)
     m = len(sel)
-    used = set(int(n) for n in sel)
+    used = set(int(n) for n in sel) | (taken or set())
     nodes, targets, source = [], [], []
     for k in range(m):
         k2 = (k + 1) % m
@@ -439,8 +469,12 @@ def _route(grid: Grid, a, b, used: set[int], pad: int = 2) -> list[int] | None:
     return None
 
 
-def force_diagonals(grid: Grid, nodes: np.ndarray, targets: np.ndarray | None = None):
-    """Cell splits forced by the path, or the index of the first conflict.
+def force_diagonals(grid: Grid, nodes: np.ndarray, targets: np.ndarray | None = None,
+                    ring: np.ndarray | None = None):
+    """Cell splits forced by the path(s), or the index of the first conflict.
+
+    ``ring`` tells which closed path each entry is on (default: one path);
+    a cell forced by two rings is a conflict too.
 
     Returns ``(diagonals, None)`` or ``(None, path_index)`` where the path
     touches itself: two crossing diagonal steps in one cell, or a cell asked
@@ -453,9 +487,11 @@ def force_diagonals(grid: Grid, nodes: np.ndarray, targets: np.ndarray | None = 
     """
     i, j = grid.node_ij(nodes)
     i, j = np.asarray(i), np.asarray(j)
-    L = len(nodes)
-    ni, nj = np.roll(i, -1), np.roll(j, -1)
-    pi, pj = np.roll(i, 1), np.roll(j, 1)
+    nxt = _next_on_ring(np.zeros(len(nodes), np.int64) if ring is None else ring)
+    prv = np.empty_like(nxt)
+    prv[nxt] = np.arange(len(nxt))
+    ni, nj = i[nxt], j[nxt]
+    pi, pj = i[prv], j[prv]
     di, dj = ni - i, nj - j  # step out of each node
     qi, qj = i - pi, j - pj  # step into each node
     cells, dirs, where, kind = [], [], [], []
@@ -484,14 +520,14 @@ def force_diagonals(grid: Grid, nodes: np.ndarray, targets: np.ndarray | None = 
     cs, ds, ws, ks = cells_a[order], dirs_a[order], where_a[order], kind_a[order]
     uniq, start, count = np.unique(cs, return_index=True, return_counts=True)
     multi = np.flatnonzero(count > 1)
-    uturn_cells, uturn_at = [], []
+    uturn_cells = []
     for g in multi:
         s0 = start[g]
         w0, w1 = int(ws[s0]), int(ws[s0 + 1])
         # exactly two L-turns at consecutive path positions: a U-turn
-        if count[g] == 2 and ks[s0] == 1 and ks[s0 + 1] == 1 and (w1 - w0) % L in (1, L - 1):
+        if count[g] == 2 and ks[s0] == 1 and ks[s0 + 1] == 1 and (nxt[w0] == w1
+                                                                  or nxt[w1] == w0):
             uturn_cells.append(int(uniq[g]))
-            uturn_at.append(w1 if (w1 - w0) % L == 1 else w0)  # the second corner
             continue
         # two diagonal steps in one cell always cross or retrace; an L-turn
         # sharing a cell with another rule means the path wraps that cell
@@ -502,6 +538,16 @@ def force_diagonals(grid: Grid, nodes: np.ndarray, targets: np.ndarray | None = 
     for cell in uturn_cells:
         diagonals[cell] = _uturn_split(grid, cell, nodes, targets)
     return diagonals, None
+
+
+def _next_on_ring(ring: np.ndarray) -> np.ndarray:
+    """Index of the next entry on the same closed path (entries of a ring are contiguous)."""
+    idx = np.arange(len(ring))
+    change = np.flatnonzero(np.diff(ring)) + 1
+    starts = np.concatenate([[0], change])
+    sizes = np.diff(np.concatenate([starts, [len(ring)]]))
+    start = np.repeat(starts, sizes)
+    return start + (idx - start + 1) % np.repeat(sizes, sizes)
 
 
 def _uturn_split(grid: Grid, cell: int, nodes: np.ndarray, targets: np.ndarray | None) -> int:
@@ -536,62 +582,83 @@ def _nearest_point(src: np.ndarray, t: int) -> int:
 
 
 def fit_path(contour: Contour, grid: Grid, strict: bool = False, method: str = "greedy"):
-    """Select nodes and build a valid path on ``grid``; raise SelectionError if impossible.
+    """Select nodes and build a valid path per ring on ``grid``; raise SelectionError if not.
 
     ``method`` is ``"greedy"`` (Appendix A, point by point) or ``"trace"``
-    (the outline of the cells the contour crosses, see :mod:`.trace`).
-    Returns ``(nodes, targets, source, diagonals, searched_further)``.
+    (the outline of the cells the contour crosses, see :mod:`.trace`).  Rings
+    are taken in input order; nodes one ring took are not available to the
+    next.  Returns ``(nodes, targets, source, ring, diagonals,
+    searched_further)`` with the rings' paths one after the other.
     """
-    order = contour.ccw_order
-    q = contour.points[order]
-    if method == "trace":
-        nodes, targets, source = _trace(contour, grid, q, order)
-        further = 0
-    else:
-        try:
-            sel, further = select_nodes(grid, q)
-        except NoFreeNode as exc:
-            raise SelectionError(
-                f"{contour.source}: no free grid node left that {contour.where(int(order[exc.k]))} "
-                f"can see (h = {max(grid.hx, grid.hy):.4g}); the contour has more points here "
-                "than the grid has nodes: give a smaller --h") from None
-        if strict:
-            _check_strict(contour, grid, sel, order)
-        nodes, targets, source = build_path(grid, sel, q, order)
+    vis = (_Visibility(contour.ccw_points, _next_on_ring(contour.ring))
+           if method == "greedy" else None)
+    taken: set[int] = set()
+    parts, further = [], 0
+    offset = 0
+    for r in range(contour.n_rings):
+        order = contour.ring_order(r)
+        q = contour.points[order]
+        if method == "trace":
+            nodes, targets, source = _trace(contour, grid, q, order)
+        else:
+            try:
+                sel, f = select_nodes(grid, q, taken, vis, offset)
+            except NoFreeNode as exc:
+                raise SelectionError(
+                    f"{contour.source}: no free grid node left that "
+                    f"{contour.where(int(order[exc.k]))} can see (h = "
+                    f"{max(grid.hx, grid.hy):.4g}); the contour has more points here than the "
+                    "grid has nodes: give a smaller --h") from None
+            further += f
+            if strict:
+                _check_strict(contour, grid, sel, order)
+            nodes, targets, source = build_path(grid, sel, q, order, taken)
+        taken.update(nodes.tolist())
+        parts.append((nodes, targets, source))
+        offset += len(order)
+    nodes = np.concatenate([p[0] for p in parts])
+    targets = np.concatenate([p[1] for p in parts])
+    source = np.concatenate([p[2] for p in parts])
+    ring = np.repeat(np.arange(len(parts)), [len(p[0]) for p in parts])
     if strict and (source < 0).any():
         t = int(np.argmax(source < 0))
         after = source[t:][source[t:] >= 0]
         raise SelectionError(_strict_msg(contour, grid, _nearest_point(source, t),
                                          int(after[0]) if len(after) else int(source[0])))
-    problem = check_path(grid, nodes, targets)
+    problem = check_path(grid, nodes, targets, ring)
     if problem is not None:
         t, what = problem
         if what == "clockwise":
             raise SelectionError(
-                f"{contour.source}: the grid path runs clockwise or encloses nothing "
-                f"(h = {max(grid.hx, grid.hy):.4g} is too coarse for this contour); "
-                "give a smaller --h")
+                f"{contour.source}: the grid path of ring {int(ring[t])} runs clockwise or "
+                f"encloses nothing (h = {max(grid.hx, grid.hy):.4g} is too coarse for this "
+                "contour); give a smaller --h")
         raise SelectionError(_touch_msg(contour, grid, source, t, what))
-    diagonals, _ = force_diagonals(grid, nodes, targets)
-    return nodes, targets, source, diagonals, further
+    diagonals, _ = force_diagonals(grid, nodes, targets, ring)
+    return nodes, targets, source, ring, diagonals, further
 
 
-def check_path(grid: Grid, nodes: np.ndarray, targets: np.ndarray):
+def check_path(grid: Grid, nodes: np.ndarray, targets: np.ndarray,
+               ring: np.ndarray | None = None):
     """``None`` if the path can be deformed onto its targets, else ``(path index, what)``.
 
-    The path must visit each node once, force no cell twice (it would touch
-    itself), run counter-clockwise, and every triangle with all three
-    corners on the path must keep its orientation at the targets.
+    ``ring`` (default: all one ring) tells which ring each path entry is on.
+    The paths must visit each node once, force no cell twice (they would
+    touch), each run counter-clockwise, and every triangle with all three
+    corners on a path must keep its orientation at the targets.
     """
+    ring = np.zeros(len(nodes), dtype=np.int64) if ring is None else ring
     uniq, counts = np.unique(nodes, return_counts=True)
     if (counts > 1).any():
         t = int(np.flatnonzero(nodes == uniq[np.argmax(counts > 1)])[-1])
         return t, "visits one grid node twice"
-    diagonals, bad = force_diagonals(grid, nodes, targets)
+    diagonals, bad = force_diagonals(grid, nodes, targets, ring)
     if diagonals is None:
         return bad, "touches itself"
-    if signed_area(grid.coords(nodes)) <= 0:
-        return 0, "clockwise"
+    for r in np.unique(ring):
+        on = np.flatnonzero(ring == r)
+        if signed_area(grid.coords(nodes[on])) <= 0:
+            return int(on[0]), "clockwise"
     tri = _path_triangles(grid, diagonals, nodes)
     if len(tri):
         pos = np.full((grid.n_nodes, 2), np.nan)
@@ -695,6 +762,7 @@ def select(
     strict: bool = False,
     max_nodes: int = DEFAULT_MAX_NODES,
     methods: tuple[str, ...] = ("greedy", "trace"),
+    exterior: bool = False,
 ) -> Selection:
     """Stage 1 in full: grid, selection, path, forced diagonals.
 
@@ -702,10 +770,33 @@ def select(
     fraction of a cell (:data:`SHIFTS`: alignment decides which contour
     points compete for a node); if no shift works, the path is traced around
     the contour instead (:mod:`.trace`, again on each shift); then, for the
-    default ``h`` only, the step is halved (at most :data:`MAX_REFINEMENTS` times, within ``max_nodes``).  If
-    nothing works the error names the place.
+    default ``h`` only, the step is halved (at most :data:`MAX_REFINEMENTS`
+    times, within ``max_nodes``).  If nothing works the error names the
+    place.  ``methods`` restricts the path rules tried (tests use it to
+    exercise tracing alone).
+
+    For an exterior mesh with the default ``h`` (a far-field box is large
+    compared with the contour's spacing), when Appendix A's grid would exceed
+    ``max_nodes``, coarser steps are tried (:func:`_coarser_steps`) before
+    giving up with the original :class:`LimitError`.
     """
-    grid, info = choose_grid(contour, h, box, margin, max_nodes)
+    try:
+        grid, info = choose_grid(contour, h, box, margin, max_nodes, exterior)
+    except LimitError as limit:
+        if h is not None or not exterior:
+            raise
+        for h_try in _coarser_steps(contour, box, margin, max_nodes, exterior):
+            try:
+                sel = select(contour, h_try, box, margin, strict, max_nodes, methods, exterior)
+            except (SelectionError, LimitError):
+                continue
+            sel.h_rule = "coarsened"
+            h_a = 0.9 * contour.min_spacing()[0] / math.sqrt(2)
+            sel.notes.insert(0, f"Appendix A's h = {h_a:.3g} would exceed --max-nodes; used "
+                             f"h = {h_try:.4g}, the coarsest step tried that gives every "
+                             "contour point a node of its own")
+            return sel
+        raise limit from None
     h_used = info["h"]
     refinements = 0
     notes: list[str] = []
@@ -716,7 +807,8 @@ def select(
             if g.n_nodes > max_nodes:
                 continue
             try:
-                nodes, targets, source, diagonals, further = fit_path(contour, g, strict, method)
+                nodes, targets, source, ring, diagonals, further = fit_path(contour, g, strict,
+                                                                            method)
             except SelectionError as exc:
                 first_error = first_error or exc
                 if strict:
@@ -739,13 +831,50 @@ def select(
                 refinements=refinements,
                 notes=notes,
                 path_rule="appendix-a" if method == "greedy" else "traced",
+                path_ring=ring,
+                exterior=exterior,
             )
         if h is not None or refinements >= MAX_REFINEMENTS:
             raise first_error
         try:
-            grid, info = choose_grid(contour, h_used / 2, box, margin, max_nodes)
+            grid, info = choose_grid(contour, h_used / 2, box, margin, max_nodes, exterior)
         except LimitError:
             raise first_error from None
         notes.append(f"halved h to {h_used / 2:.4g}: no simple grid path at h = {h_used:.4g}")
         h_used /= 2
         refinements += 1
+
+
+#: Coarser steps tried when Appendix A's grid is too large: the median spacing
+#: divided by 1.25**k, at most this many that pass the crowding test.
+MAX_COARSER_TRIES = 3
+
+#: A step is hopeless when one cell would hold more contour points than this.
+MAX_POINTS_PER_CELL = 4
+
+
+def _coarser_steps(contour: Contour, box, margin, max_nodes: int, exterior: bool):
+    """Candidate steps, coarsest first, that fit ``max_nodes`` and do not crowd cells.
+
+    Every contour point needs a node of its own; a cell holding more than
+    :data:`MAX_POINTS_PER_CELL` points cannot give them one nearby, so such
+    steps are skipped without trying (this keeps refusals fast).
+    """
+    p = contour.points
+    seg = np.hypot(*(p[_next_on_ring(contour.ring)] - p).T)
+    h0 = float(np.median(seg))
+    tried = 0
+    for k in range(40):
+        h = h0 / 1.25**k
+        try:
+            grid, _ = choose_grid(contour, h, box, margin, max_nodes, exterior)
+        except (LimitError, OptionError):
+            return
+        ij = np.floor((p - (grid.x0, grid.y0)) / (grid.hx, grid.hy)).astype(np.int64)
+        _, counts = np.unique(ij, axis=0, return_counts=True)
+        if counts.max() > MAX_POINTS_PER_CELL:
+            continue
+        yield h
+        tried += 1
+        if tried >= MAX_COARSER_TRIES:
+            return

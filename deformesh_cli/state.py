@@ -22,7 +22,7 @@ from .errors import InputError
 from .select import Grid, Selection
 
 FORMAT = "deformesh-state"
-VERSION = 1
+VERSION = 2
 STAGES = ("selected", "deformed")
 
 _ARRAYS = {
@@ -32,6 +32,8 @@ _ARRAYS = {
     "path_nodes": ("i", 1, ()),
     "path_targets": ("f", 2, (2,)),
     "path_source": ("i", 1, ()),
+    "path_ring": ("i", 1, ()),
+    "contour_starts": ("i", 1, ()),
     "diagonals": ("u", 1, ()),
 }
 _EPOCH = (1980, 1, 1, 0, 0, 0)
@@ -61,6 +63,7 @@ def dumps(state: State) -> bytes:
         "searched_further": sel.searched_further,
         "refinements": sel.refinements,
         "path_rule": sel.path_rule,
+        "exterior": bool(sel.exterior),
         "notes": list(sel.notes),
     }
     if state.meta:
@@ -71,6 +74,8 @@ def dumps(state: State) -> bytes:
         "path_nodes": sel.path_nodes,
         "path_targets": sel.path_targets,
         "path_source": sel.path_source,
+        "path_ring": sel.path_ring,
+        "contour_starts": np.asarray(state.contour.starts, dtype=np.int64),
         "diagonals": sel.diagonals,
     }
     if state.stage == "deformed":
@@ -133,14 +138,20 @@ def loads(data: bytes, name: str = "<state>", want: str | None = None) -> State:
         grid.nx >= 1 and grid.ny >= 1 and grid.hx > 0 and grid.hy > 0
         and len(arrays["diagonals"]) == grid.nx * grid.ny
         and len(arrays["path_targets"]) == p and len(arrays["path_source"]) == p
+        and len(arrays["path_ring"]) == p
         and p >= 3 and arrays["path_nodes"].min() >= 0 and arrays["path_nodes"].max() < n
         and len(arrays["contour_lines"]) == len(arrays["contour_points"])
         and (stage != "deformed" or arrays["points"].shape == (n, 2))
     )
     if not ok:
         raise InputError(f"{name}: inconsistent state file (array sizes do not match the grid)")
+    starts = arrays["contour_starts"]
+    if len(starts) < 2 or starts[0] != 0 or starts[-1] != len(arrays["contour_points"]) \
+            or (np.diff(starts) < 3).any():
+        raise InputError(f"{name}: inconsistent state file (ring starts do not match the "
+                         "contour)")
     contour = make_contour(arrays["contour_points"], arrays["contour_lines"],
-                           str(meta.get("source", name)))
+                           str(meta.get("source", name)), ring_starts=starts[:-1])
     src = arrays["path_source"]
     if src.max() >= contour.n or np.count_nonzero(src >= 0) != contour.n:
         raise InputError(f"{name}: inconsistent state file (path does not match the contour)")
@@ -156,5 +167,7 @@ def loads(data: bytes, name: str = "<state>", want: str | None = None) -> State:
         refinements=int(meta.get("refinements", 0)),
         notes=list(meta.get("notes", [])),
         path_rule=str(meta.get("path_rule", "appendix-a")),
+        path_ring=arrays["path_ring"].astype(np.int64),
+        exterior=bool(meta.get("exterior", False)),
     )
     return State(stage, contour, sel, arrays.get("points"), meta)
