@@ -776,27 +776,24 @@ def select(
     exercise tracing alone).
 
     For an exterior mesh with the default ``h`` (a far-field box is large
-    compared with the contour's spacing), when Appendix A's grid would exceed
-    ``max_nodes``, coarser steps are tried (:func:`_coarser_steps`) before
-    giving up with the original :class:`LimitError`.
+    compared with the contour's spacing), the coarsest step of
+    :func:`_coarser_steps` that works is used; Appendix A's ``h`` only if
+    none does.
     """
-    try:
-        grid, info = choose_grid(contour, h, box, margin, max_nodes, exterior)
-    except LimitError as limit:
-        if h is not None or not exterior:
-            raise
+    if exterior and h is None:
+        # a far-field box is large against the contour's smallest spacing:
+        # start from the coarsest step that gives every point a node
         for h_try in _coarser_steps(contour, box, margin, max_nodes, exterior):
             try:
                 sel = select(contour, h_try, box, margin, strict, max_nodes, methods, exterior)
             except (SelectionError, LimitError):
                 continue
-            sel.h_rule = "coarsened"
-            h_a = 0.9 * contour.min_spacing()[0] / math.sqrt(2)
-            sel.notes.insert(0, f"Appendix A's h = {h_a:.3g} would exceed --max-nodes; used "
-                             f"h = {h_try:.4g}, the coarsest step tried that gives every "
-                             "contour point a node of its own")
+            sel.h_rule = "spacing"
+            sel.notes.insert(0, f"exterior mesh: h = {h_try:.4g}, the coarsest step tried "
+                             "(median spacing / 1.25^k) that gives every contour point a node "
+                             "of its own")
             return sel
-        raise limit from None
+    grid, info = choose_grid(contour, h, box, margin, max_nodes, exterior)
     h_used = info["h"]
     refinements = 0
     notes: list[str] = []
@@ -845,7 +842,7 @@ def select(
         refinements += 1
 
 
-#: Coarser steps tried when Appendix A's grid is too large: the median spacing
+#: Steps tried for exterior meshes: the median spacing
 #: divided by 1.25**k, at most this many that pass the crowding test.
 MAX_COARSER_TRIES = 3
 
