@@ -73,9 +73,9 @@ def _check_binary_stdout(out: str) -> None:
                                "use -o FILE or a pipe")
 
 
-def _read_contour(path: str):
+def _read_contour(path: str, decimal: str = "."):
     data = io.read_bytes(path) if path == "-" else None
-    return load_contour(path, data)
+    return load_contour(path, data, decimal)
 
 
 select_options = [
@@ -93,6 +93,9 @@ select_options = [
                       "select grid nodes that are not neighbours."),
     click.option("--max-nodes", type=click.IntRange(min=4), default=DEFAULT_MAX_NODES,
                  show_default=True, help="Refuse grids with more nodes than this (memory guard)."),
+    click.option("--decimal", type=click.Choice([".", ","]), default=".", show_default=True,
+                 help="Decimal mark of the CSV numbers; with ',' the delimiter is ';', tab or "
+                      "spaces."),
     click.option("--exterior", is_flag=True,
                  help="Mesh the box minus the contour (e.g. an airfoil in a far-field box). "
                       "Default margin: the contour's larger extent."),
@@ -135,10 +138,10 @@ def cli():
 @_apply(select_options)
 @quiet_option
 @_handle_errors
-def select_cmd(contour, output, h, box, margin, strict, max_nodes, exterior, quiet):
+def select_cmd(contour, output, h, box, margin, strict, max_nodes, decimal, exterior, quiet):
     """Lay the background grid and pick one grid node per contour point (stage 1)."""
     _check_binary_stdout(output)
-    c = _read_contour(contour)
+    c = _read_contour(contour, decimal)
     sel = pipeline.run_select(c, h, box, margin, strict, max_nodes, exterior)
     io.write_bytes(state.dumps(state.State("selected", c, sel)), output)
     g = sel.grid
@@ -226,12 +229,12 @@ def summary_line(r: dict) -> str:
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
 @quiet_option
 @_handle_errors
-def all_cmd(contour, output, h, box, margin, strict, max_nodes, exterior, steps, solver, fmt,
-            as_json, quiet):
+def all_cmd(contour, output, h, box, margin, strict, max_nodes, decimal, exterior, steps, solver,
+            fmt, as_json, quiet):
     """Run select, deform and triangulate in one process."""
     t0 = time.perf_counter()
     fmt = _check_mesh_output(output, fmt, as_json)
-    c = _read_contour(contour)
+    c = _read_contour(contour, decimal)
     res = pipeline.mesh_contour(c, h, box, margin, strict, max_nodes, steps, solver=solver,
                                 exterior=exterior)
     _finish(c, res.mesh, res.report, output, fmt, as_json, quiet, t0)

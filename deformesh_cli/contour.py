@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import shapely
 
-from .errors import InputError
+from .errors import InputError, OptionError
 
 _DELIMITERS = (",", ";", "\t")
 
@@ -144,8 +144,11 @@ def signed_area(p: np.ndarray) -> float:
     return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
 
 
-def load_contour(path: str | Path, data: bytes | None = None) -> Contour:
-    """Read a contour file (CSV).  ``path == "-"`` with ``data`` reads bytes given."""
+def load_contour(path: str | Path, data: bytes | None = None, decimal: str = ".") -> Contour:
+    """Read a contour file (CSV).  ``path == "-"`` with ``data`` reads bytes given.
+
+    ``decimal`` is the decimal mark of the numbers (``.`` or ``,``).
+    """
     name = "<stdin>" if str(path) == "-" else str(path)
     if data is None:
         p = Path(path)
@@ -168,7 +171,7 @@ def load_contour(path: str | Path, data: bytes | None = None) -> Contour:
         raise InputError(
             f"{name}: not UTF-8 text (byte {exc.start}); expected CSV with x,y columns"
         ) from None
-    return parse_csv(text, name)
+    return parse_csv(text, name, decimal)
 
 
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^[+-]?(nan|inf|infinity)$", re.I)
@@ -180,13 +183,18 @@ def _split(line: str, delim: str | None) -> list[str]:
     return [f.strip() for f in line.split(delim)]
 
 
-def parse_csv(text: str, source: str = "<contour>") -> Contour:
+def parse_csv(text: str, source: str = "<contour>", decimal: str = ".") -> Contour:
     """Parse CSV text into a validated :class:`Contour`.
 
     Accepts an optional header naming ``x``, ``y`` (and ``ring``), ``#``
     comments, blank lines, and ``,`` ``;`` tab or whitespace delimiters (the
-    first data line decides).  Raises :class:`InputError` naming the line.
+    first data line decides).  With ``decimal=","`` numbers are written
+    ``1,5`` and the delimiter is ``;`` tab or whitespace.  Raises
+    :class:`InputError` naming the line.
     """
+    if decimal not in (".", ","):
+        raise OptionError(f"--decimal must be '.' or ',', got {decimal!r}")
+    delimiters = _DELIMITERS if decimal == "." else (";", "\t")
     text = text.removeprefix("\ufeff")
     rows: list[tuple[int, list[str]]] = []
     delim: str | None = None
@@ -196,9 +204,12 @@ def parse_csv(text: str, source: str = "<contour>") -> Contour:
         if not line:
             continue
         if not decided:
-            delim = next((d for d in _DELIMITERS if d in line), None)
+            delim = next((d for d in delimiters if d in line), None)
             decided = True
-        rows.append((lineno, _split(line, delim)))
+        fields = _split(line, delim)
+        if decimal == ",":
+            fields = [f.replace(",", ".") for f in fields]
+        rows.append((lineno, fields))
     if not rows:
         raise InputError(f"{source}: empty: no points (expected CSV with x,y columns)")
 

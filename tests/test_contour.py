@@ -99,3 +99,21 @@ def test_min_spacing_is_over_all_pairs():
     d, a, b = c.min_spacing()
     assert d == pytest.approx(0.1)
     assert {a, b} == {3, 5}
+
+
+def test_decimal_comma():
+    text = "x;y\n0,0;0\n1,5;0\n1,5;2,25\n"
+    c = parse_csv(text, "dc.csv", decimal=",")
+    assert c.points.tolist() == [[0.0, 0.0], [1.5, 0.0], [1.5, 2.25]]
+    # without --decimal ',' the same text is refused (a comma splits the fields)
+    with pytest.raises(InputError):
+        parse_csv(text, "dc.csv")
+
+
+def test_decimal_comma_on_the_command_line(run, tmp_path):
+    src = tmp_path / "dc.csv"
+    src.write_text("0,0\t0\n1,5\t0\n1,5\t2,25\n0\t2,25\n")
+    r = run("all", src, "--decimal", ",", "-o", tmp_path / "m.vtk", "--json")
+    assert r.exit_code == 0, r.stderr
+    r = run("all", src, "--decimal", ";", "-o", tmp_path / "n.vtk")
+    assert r.exit_code == 2
