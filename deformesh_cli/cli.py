@@ -109,6 +109,9 @@ solver_option = click.option(
 format_option = click.option(
     "--format", "fmt", type=click.Choice(sorted(io.FORMATS), case_sensitive=False),
     default=None, help="Mesh format. Default: from the output file's extension.")
+msh_option = click.option(
+    "--msh-version", type=click.Choice(sorted(io.MSH_VERSIONS)), default="2.2", show_default=True,
+    help="Gmsh file version for .msh output (ASCII either way).")
 quiet_option = click.option("-q", "--quiet", is_flag=True, help="Print errors only.")
 
 
@@ -174,10 +177,11 @@ def deform_cmd(state_in, output, steps, solver, quiet):
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, allow_dash=True),
               help="Mesh file to write; the format follows the extension.")
 @format_option
+@msh_option
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
 @quiet_option
 @_handle_errors
-def triangulate_cmd(state_in, output, fmt, as_json, quiet):
+def triangulate_cmd(state_in, output, fmt, msh_version, as_json, quiet):
     """Keep the triangles inside the contour and write the mesh (stage 3)."""
     t0 = time.perf_counter()
     fmt = _check_mesh_output(output, fmt, as_json)
@@ -185,7 +189,7 @@ def triangulate_cmd(state_in, output, fmt, as_json, quiet):
     st = state.loads(io.read_bytes(state_in), name, want="deformed")
     mesh, report = pipeline.run_triangulate(st.contour, pipeline.Deformed(st.selection, st.points))
     report.update(pipeline.selection_report(st.selection))
-    _finish(st.contour, mesh, report, output, fmt, as_json, quiet, t0)
+    _finish(st.contour, mesh, report, output, fmt, as_json, quiet, t0, msh_version)
 
 
 def _check_mesh_output(output, fmt, as_json):
@@ -197,8 +201,8 @@ def _check_mesh_output(output, fmt, as_json):
         raise click.UsageError(str(exc)) from None
 
 
-def _finish(contour, mesh, report, output, fmt, as_json, quiet, t0):
-    io.write_mesh(mesh, output, fmt)
+def _finish(contour, mesh, report, output, fmt, as_json, quiet, t0, msh_version="2.2"):
+    io.write_mesh(mesh, output, fmt, msh_version)
     report = {"input": contour.source, "output": output, "format": fmt, **report,
               "seconds": round(time.perf_counter() - t0, 3)}
     report["notes"] = list(contour.notes) + list(report.get("notes", []))
@@ -226,18 +230,19 @@ def summary_line(r: dict) -> str:
 @steps_option
 @solver_option
 @format_option
+@msh_option
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
 @quiet_option
 @_handle_errors
 def all_cmd(contour, output, h, box, margin, strict, max_nodes, decimal, exterior, steps, solver,
-            fmt, as_json, quiet):
+            fmt, msh_version, as_json, quiet):
     """Run select, deform and triangulate in one process."""
     t0 = time.perf_counter()
     fmt = _check_mesh_output(output, fmt, as_json)
     c = _read_contour(contour, decimal)
     res = pipeline.mesh_contour(c, h, box, margin, strict, max_nodes, steps, solver=solver,
                                 exterior=exterior)
-    _finish(c, res.mesh, res.report, output, fmt, as_json, quiet, t0)
+    _finish(c, res.mesh, res.report, output, fmt, as_json, quiet, t0, msh_version)
 
 
 def main() -> None:

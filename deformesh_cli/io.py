@@ -8,6 +8,7 @@ come from :data:`FORMATS`, keyed by extension.
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import os
 import sys
@@ -42,20 +43,34 @@ def _meshio_mesh(mesh: Mesh, dim3: bool = False):
     )
 
 
-def _write_gmsh22(mesh: Mesh, path: str) -> None:
-    m = _meshio_mesh(mesh)
+#: Gmsh file versions offered by ``--msh-version`` -> meshio format name.
+MSH_VERSIONS = {"2.2": "gmsh22", "4.1": "gmsh"}
+
+
+def _write_gmsh(mesh: Mesh, path: str, version: str = "2.2") -> None:
+    """Gmsh ASCII: triangles in ``domain``, one line block per boundary group."""
+    import meshio
+
     g = groups(mesh)
     nt = len(mesh.triangles)
     line_tag = (mesh.line_group + 1).astype(np.int32)
-    m.cell_data = {
-        "gmsh:physical": [np.full(nt, g["domain"][0], np.int32), line_tag],
-        "gmsh:geometrical": [np.full(nt, 1, np.int32), line_tag],
-    }
-    m.point_data = {}
+    cells = [("triangle", mesh.triangles.astype(np.int64))]
+    phys = [np.full(nt, g["domain"][0], np.int32)]
+    for tag in np.unique(line_tag):
+        cells.append(("line", mesh.lines[line_tag == tag].astype(np.int64)))
+        phys.append(np.full(int((line_tag == tag).sum()), tag, np.int32))
+    geom = [np.ones_like(phys[0])] + phys[1:]
+    point_data = {}
+    if version == "4.1":
+        # 4.1 files place every node on a geometric entity: boundary nodes on
+        # their boundary's curve (tag = group tag), the others on surface 1
+        dim_tags = np.column_stack([np.full(mesh.n_nodes, 2), np.ones(mesh.n_nodes)])
+        dim_tags[mesh.lines[:, 0]] = np.column_stack([np.ones(len(line_tag)), line_tag])
+        point_data = {"gmsh:dim_tags": dim_tags.astype(np.int32)}
+    m = meshio.Mesh(mesh.points, cells, point_data=point_data,
+                    cell_data={"gmsh:physical": phys, "gmsh:geometrical": geom})
     m.field_data = {name: np.array([tag, dim]) for name, (tag, dim) in g.items()}
-    import meshio
-
-    meshio.write(path, m, file_format="gmsh22", binary=False)
+    meshio.write(path, m, file_format=MSH_VERSIONS[version], binary=False)
 
 
 def _write_meshio(fmt: str, dim3: bool = False) -> Callable[[Mesh, str], None]:
@@ -80,7 +95,7 @@ def _write_obj(mesh: Mesh, path: str) -> None:
 FORMATS: dict[str, tuple[str, Callable[[Mesh, str], None]]] = {
     "vtk": ("VTK legacy", _write_meshio("vtk", dim3=True)),
     "vtu": ("VTK XML unstructured grid", _write_meshio("vtu", dim3=True)),
-    "msh": ("Gmsh 2.2 ASCII with named physical groups", _write_gmsh22),
+    "msh": ("Gmsh 2.2 ASCII with named physical groups", _write_gmsh),
     "obj": ("Wavefront OBJ (z = 0)", _write_obj),
 }
 
@@ -121,10 +136,14 @@ def atomic_path(path: str):
         raise
 
 
-def write_mesh(mesh: Mesh, path: str, fmt: str | None = None) -> str:
+def write_mesh(mesh: Mesh, path: str, fmt: str | None = None, msh_version: str = "2.2") -> str:
     """Write ``mesh`` to ``path`` (``-`` is stdout) in ``fmt`` or by extension."""
     fmt = format_for(path, fmt)
     writer = FORMATS[fmt][1]
+    if fmt == "msh":
+        if msh_version not in MSH_VERSIONS:
+            raise OptionError(f"--msh-version must be one of {', '.join(MSH_VERSIONS)}")
+        writer = functools.partial(_write_gmsh, version=msh_version)
     if path == "-":
         with tempfile.TemporaryDirectory() as d:
             tmp = os.path.join(d, f"mesh.{fmt}")
@@ -136,6 +155,8 @@ def write_mesh(mesh: Mesh, path: str, fmt: str | None = None) -> str:
             _quiet(writer, mesh, tmp)
         except OSError as exc:
             raise DeformeshError(f"{path}: cannot write: {exc}") from None
+        except Exception as exc:  # a writer's own error (meshio): one line, no traceback
+            raise DeformeshError(f"{path}: cannot write {fmt}: {exc}") from None
     return fmt
 
 

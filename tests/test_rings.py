@@ -126,3 +126,23 @@ def test_exterior_needs_room_around_the_contour(run, tmp_path):
             "-o", tmp_path / "m.vtk")
     assert r.exit_code == 2 and "exterior mesh needs room" in r.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("version", ["2.2", "4.1"])
+def test_msh_versions_keep_every_named_group(run, tmp_path, version):
+    import gmsh
+
+    out = tmp_path / "m.msh"
+    r = run("all", shared("square_hole_100.csv"), "--msh-version", version, "-o", out)
+    assert r.exit_code == 0, r.stderr
+    assert out.read_text().split("\n")[1].startswith(version.split(".")[0])
+    gmsh.initialize()
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.open(str(out))
+        phys = {gmsh.model.getPhysicalName(d, t): d for d, t in gmsh.model.getPhysicalGroups()}
+        n_nodes = len(gmsh.model.mesh.getNodes()[0])
+    finally:
+        gmsh.finalize()
+    assert phys == {"contour": 1, "hole_1": 1, "domain": 2}
+    assert n_nodes == len(meshio.read(out).points)
