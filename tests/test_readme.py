@@ -37,3 +37,14 @@ def test_readme_mentions_every_option():
             for opt in p.opts:
                 if opt.startswith("--") and opt not in ("--help",):
                     assert opt in README, f"{name} {opt} missing from README"
+
+
+def test_readme_lists_every_json_key(run, tmp_path):
+    import json
+
+    from .conftest import SAMPLES
+
+    r = run("all", SAMPLES / "circle.csv", "-o", tmp_path / "m.vtk", "--json", "-q")
+    assert r.exit_code == 0, r.stderr
+    for key in json.loads(r.stdout):
+        assert f"`{key}`" in README, f"--json key {key} missing from README"
