@@ -195,10 +195,7 @@ def triangulate_cmd(state_in, output, fmt, msh_version, as_json, quiet):
 def _check_mesh_output(output, fmt, as_json):
     if as_json and output == "-":
         raise click.UsageError("--json and -o - both use stdout; write the mesh to a file")
-    try:
-        return io.format_for(output, fmt)
-    except OptionError as exc:
-        raise click.UsageError(str(exc)) from None
+    return io.format_for(output, fmt)  # an OptionError is a usage error (_handle_errors)
 
 
 def _finish(contour, mesh, report, output, fmt, as_json, quiet, t0, msh_version="2.2"):

@@ -126,6 +126,11 @@ class Contour:
         at = f" ({', '.join(parts)})" if parts else ""
         return f"point {k}{at} at ({x:.6g}, {y:.6g})"
 
+    def edge_lengths(self) -> np.ndarray:
+        """Length of the edge from each point to the next point on its ring."""
+        d = self.points[next_on_ring(self.ring)] - self.points
+        return np.hypot(d[:, 0], d[:, 1])
+
     def min_spacing(self) -> tuple[float, int, int]:
         """Smallest distance between any two contour points, and the two points."""
         from scipy.spatial import cKDTree
@@ -133,6 +138,16 @@ class Contour:
         dist, nb = cKDTree(self.points).query(self.points, k=2)
         k = int(np.argmin(dist[:, 1]))
         return float(dist[k, 1]), k, int(nb[k, 1])
+
+
+def next_on_ring(ring: np.ndarray) -> np.ndarray:
+    """Index of the next entry on the same closed ring (each ring's entries contiguous)."""
+    idx = np.arange(len(ring))
+    change = np.flatnonzero(np.diff(ring)) + 1
+    starts = np.concatenate([[0], change])
+    sizes = np.diff(np.concatenate([starts, [len(ring)]]))
+    start = np.repeat(starts, sizes)
+    return start + (idx - start + 1) % np.repeat(sizes, sizes)
 
 
 def signed_area(p: np.ndarray) -> float:

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .contour import Contour, signed_area
+from .contour import Contour, next_on_ring, signed_area
 from .errors import LimitError, OptionError, SelectionError
 from .quality import signed_areas
 
@@ -177,7 +177,7 @@ def _too_many_nodes(contour, est, h, rule, d_c, ka, kb, box_size, margin_cells,
     ``margin_cells`` is set (the default margin of that many cells), else the
     fixed box.
     """
-    seg = np.hypot(*(np.roll(contour.points, -1, axis=0) - contour.points).T)
+    seg = contour.edge_lengths()
     ratio = float(seg.max() / seg.min())
     why = (
         f"h = {h:.3g} from the smallest spacing {d_c:.3g} (points {ka} and {kb})"
@@ -487,7 +487,7 @@ def force_diagonals(grid: Grid, nodes: np.ndarray, targets: np.ndarray | None = 
     """
     i, j = grid.node_ij(nodes)
     i, j = np.asarray(i), np.asarray(j)
-    nxt = _next_on_ring(np.zeros(len(nodes), np.int64) if ring is None else ring)
+    nxt = next_on_ring(np.zeros(len(nodes), np.int64) if ring is None else ring)
     prv = np.empty_like(nxt)
     prv[nxt] = np.arange(len(nxt))
     ni, nj = i[nxt], j[nxt]
@@ -535,30 +535,19 @@ def force_diagonals(grid: Grid, nodes: np.ndarray, targets: np.ndarray | None = 
     diagonals = np.full(grid.nx * grid.ny, DIAG_SLASH, dtype=np.uint8)
     single = np.isin(cs, uturn_cells, invert=True)
     diagonals[cs[single]] = ds[single]
-    for cell in uturn_cells:
-        diagonals[cell] = _uturn_split(grid, cell, nodes, targets)
+    if uturn_cells and targets is not None:
+        at = dict(zip(nodes.tolist(), targets))  # node id -> target, built once
+        for cell in uturn_cells:
+            diagonals[cell] = _uturn_split(grid, cell, at)
     return diagonals, None
 
 
-def _next_on_ring(ring: np.ndarray) -> np.ndarray:
-    """Index of the next entry on the same closed path (entries of a ring are contiguous)."""
-    idx = np.arange(len(ring))
-    change = np.flatnonzero(np.diff(ring)) + 1
-    starts = np.concatenate([[0], change])
-    sizes = np.diff(np.concatenate([starts, [len(ring)]]))
-    start = np.repeat(starts, sizes)
-    return start + (idx - start + 1) % np.repeat(sizes, sizes)
-
-
-def _uturn_split(grid: Grid, cell: int, nodes: np.ndarray, targets: np.ndarray | None) -> int:
-    """The split of a U-turn cell whose worse triangle is fuller at the targets."""
-    if targets is None:
-        return DIAG_SLASH
+def _uturn_split(grid: Grid, cell: int, at: dict) -> int:
+    """The split of a U-turn cell whose worse triangle is fuller at the targets ``at[node]``."""
     ci, cj = cell % grid.nx, cell // grid.nx
     n00 = cj * (grid.nx + 1) + ci
     n10, n01, n11 = n00 + 1, n00 + grid.nx + 1, n00 + grid.nx + 2
-    where = {int(n): t for t, n in enumerate(nodes)}
-    xy = {n: targets[where[n]] for n in (n00, n10, n01, n11)}
+    xy = {n: at[n] for n in (n00, n10, n01, n11)}
 
     def fullness(a, b, c):
         pa, pb, pc = xy[a], xy[b], xy[c]
@@ -590,7 +579,7 @@ def fit_path(contour: Contour, grid: Grid, strict: bool = False, method: str = "
     next.  Returns ``(nodes, targets, source, ring, diagonals,
     searched_further)`` with the rings' paths one after the other.
     """
-    vis = (_Visibility(contour.ccw_points, _next_on_ring(contour.ring))
+    vis = (_Visibility(contour.ccw_points, next_on_ring(contour.ring))
            if method == "greedy" else None)
     taken: set[int] = set()
     parts, further = [], 0
@@ -625,7 +614,7 @@ def fit_path(contour: Contour, grid: Grid, strict: bool = False, method: str = "
         after = source[t:][source[t:] >= 0]
         raise SelectionError(_strict_msg(contour, grid, _nearest_point(source, t),
                                          int(after[0]) if len(after) else int(source[0])))
-    problem = check_path(grid, nodes, targets, ring)
+    problem, diagonals = check_path(grid, nodes, targets, ring)
     if problem is not None:
         t, what = problem
         if what == "clockwise":
@@ -634,13 +623,13 @@ def fit_path(contour: Contour, grid: Grid, strict: bool = False, method: str = "
                 f"encloses nothing (h = {max(grid.hx, grid.hy):.4g} is too coarse for this "
                 "contour); give a smaller --h")
         raise SelectionError(_touch_msg(contour, grid, source, t, what))
-    diagonals, _ = force_diagonals(grid, nodes, targets, ring)
     return nodes, targets, source, ring, diagonals, further
 
 
 def check_path(grid: Grid, nodes: np.ndarray, targets: np.ndarray,
                ring: np.ndarray | None = None):
-    """``None`` if the path can be deformed onto its targets, else ``(path index, what)``.
+    """``(problem, diagonals)``: ``problem`` is ``None`` if the path can be deformed
+    onto its targets, else ``(path index, what)``; ``diagonals`` the forced splits.
 
     ``ring`` (default: all one ring) tells which ring each path entry is on.
     The paths must visit each node once, force no cell twice (they would
@@ -651,14 +640,14 @@ def check_path(grid: Grid, nodes: np.ndarray, targets: np.ndarray,
     uniq, counts = np.unique(nodes, return_counts=True)
     if (counts > 1).any():
         t = int(np.flatnonzero(nodes == uniq[np.argmax(counts > 1)])[-1])
-        return t, "visits one grid node twice"
+        return (t, "visits one grid node twice"), None
     diagonals, bad = force_diagonals(grid, nodes, targets, ring)
     if diagonals is None:
-        return bad, "touches itself"
+        return (bad, "touches itself"), None
     for r in np.unique(ring):
         on = np.flatnonzero(ring == r)
         if signed_area(grid.coords(nodes[on])) <= 0:
-            return int(on[0]), "clockwise"
+            return (int(on[0]), "clockwise"), diagonals
     tri = _path_triangles(grid, diagonals, nodes)
     if len(tri):
         pos = np.full((grid.n_nodes, 2), np.nan)
@@ -669,9 +658,9 @@ def check_path(grid: Grid, nodes: np.ndarray, targets: np.ndarray,
         bad_t = np.flatnonzero(~(signed_areas(pos, tri) > 1e-12 * longest))
         if len(bad_t):
             t = int(np.flatnonzero(nodes == tri[bad_t[0], 0])[0])
-            return t, ("would need a triangle whose three corners are contour points in the "
-                       "wrong order (it would fold)")
-    return None
+            return (t, ("would need a triangle whose three corners are contour points in the "
+                        "wrong order (it would fold)")), diagonals
+    return None, diagonals
 
 
 def _check_strict(contour: Contour, grid: Grid, sel: np.ndarray, order: np.ndarray) -> None:
@@ -705,7 +694,7 @@ def _trace(contour: Contour, grid: Grid, q: np.ndarray, order: np.ndarray):
                 f"{contour.source}: the grid path traced around the contour {exc.what}{where} "
                 f"(h = {max(grid.hx, grid.hy):.4g}); give a smaller --h")
             continue
-        if check_path(grid, nodes, targets) is None or rule == REGION_RULES[-1]:
+        if check_path(grid, nodes, targets)[0] is None or rule == REGION_RULES[-1]:
             return nodes, targets, source  # the caller words a failure
     raise last_error
 
@@ -858,8 +847,7 @@ def _coarser_steps(contour: Contour, box, margin, max_nodes: int, exterior: bool
     steps are skipped without trying (this keeps refusals fast).
     """
     p = contour.points
-    seg = np.hypot(*(p[_next_on_ring(contour.ring)] - p).T)
-    h0 = float(np.median(seg))
+    h0 = float(np.median(contour.edge_lengths()))
     tried = 0
     for k in range(40):
         h = h0 / 1.25**k

@@ -117,3 +117,9 @@ def test_decimal_comma_on_the_command_line(run, tmp_path):
     assert r.exit_code == 0, r.stderr
     r = run("all", src, "--decimal", ";", "-o", tmp_path / "n.vtk")
     assert r.exit_code == 2
+
+
+def test_edge_lengths_stay_on_each_ring():
+    text = "x,y,ring\n0,0,0\n4,0,0\n4,4,0\n0,4,0\n1,1,1\n1,2,1\n2,2,1\n"
+    c = parse_csv(text, "t.csv")
+    assert c.edge_lengths().tolist() == [4, 4, 4, 4, 1, 1, 2 ** 0.5]
