@@ -14,10 +14,10 @@ import time
 
 import click
 
-from . import __version__, io, pipeline, state
+from . import __version__, io, pipeline, quality, state
 from .contour import load_contour
 from .deform import DEFAULT_STEPS, SOLVERS
-from .errors import DeformeshError, OptionError
+from .errors import ContractError, DeformeshError, OptionError
 from .select import DEFAULT_MAX_NODES
 
 
@@ -69,14 +69,26 @@ def _say(quiet: bool, msg: str) -> None:
 
 def _check_binary_stdout(out: str) -> None:
     if out == "-" and sys.stdout.isatty():
-        raise click.UsageError("refusing to write a binary state file to a terminal; "
+        raise click.UsageError("refusing to write binary data to a terminal; "
                                "use -o FILE or a pipe")
 
 
-def _read_contour(path: str, decimal: str = "."):
+def _read_contour(path: str, decimal: str = ".", tolerance=None, element_id=None):
     data = io.read_bytes(path) if path == "-" else None
-    return load_contour(path, data, decimal)
+    return load_contour(path, data, decimal, tolerance, element_id)
 
+
+contour_options = [
+    click.option("--decimal", type=click.Choice([".", ","]), default=".", show_default=True,
+                 help="Decimal mark of the CSV numbers; with ',' the delimiter is ';', tab or "
+                      "spaces."),
+    click.option("--tolerance", default=None, metavar="TOL",
+                 help="SVG: largest gap between a curve and its chords, in drawing units, or "
+                      "a percentage of the drawing's diagonal ('0.5%').  Default: 0.1%."),
+    click.option("--id", "element_id", default=None, metavar="ID",
+                 help="SVG: mesh only the element with this id (a shape or a group). "
+                      "Default: every filled shape."),
+]
 
 select_options = [
     click.option("--h", "h", type=float, callback=_positive, default=None,
@@ -93,9 +105,7 @@ select_options = [
                       "select grid nodes that are not neighbours."),
     click.option("--max-nodes", type=click.IntRange(min=4), default=DEFAULT_MAX_NODES,
                  show_default=True, help="Refuse grids with more nodes than this (memory guard)."),
-    click.option("--decimal", type=click.Choice([".", ","]), default=".", show_default=True,
-                 help="Decimal mark of the CSV numbers; with ',' the delimiter is ';', tab or "
-                      "spaces."),
+    *contour_options,
     click.option("--exterior", is_flag=True,
                  help="Mesh the box minus the contour (e.g. an airfoil in a far-field box). "
                       "Default margin: the contour's larger extent."),
@@ -113,6 +123,8 @@ msh_option = click.option(
     "--msh-version", type=click.Choice(sorted(io.MSH_VERSIONS)), default="2.2", show_default=True,
     help="Gmsh file version for .msh output (ASCII either way).")
 quiet_option = click.option("-q", "--quiet", is_flag=True, help="Print errors only.")
+png_option = click.option("--png", type=click.Path(dir_okay=False), default=None,
+                          help="Also draw the mesh to this PNG file (needs matplotlib).")
 
 
 def _apply(options):
@@ -141,10 +153,11 @@ def cli():
 @_apply(select_options)
 @quiet_option
 @_handle_errors
-def select_cmd(contour, output, h, box, margin, strict, max_nodes, decimal, exterior, quiet):
+def select_cmd(contour, output, h, box, margin, strict, max_nodes, decimal, tolerance,
+               element_id, exterior, quiet):
     """Lay the background grid and pick one grid node per contour point (stage 1)."""
     _check_binary_stdout(output)
-    c = _read_contour(contour, decimal)
+    c = _read_contour(contour, decimal, tolerance, element_id)
     sel = pipeline.run_select(c, h, box, margin, strict, max_nodes, exterior)
     io.write_bytes(state.dumps(state.State("selected", c, sel)), output)
     g = sel.grid
@@ -178,10 +191,11 @@ def deform_cmd(state_in, output, steps, solver, quiet):
               help="Mesh file to write; the format follows the extension.")
 @format_option
 @msh_option
+@png_option
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
 @quiet_option
 @_handle_errors
-def triangulate_cmd(state_in, output, fmt, msh_version, as_json, quiet):
+def triangulate_cmd(state_in, output, fmt, msh_version, png, as_json, quiet):
     """Keep the triangles inside the contour and write the mesh (stage 3)."""
     t0 = time.perf_counter()
     fmt = _check_mesh_output(output, fmt, as_json)
@@ -189,7 +203,7 @@ def triangulate_cmd(state_in, output, fmt, msh_version, as_json, quiet):
     st = state.loads(io.read_bytes(state_in), name, want="deformed")
     mesh, report = pipeline.run_triangulate(st.contour, pipeline.Deformed(st.selection, st.points))
     report.update(pipeline.selection_report(st.selection))
-    _finish(st.contour, mesh, report, output, fmt, as_json, quiet, t0, msh_version)
+    _finish(st.contour, mesh, report, output, fmt, as_json, quiet, t0, msh_version, png)
 
 
 def _check_mesh_output(output, fmt, as_json):
@@ -198,8 +212,18 @@ def _check_mesh_output(output, fmt, as_json):
     return io.format_for(output, fmt)  # an OptionError is a usage error (_handle_errors)
 
 
-def _finish(contour, mesh, report, output, fmt, as_json, quiet, t0, msh_version="2.2"):
+def _finish(contour, mesh, report, output, fmt, as_json, quiet, t0, msh_version="2.2", png=None):
+    picture = None
+    if png is not None:  # drawn first: a failure here leaves no mesh file either
+        from . import plot
+
+        io.check_folder(png)
+        picture = plot.render(mesh.points, mesh.triangles, boundary=mesh.lines,
+                              contour_points=mesh.points[:mesh.n_contour],
+                              title=_title(output, mesh))
     io.write_mesh(mesh, output, fmt, msh_version)
+    if picture is not None:
+        io.write_bytes(picture, png)
     report = {"input": contour.source, "output": output, "format": fmt, **report,
               "seconds": round(time.perf_counter() - t0, 3)}
     report["notes"] = list(contour.notes) + list(report.get("notes", []))
@@ -228,18 +252,98 @@ def summary_line(r: dict) -> str:
 @solver_option
 @format_option
 @msh_option
+@png_option
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
 @quiet_option
 @_handle_errors
-def all_cmd(contour, output, h, box, margin, strict, max_nodes, decimal, exterior, steps, solver,
-            fmt, msh_version, as_json, quiet):
+def all_cmd(contour, output, h, box, margin, strict, max_nodes, decimal, tolerance, element_id,
+            exterior, steps, solver, fmt, msh_version, png, as_json, quiet):
     """Run select, deform and triangulate in one process."""
     t0 = time.perf_counter()
     fmt = _check_mesh_output(output, fmt, as_json)
-    c = _read_contour(contour, decimal)
+    c = _read_contour(contour, decimal, tolerance, element_id)
     res = pipeline.mesh_contour(c, h, box, margin, strict, max_nodes, steps, solver=solver,
                                 exterior=exterior)
-    _finish(c, res.mesh, res.report, output, fmt, as_json, quiet, t0, msh_version)
+    _finish(c, res.mesh, res.report, output, fmt, as_json, quiet, t0, msh_version, png)
+
+
+def _title(name, mesh) -> str:
+    return f"{name}: {mesh.n_nodes} nodes, {len(mesh.triangles)} triangles"
+
+
+@cli.command("quality")
+@click.argument("mesh_path", metavar="MESH", type=click.Path(dir_okay=False))
+@click.option("--contour", "contour_path", type=click.Path(dir_okay=False), default=None,
+              help="Check the mesh contract against this contour (the file it was made from).")
+@_apply(contour_options)
+@click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
+@_handle_errors
+def quality_cmd(mesh_path, contour_path, decimal, tolerance, element_id, as_json):
+    """Report a mesh's angles, areas and radius ratios; check the contract against a contour.
+
+    Exit 1 if a triangle is folded or (with --contour) the contract is broken.
+    """
+    points, tri = io.read_mesh(mesh_path)
+    rep = {"mesh": mesh_path, **quality.report(points, tri)}
+    problem = f"{rep['folded']} folded triangle(s)" if rep["folded"] else None
+    rep["contract"] = "unchecked (no --contour)"
+    if contour_path is not None:
+        c = _read_contour(contour_path, decimal, tolerance, element_id)
+        rep["contour"] = c.source
+        try:
+            mesh, box = quality.mesh_for_contour(points, tri, c)
+            quality.check_contract(mesh, c, box)
+            rep["contract"] = "ok"
+            rep["exterior"] = box is not None
+        except ContractError as exc:
+            problem = str(exc)
+            rep["contract"] = f"violated: {problem}"
+    if as_json:
+        click.echo(json.dumps(rep))
+    else:
+        click.echo(quality_text(rep))
+    if problem:
+        click.echo(f"deformesh: error: {mesh_path}: {problem}", err=True)
+        sys.exit(1)
+
+
+def quality_text(r: dict) -> str:
+    x, y = r["smallest_area_at"]
+    out = [
+        f"{r['mesh']}: {r['nodes']} nodes, {r['triangles']} triangles, area {r['area']:.6g}",
+        f"angles: min {r['min_angle']:.2f} deg, max {r['max_angle']:.2f} deg; "
+        f"{r['angles_below_20']} triangle(s) with an angle below 20 deg",
+        f"smallest signed area: {r['smallest_area']:.3g} at ({x:.6g}, {y:.6g}); "
+        f"folded: {r['folded']}",
+        f"radius ratio 2r/R: mean {r['mean_radius_ratio']:.3f}, min {r['min_radius_ratio']:.3f}",
+    ]
+    h = r["radius_ratio_histogram"]
+    top = max(h["counts"]) or 1
+    for lo, hi, k in zip(h["edges"], h["edges"][1:], h["counts"]):
+        out.append(f"  {lo:.1f}-{hi:.1f} {k:9d} {'#' * round(40 * k / top)}".rstrip())
+    out.append(f"contract: {r['contract']}")
+    return "\n".join(out)
+
+
+@cli.command("plot")
+@click.argument("mesh_path", metavar="MESH", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, allow_dash=True),
+              help="PNG file to write ('-' for stdout).")
+@click.option("--contour", "contour_path", type=click.Path(dir_okay=False), default=None,
+              help="Draw this contour's points over the mesh.")
+@_apply(contour_options)
+@_handle_errors
+def plot_cmd(mesh_path, output, contour_path, decimal, tolerance, element_id):
+    """Draw a mesh to PNG: triangles shaded by radius ratio, the boundary, a histogram."""
+    from . import plot
+
+    _check_binary_stdout(output)
+    points, tri = io.read_mesh(mesh_path)
+    cpts = None
+    if contour_path is not None:
+        cpts = _read_contour(contour_path, decimal, tolerance, element_id).points
+    plot.draw(points, tri, output, contour_points=cpts,
+              title=f"{mesh_path}: {len(points)} nodes, {len(tri)} triangles")
 
 
 def main() -> None:

@@ -43,6 +43,9 @@ class Contour:
         Per ring: given clockwise (it is walked counter-clockwise).
     depth : tuple of int
         Per ring: how many other rings enclose it (odd: a hole).
+    ring_labels : tuple of str
+        Per ring: how messages name it (``ring 1`` unless the reader knows better,
+        e.g. ``path#logo subpath 2`` for SVG).
     """
 
     points: np.ndarray
@@ -52,6 +55,7 @@ class Contour:
     starts: tuple[int, ...] = ()
     ring_clockwise: tuple[bool, ...] = ()
     depth: tuple[int, ...] = ()
+    ring_labels: tuple[str, ...] = ()
 
     def __post_init__(self):
         if not self.starts:
@@ -60,6 +64,9 @@ class Contour:
             object.__setattr__(self, "ring_clockwise", (False,) * self.n_rings)
         if not self.depth:
             object.__setattr__(self, "depth", (0,) * self.n_rings)
+        if not self.ring_labels:
+            object.__setattr__(self, "ring_labels",
+                               tuple(f"ring {r}" for r in range(self.n_rings)))
 
     @property
     def n(self) -> int:
@@ -119,8 +126,9 @@ class Contour:
         x, y = self.points[k]
         line = int(self.lines[k])
         parts = []
-        if self.n_rings > 1:
-            parts.append(f"ring {int(np.searchsorted(self.starts, k, side='right')) - 1}")
+        r = int(np.searchsorted(self.starts, k, side='right')) - 1
+        if self.n_rings > 1 or self.ring_labels[r] not in ("ring 0", ""):
+            parts.append(self.ring_labels[r])
         if line:
             parts.append(f"line {line}")
         at = f" ({', '.join(parts)})" if parts else ""
@@ -159,10 +167,13 @@ def signed_area(p: np.ndarray) -> float:
     return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
 
 
-def load_contour(path: str | Path, data: bytes | None = None, decimal: str = ".") -> Contour:
-    """Read a contour file (CSV).  ``path == "-"`` with ``data`` reads bytes given.
+def load_contour(path: str | Path, data: bytes | None = None, decimal: str = ".",
+                 tolerance=None, element_id: str | None = None) -> Contour:
+    """Read a contour file: CSV, or SVG (by extension, or text starting with ``<``).
 
-    ``decimal`` is the decimal mark of the numbers (``.`` or ``,``).
+    ``path == "-"`` with ``data`` reads the bytes given.  ``decimal`` is the
+    CSV decimal mark (``.`` or ``,``); ``tolerance`` and ``element_id`` are
+    the SVG options (see :func:`deformesh_cli.svg.parse_svg`).
     """
     name = "<stdin>" if str(path) == "-" else str(path)
     if data is None:
@@ -176,8 +187,19 @@ def load_contour(path: str | Path, data: bytes | None = None, decimal: str = "."
         except OSError as exc:
             raise InputError(f"{name}: cannot read: {exc.strerror}") from None
     suffix = Path(name).suffix.lower()
-    if suffix == ".svg":
-        raise InputError(f"{name}: SVG input is not supported yet; give a CSV of x,y points")
+    if suffix in (".svg", ".svgz") or data.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"<"):
+        if suffix == ".svgz" or data[:2] == b"\x1f\x8b":
+            import gzip
+
+            try:
+                data = gzip.decompress(data)
+            except OSError as exc:
+                raise InputError(f"{name}: not a readable gzip-compressed SVG: {exc}") from None
+        from .svg import parse_svg
+
+        return parse_svg(data, name, tolerance, element_id)
+    if tolerance is not None or element_id is not None:
+        raise OptionError(f"{name}: --tolerance and --id apply to SVG input only")
     if b"\x00" in data[:4096]:
         raise InputError(f"{name}: binary file, expected CSV text with x,y columns")
     try:
@@ -296,10 +318,12 @@ def parse_csv(text: str, source: str = "<contour>", decimal: str = ".") -> Conto
     return make_contour(xy, lines, source, ring_starts=np.concatenate([[0], change]))
 
 
-def make_contour(points, lines=None, source: str = "<contour>", ring_starts=None) -> Contour:
+def make_contour(points, lines=None, source: str = "<contour>", ring_starts=None,
+                 ring_labels=None) -> Contour:
     """Validate the points of one or more closed rings and return a :class:`Contour`.
 
-    ``ring_starts`` gives the index where each ring starts (default: one ring).
+    ``ring_starts`` gives the index where each ring starts (default: one ring);
+    ``ring_labels`` how messages name each ring (default ``ring 0``, ...).
     """
     p = np.array(points, dtype=np.float64, copy=True)
     if p.ndim != 2 or p.shape[1] != 2:
@@ -313,7 +337,8 @@ def make_contour(points, lines=None, source: str = "<contour>", ring_starts=None
     pts, lns, starts, cw = [], [], [0], []
     for r in range(len(bounds) - 1):
         rp, rl = p[bounds[r]:bounds[r + 1]], ln[bounds[r]:bounds[r + 1]]
-        name = f"ring {r}: " if len(bounds) > 2 else ""
+        label = ring_labels[r] if ring_labels is not None else f"ring {r}"
+        name = f"{label}: " if len(bounds) > 2 or ring_labels is not None else ""
         if len(rp) > 1 and np.array_equal(rp[0], rp[-1]):
             rp, rl = rp[:-1], rl[:-1]
             notes.append(f"{name}dropped the closing point (equal to the first)")
@@ -325,10 +350,12 @@ def make_contour(points, lines=None, source: str = "<contour>", ring_starts=None
         starts.append(starts[-1] + len(rp))
         cw.append(ring < 0)
     p, ln = np.concatenate(pts), np.concatenate(lns)
-    c = Contour(p, ln, source, starts=tuple(starts), ring_clockwise=tuple(cw))
+    labels = tuple(ring_labels) if ring_labels is not None else ()
+    c = Contour(p, ln, source, starts=tuple(starts), ring_clockwise=tuple(cw),
+                ring_labels=labels)
     depth = _check_rings_apart(c)
     return Contour(p, ln, source, notes=tuple(notes), starts=tuple(starts),
-                   ring_clockwise=tuple(cw), depth=depth)
+                   ring_clockwise=tuple(cw), depth=depth, ring_labels=labels)
 
 
 def _check_ring(p: np.ndarray, ln: np.ndarray, source: str, name: str, offset: int) -> float:
@@ -338,7 +365,7 @@ def _check_ring(p: np.ndarray, ln: np.ndarray, source: str, name: str, offset: i
             f"{source}: {name}fewer than 3 distinct points ({len(np.unique(p, axis=0))}); "
             "a contour needs at least 3"
         )
-    c = Contour(p, ln, source)
+    c = Contour(p, ln, source, ring_labels=(name.removesuffix(": "),) if name else ())
 
     def where(k):
         return c.where(k).replace(f"point {k}", f"point {k + offset}", 1)
@@ -375,8 +402,8 @@ def _check_rings_apart(c: Contour) -> tuple[int, ...]:
         i, j = int(a[keep][0]), int(b[keep][0])
         x, y = shapely.get_coordinates(shapely.intersection(geoms[i], geoms[j]))[0]
         raise InputError(
-            f"{c.source}: ring {j} touches or crosses ring {i} near ({x:.6g}, {y:.6g}); "
-            "rings must be apart"
+            f"{c.source}: {c.ring_labels[j]} touches or crosses {c.ring_labels[i]} near "
+            f"({x:.6g}, {y:.6g}); rings must be apart"
         )
     polys = shapely.polygons(geoms)
     first = shapely.points([q[0] for q in rings])

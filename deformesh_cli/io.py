@@ -114,13 +114,19 @@ def format_for(path: str, fmt: str | None) -> str:
     return fmt
 
 
+def check_folder(path: str) -> Path:
+    """The folder ``path`` would be written in; raise if it does not exist."""
+    folder = Path(path).parent
+    if not folder.is_dir():
+        raise DeformeshError(f"{path}: cannot write: folder {folder} does not exist")
+    return folder
+
+
 @contextlib.contextmanager
 def atomic_path(path: str):
     """Yield a temporary path next to ``path``; move it into place on success only."""
     target = Path(path)
-    folder = target.parent if str(target.parent) else Path(".")
-    if not folder.is_dir():
-        raise DeformeshError(f"{path}: cannot write: folder {folder} does not exist")
+    folder = check_folder(path)
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
     except OSError as exc:
@@ -191,3 +197,42 @@ def read_bytes(path: str) -> bytes:
         return p.read_bytes()
     except OSError as exc:
         raise DeformeshError(f"{path}: cannot read: {exc.strerror}") from None
+
+
+def read_mesh(path: str, fmt: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """A mesh file's 2D points and triangles (any format meshio reads).
+
+    z must be 0 (the meshes are planar).  meshio prints and exits on some bad
+    files; both become one-line :class:`DeformeshError` messages.
+    """
+    import meshio
+
+    p = Path(path)
+    if not p.exists():
+        raise DeformeshError(f"{path}: no such file")
+    if p.is_dir():
+        raise DeformeshError(f"{path}: is a directory")
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):
+            m = meshio.read(path, file_format=fmt)
+    except SystemExit:
+        raise DeformeshError(f"{path}: not a mesh file meshio can read") from None
+    except meshio.ReadError as exc:
+        raise DeformeshError(f"{path}: cannot read mesh: {exc}") from None
+    except Exception as exc:  # parsers of malformed files raise anything
+        raise DeformeshError(f"{path}: cannot read mesh: {type(exc).__name__}: {exc}") from None
+    tri = [c.data for c in m.cells if c.type == "triangle"]
+    if not tri:
+        kinds = sorted({c.type for c in m.cells}) or ["none"]
+        raise DeformeshError(f"{path}: no triangles in the mesh (cells: {', '.join(kinds)})")
+    pts = np.asarray(m.points, dtype=np.float64)
+    if pts.shape[1] == 3:
+        if np.any(pts[:, 2] != 0):
+            k = int(np.argmax(pts[:, 2] != 0))
+            raise DeformeshError(f"{path}: node {k} has z = {pts[k, 2]:g}; only planar meshes "
+                                 "(z = 0) are supported")
+        pts = pts[:, :2]
+    tri = np.concatenate(tri).astype(np.int64)
+    if tri.min() < 0 or tri.max() >= len(pts):
+        raise DeformeshError(f"{path}: a triangle refers to a node that does not exist")
+    return np.ascontiguousarray(pts), tri

@@ -200,3 +200,108 @@ def _check_box(mesh: Mesh, contour: Contour, box) -> None:
         if not sel.any() or not np.all(ends == value):
             raise ContractError(f"{src}: the {g} boundary does not lie on the box side "
                                 f"at {'xy'[axis]} = {value:g}")
+
+
+#: Bin edges of the radius-ratio histogram in quality reports.
+RR_BINS = np.linspace(0.0, 1.0, 11)
+
+
+def report(points: np.ndarray, tri: np.ndarray) -> dict:
+    """What ``deformesh quality`` prints: angles, areas, radius ratios and their histogram."""
+    ang = angles(points, tri)
+    area = signed_areas(points, tri)
+    rr = radius_ratio(points, tri)
+    counts, _ = np.histogram(rr, bins=RR_BINS)
+    t = int(np.argmin(area))
+    c = points[tri[t]].mean(axis=0)
+    return {
+        "nodes": int(len(points)),
+        "triangles": int(len(tri)),
+        "min_angle": float(ang.min()),
+        "max_angle": float(ang.max()),
+        "angles_below_20": int((ang.min(axis=1) < 20).sum()),
+        "smallest_area": float(area[t]),
+        "smallest_area_at": [float(c[0]), float(c[1])],
+        "folded": int((area <= 0).sum()),
+        "area": float(area.sum()),
+        "mean_radius_ratio": float(rr.mean()),
+        "min_radius_ratio": float(rr.min()),
+        "radius_ratio_histogram": {"edges": [round(float(e), 2) for e in RR_BINS],
+                                   "counts": [int(k) for k in counts]},
+    }
+
+
+def boundary_edges(tri: np.ndarray, n: int) -> np.ndarray:
+    """Directed edges used by one triangle only (domain on their left for CCW triangles)."""
+    e = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    key = np.minimum(e[:, 0], e[:, 1]) * n + np.maximum(e[:, 0], e[:, 1])
+    uk, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
+    return e[counts[inv] == 1]
+
+
+def mesh_for_contour(points: np.ndarray, tri: np.ndarray, contour: Contour):
+    """Rebuild a :class:`Mesh` read from a file, for :func:`check_contract` against ``contour``.
+
+    The boundary is walked from each ring's first point; boundary edges left
+    over mean an exterior mesh if they all lie on the mesh's bounding box (the
+    box is returned, else ``None``).  Raises :class:`ContractError` when a
+    ring's first point is not on the boundary or a walk does not close.
+    """
+    src, m, n = contour.source, contour.n, len(points)
+    if n < m:
+        raise ContractError(f"{src}: the mesh has {n} nodes, fewer than the contour's {m} points")
+    edges = boundary_edges(tri, n)
+    nxt = np.full(n, -1, dtype=np.int64)
+    starts, counts = np.unique(edges[:, 0], return_counts=True)
+    if (counts > 1).any():
+        k = int(starts[np.argmax(counts > 1)])
+        raise ContractError(f"{src}: the boundary touches itself at node {k} "
+                            f"({points[k, 0]:.6g}, {points[k, 1]:.6g})")
+    nxt[edges[:, 0]] = edges[:, 1]
+    used = np.zeros(n, dtype=bool)
+    lines, group = [], []
+
+    def walk(start, what):
+        chain = [start]
+        while True:
+            k = int(nxt[chain[-1]])
+            if k < 0 or len(chain) > len(edges):
+                raise ContractError(f"{src}: the boundary through {what} does not close")
+            if k == start:
+                return np.array(chain)
+            chain.append(k)
+
+    for r in range(contour.n_rings):
+        start = int(contour.ring_order(r)[0])
+        if nxt[start] < 0:
+            raise ContractError(f"{src}: {contour.where(start)} is not on the mesh boundary")
+        if used[start]:
+            raise ContractError(f"{src}: {contour.ring_name(r)} shares its boundary with "
+                                "another ring")
+        ring = walk(start, contour.where(start))
+        used[ring] = True
+        lines.append(np.column_stack([ring, np.roll(ring, -1)]))
+        group.append(np.full(len(ring), r))
+    on_rings = np.concatenate([ln[:, 0] for ln in lines])
+    extra = on_rings[on_rings >= m]
+    n_extra = int(extra.max() - m + 1) if len(extra) else 0
+    names = [contour.ring_name(r) for r in range(contour.n_rings)]
+    rest = edges[~used[edges[:, 0]]]
+    box = None
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    ends = points[rest.ravel()]
+    if len(rest) and np.all((ends == lo).any(axis=1) | (ends == hi).any(axis=1)):
+        box = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
+        corner = rest[np.all(points[rest[:, 0]] == lo, axis=1), 0]
+        ring = walk(int(corner[0]) if len(corner) else int(rest[0, 0]), "the box")
+        seg = np.column_stack([ring, np.roll(ring, -1)])
+        a, b = points[seg[:, 0]], points[seg[:, 1]]
+        side = np.select([(a[:, 1] == lo[1]) & (b[:, 1] == lo[1]),
+                          (a[:, 0] == hi[0]) & (b[:, 0] == hi[0]),
+                          (a[:, 1] == hi[1]) & (b[:, 1] == hi[1])], [0, 1, 2], 3)
+        lines.append(seg)
+        group.append(len(names) + side)
+        names += ["bottom", "right", "top", "left"]
+    mesh = Mesh(points, tri, np.concatenate(lines), n_contour=m, n_extra=n_extra,
+                line_group=np.concatenate(group), groups=tuple(names))
+    return mesh, box

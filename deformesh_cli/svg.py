@@ -1,0 +1,255 @@
+"""SVG input: filled shapes -> closed rings -> a validated :class:`Contour`.
+
+svgelements (pinned) parses the file and applies transforms and the viewBox
+(coordinates come out in viewport units).  Every path vertex (segment
+endpoint) becomes a contour point; curves (quadratic and cubic Beziers,
+elliptical arcs) are flattened by uniform parameter steps, as few as keep the
+chord within ``tolerance`` of the curve (bound: chord gap <= max|C''| dt^2 / 8).
+y is flipped (SVG's y points down): ``y -> height - y`` with the viewport
+height.  Each subpath is a ring; the element's fill rule (``nonzero`` or
+``evenodd``) decides which rings bound filled area: a ring whose inside and
+outside are both filled (or both empty) is dropped.  Elements must not
+overlap each other (each would be a separate mesh); ``--id`` picks one.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import warnings
+
+import numpy as np
+import shapely
+
+from .contour import Contour, make_contour, signed_area
+from .errors import InputError, OptionError
+
+#: Default chord tolerance, as a fraction of the drawing's bounding-box diagonal.
+DEFAULT_RELATIVE_TOLERANCE = 1e-3
+#: Most pieces one curve segment is cut into (guards against a tiny tolerance).
+MAX_PIECES = 10_000
+
+
+def parse_tolerance(value: str | float | None) -> tuple[float, bool] | None:
+    """``--tolerance`` text -> (value, relative).  ``0.5%`` is relative to the diagonal."""
+    if value is None:
+        return None
+    if isinstance(value, (int, float)):
+        tol, rel = float(value), False
+    else:
+        s = value.strip()
+        rel = s.endswith("%")
+        try:
+            tol = float(s.rstrip("%")) / (100 if rel else 1)
+        except ValueError:
+            raise OptionError(f"--tolerance {value!r} is not a number (or a percentage)") from None
+    if not (math.isfinite(tol) and tol > 0):
+        raise OptionError(f"--tolerance must be > 0, got {value!r}")
+    return tol, rel
+
+
+def parse_svg(data: bytes, source: str = "<svg>", tolerance=None,
+              element_id: str | None = None) -> Contour:
+    """Read SVG bytes into a validated :class:`Contour` (see the module docstring).
+
+    ``tolerance`` is ``None`` (1/1000 of the drawing's diagonal), a number in
+    drawing units, or the text of ``--tolerance`` (``0.5%`` = relative).
+    """
+    import svgelements as se
+
+    tol_spec = parse_tolerance(tolerance)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            svg = se.SVG.parse(io.BytesIO(data), reify=True)
+    except Exception as exc:  # xml.etree.ParseError and svgelements' own errors
+        raise InputError(f"{source}: not a readable SVG file: {_one_line(exc)}") from None
+    shapes = _pick_shapes(svg, se, source, element_id)
+    boxes = np.array([s.bbox() for s in shapes if s.bbox() is not None], dtype=float)
+    if len(boxes) == 0:
+        raise InputError(f"{source}: the SVG's shapes are empty")
+    diag = math.hypot(boxes[:, 2].max() - boxes[:, 0].min(), boxes[:, 3].max() - boxes[:, 1].min())
+    if tol_spec is None:
+        tol = DEFAULT_RELATIVE_TOLERANCE * diag
+    else:
+        tol = tol_spec[0] * (diag if tol_spec[1] else 1.0)
+    height = float(svg.height) if svg.height else 0.0
+
+    rings: list[np.ndarray] = []
+    labels: list[str] = []
+    element: list[int] = []
+    evenodd: list[bool] = []
+    notes: list[str] = []
+    for k, shape in enumerate(shapes):
+        name = _label(shape, k)
+        rule = str(shape.values.get("fill-rule", "nonzero")).strip().lower()
+        for j, ring in enumerate(_subpaths(se.Path(shape), se, tol)):
+            ring = ring.copy()
+            ring[:, 1] = height - ring[:, 1] if height else -ring[:, 1]
+            ring = _drop_repeats(ring, 1e-9 * diag)
+            if len(np.unique(ring, axis=0)) < 3 or signed_area(ring) == 0:
+                notes.append(f"skipped subpath {j + 1} of {name}: it encloses no area")
+                continue
+            rings.append(ring)
+            labels.append(f"{name} subpath {j + 1}")
+            element.append(k)
+            evenodd.append(rule == "evenodd")
+    if not rings:
+        raise InputError(f"{source}: no filled area in the SVG (every subpath is empty)")
+
+    starts = np.cumsum([0] + [len(r) for r in rings])[:-1]
+    # validates every ring and that no two rings cross or touch (names the place)
+    every = make_contour(np.concatenate(rings), None, source, ring_starts=starts,
+                         ring_labels=labels)
+    keep = _bounding_rings(rings, element, evenodd)
+    for r in np.flatnonzero(~keep):
+        notes.append(f"dropped {labels[r]}: filled on both sides (fill rule "
+                     f"{'evenodd' if evenodd[r] else 'nonzero'})")
+    _check_elements_apart(every, rings, keep, element, shapes, source)
+    kept = [r for r in range(len(rings)) if keep[r]]
+    starts = np.cumsum([0] + [len(rings[r]) for r in kept])[:-1]
+    c = make_contour(np.concatenate([rings[r] for r in kept]), None, source,
+                     ring_starts=starts, ring_labels=[labels[r] for r in kept])
+    notes.insert(0, f"read {len(kept)} ring(s) from {len(shapes)} SVG shape(s), curves "
+                    f"flattened to a chord tolerance of {tol:.3g}")
+    return Contour(c.points, c.lines, source, notes=tuple(notes), starts=c.starts,
+                   ring_clockwise=c.ring_clockwise, depth=c.depth, ring_labels=c.ring_labels)
+
+
+def _one_line(exc: Exception) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def _label(shape, k: int) -> str:
+    tag = type(shape).__name__.lower()
+    sid = shape.values.get("id") if hasattr(shape, "values") else None
+    return f"{tag}#{sid}" if sid else f"{tag} {k + 1}"
+
+
+def _filled(shape) -> bool:
+    fill = shape.fill
+    return fill is not None and fill.value is not None and fill.alpha != 0
+
+
+def _pick_shapes(svg, se, source: str, element_id: str | None) -> list:
+    if element_id is not None:
+        found = svg.get_element_by_id(element_id)
+        if found is None:
+            ids = [e.id for e in svg.elements() if getattr(e, "id", None)]
+            listing = ", ".join(ids[:10]) + (" ..." if len(ids) > 10 else "")
+            raise OptionError(f"{source}: no element with id {element_id!r}"
+                              + (f"; ids: {listing}" if ids else "; the file has no ids"))
+        if isinstance(found, se.Shape):
+            return [found]
+        shapes = [e for e in found.select() if isinstance(e, se.Shape) and _filled(e)]
+        if not shapes:
+            raise InputError(f"{source}: element {element_id!r} holds no filled shape")
+        return shapes
+    every = [e for e in svg.elements() if isinstance(e, se.Shape)]
+    shapes = [e for e in every if _filled(e)]
+    if not shapes:
+        raise InputError(f"{source}: no filled shape in the SVG ({len(every)} unfilled "
+                         "shape(s)); give --id to mesh one of them")
+    return shapes
+
+
+def _subpaths(path, se, tol: float) -> list[np.ndarray]:
+    """Each subpath's points: the vertices, plus curve points within ``tol``."""
+    out: list[list] = []
+    cur: list | None = None
+    for seg in path.segments():
+        if isinstance(seg, se.Move):
+            cur = [(seg.end.x, seg.end.y)]
+            out.append(cur)
+            continue
+        if cur is None:  # a path not starting with a move
+            cur = [(seg.start.x, seg.start.y)]
+            out.append(cur)
+        if isinstance(seg, se.Close):
+            cur = None
+            continue
+        n = _pieces(seg, se, tol)
+        if n > 1:
+            t = np.arange(1, n) / n
+            cur.extend(map(tuple, np.asarray(seg.npoint(t), dtype=float)))
+        cur.append((seg.end.x, seg.end.y))
+    return [np.array(p, dtype=float) for p in out]
+
+
+def _pieces(seg, se, tol: float) -> int:
+    """How many equal parameter steps keep ``seg``'s chords within ``tol``."""
+    def p(q):
+        return np.array([q.x, q.y], dtype=float)
+
+    if isinstance(seg, se.CubicBezier):
+        a, b, c, d = p(seg.start), p(seg.control1), p(seg.control2), p(seg.end)
+        second = 6 * max(np.linalg.norm(a - 2 * b + c), np.linalg.norm(b - 2 * c + d))
+        span = 1.0
+    elif isinstance(seg, se.QuadraticBezier):
+        a, b, c = p(seg.start), p(seg.control), p(seg.end)
+        second = 2 * np.linalg.norm(a - 2 * b + c)
+        span = 1.0
+    elif isinstance(seg, se.Arc):
+        second = max(float(seg.rx), float(seg.ry))  # |C''| of (rx cos t, ry sin t)
+        span = abs(float(seg.sweep))
+    else:  # straight line
+        return 1
+    n = span * math.sqrt(second / (8 * tol)) if second > 0 else 1
+    return int(min(MAX_PIECES, max(1, math.ceil(n))))
+
+
+def _drop_repeats(ring: np.ndarray, eps: float) -> np.ndarray:
+    """Drop points within ``eps`` of the previous one (zero-length segments, the closing one)."""
+    step = np.hypot(*np.diff(ring, axis=0).T)
+    out = ring[np.concatenate([[True], step > eps])]
+    while len(out) > 1 and np.hypot(*(out[-1] - out[0])) <= eps:
+        out = out[:-1]
+    return out
+
+
+def _bounding_rings(rings, element, evenodd) -> np.ndarray:
+    """Per ring: does it separate filled from empty under its element's fill rule?"""
+    polys = shapely.polygons([shapely.linearrings(r) for r in rings])
+    firsts = shapely.points([r[0] for r in rings])
+    inside = shapely.contains(polys[:, None], firsts[None, :])  # [outer, inner]
+    element = np.asarray(element)
+    orient = np.sign([signed_area(r) for r in rings])
+    keep = np.ones(len(rings), dtype=bool)
+    for r in range(len(rings)):
+        same = (element == element[r]) & inside[:, r]
+        same[r] = False
+        outside = int(orient[same].sum()) if not evenodd[r] else int(same.sum())
+        inner = outside + (int(orient[r]) if not evenodd[r] else 1)
+        filled = (lambda w: w % 2 == 1) if evenodd[r] else (lambda w: w != 0)
+        keep[r] = filled(inner) != filled(outside)
+    return keep
+
+
+def _check_elements_apart(contour, rings, keep, element, shapes, source) -> None:
+    """Two shapes whose filled areas overlap would need a union: refuse, name both."""
+    element = np.asarray(element)
+    owners = sorted(set(element[keep].tolist()))
+    if len(owners) < 2:
+        return
+    areas = []
+    for k in owners:
+        mine = [r for r in range(len(rings)) if keep[r] and element[r] == k]
+        geom = shapely.Polygon()
+        for r in mine:
+            geom = shapely.symmetric_difference(geom, shapely.Polygon(rings[r]))
+        areas.append(geom)
+    tree = shapely.STRtree(areas)
+    a, b = tree.query(areas, predicate="overlaps")
+    a2, b2 = tree.query(areas, predicate="contains")
+    a = np.concatenate([a, a2])
+    b = np.concatenate([b, b2])
+    pairs = sorted((int(i), int(j)) for i, j in zip(a, b) if i != j)
+    if pairs:
+        i, j = pairs[0]
+        x, y = shapely.get_coordinates(
+            shapely.point_on_surface(shapely.intersection(areas[i], areas[j])))[0]
+        raise InputError(
+            f"{source}: {_label(shapes[owners[i]], owners[i])} and "
+            f"{_label(shapes[owners[j]], owners[j])} overlap near ({x:.6g}, {y:.6g}); "
+            "merge them into one path or give --id to mesh one"
+        )
