@@ -91,12 +91,92 @@ def _write_obj(mesh: Mesh, path: str) -> None:
         np.savetxt(f, mesh.lines + 1, fmt="l %d %d")
 
 
+def _write_ply(mesh: Mesh, path: str) -> None:
+    """Binary little-endian PLY: vertices (z = 0) and triangular faces.
+
+    Our own writer: meshio's stamps the time into the header and writes the
+    boundary lines as two-vertex faces.  PLY has no boundary markers; the
+    boundary is the edges used by one face (``edge`` elements would be standard
+    but meshio's reader refuses them).
+    """
+    n, t = mesh.n_nodes, len(mesh.triangles)
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"comment deformesh mesh: vertices 0..{mesh.n_contour - 1} are the contour points\n"
+        f"element vertex {n}\nproperty double x\nproperty double y\nproperty double z\n"
+        f"element face {t}\nproperty list uchar int vertex_indices\nend_header\n"
+    )
+    v = np.zeros((n, 3), "<f8")
+    v[:, :2] = mesh.points
+    f = np.zeros(t, dtype=[("k", "u1"), ("v", "<i4", 3)])
+    f["k"], f["v"] = 3, mesh.triangles
+    with open(path, "wb") as out:
+        out.write(header.encode("ascii"))
+        out.write(v.tobytes())
+        out.write(f.tobytes())
+
+
+def _write_su2(mesh: Mesh, path: str) -> None:
+    """SU2 native mesh: triangles (VTK type 5), nodes, one MARKER_TAG per boundary group.
+
+    Our own writer: meshio's su2 writer fails on boundary line cells.
+    """
+    with open(path, "w", encoding="ascii", newline="\n") as f:
+        f.write(f"% deformesh mesh: points 0..{mesh.n_contour - 1} are the contour points\n")
+        f.write(f"NDIME= 2\nNELEM= {len(mesh.triangles)}\n")
+        tri = np.column_stack([np.full(len(mesh.triangles), 5), mesh.triangles,
+                               np.arange(len(mesh.triangles))])
+        np.savetxt(f, tri, fmt="%d")
+        f.write(f"NPOIN= {mesh.n_nodes}\n")
+        for k, (x, y) in enumerate(mesh.points.tolist()):
+            f.write(f"{x!r} {y!r} {k}\n")
+        f.write(f"NMARK= {len(np.unique(mesh.line_group))}\n")
+        for g, name in enumerate(mesh.groups):
+            lines = mesh.lines[mesh.line_group == g]
+            if len(lines) == 0:
+                continue
+            f.write(f"MARKER_TAG= {name}\nMARKER_ELEMS= {len(lines)}\n")
+            np.savetxt(f, np.column_stack([np.full(len(lines), 3), lines]), fmt="%d")
+
+
+def _write_xdmf(mesh: Mesh, path: str) -> None:
+    """XDMF 3 + HDF5 sidecar (meshio; needs h5py): triangles and boundary lines, ``group`` tags.
+
+    The tags are those of the .msh physical groups (boundaries 1.., domain last).
+    The sidecar is named after ``path`` (``mesh.xdmf`` -> ``mesh.h5``).
+    """
+    try:
+        import h5py  # noqa: F401
+    except ImportError:
+        raise DeformeshError(f"{path}: writing .xdmf needs h5py: "
+                             "pip install 'deformesh[all]'") from None
+    import meshio
+
+    g = groups(mesh)
+    pts = np.column_stack([mesh.points, np.zeros(mesh.n_nodes)])
+    m = meshio.Mesh(
+        pts,
+        [("triangle", mesh.triangles.astype(np.int64)), ("line", mesh.lines.astype(np.int64))],
+        point_data={"contour_point": np.where(np.arange(mesh.n_nodes) < mesh.n_contour,
+                                              np.arange(mesh.n_nodes), -1).astype(np.int32)},
+        cell_data={"group": [np.full(len(mesh.triangles), g["domain"][0], np.int32),
+                             (mesh.line_group + 1).astype(np.int32)]},
+    )
+    meshio.write(path, m, file_format="xdmf")
+
+
+#: Formats that write a second file next to the first: extension -> sidecar extension.
+SIDECARS = {"xdmf": ".h5"}
+
 #: extension -> (description, writer)
 FORMATS: dict[str, tuple[str, Callable[[Mesh, str], None]]] = {
     "vtk": ("VTK legacy", _write_meshio("vtk", dim3=True)),
     "vtu": ("VTK XML unstructured grid", _write_meshio("vtu", dim3=True)),
     "msh": ("Gmsh 2.2 ASCII with named physical groups", _write_gmsh),
     "obj": ("Wavefront OBJ (z = 0)", _write_obj),
+    "ply": ("PLY binary (z = 0), triangles only", _write_ply),
+    "su2": ("SU2 native, one MARKER_TAG per boundary", _write_su2),
+    "xdmf": ("XDMF 3 with an HDF5 sidecar (.h5; needs h5py)", _write_xdmf),
 }
 
 
@@ -151,10 +231,15 @@ def write_mesh(mesh: Mesh, path: str, fmt: str | None = None, msh_version: str =
             raise OptionError(f"--msh-version must be one of {', '.join(MSH_VERSIONS)}")
         writer = functools.partial(_write_gmsh, version=msh_version)
     if path == "-":
+        if fmt in SIDECARS:
+            raise OptionError(f"{fmt} writes two files; it cannot go to stdout")
         with tempfile.TemporaryDirectory() as d:
             tmp = os.path.join(d, f"mesh.{fmt}")
             _quiet(writer, mesh, tmp)
             write_bytes(Path(tmp).read_bytes(), "-")
+        return fmt
+    if fmt in SIDECARS:
+        _write_with_sidecar(mesh, path, writer, SIDECARS[fmt])
         return fmt
     with atomic_path(path) as tmp:
         try:
@@ -164,6 +249,25 @@ def write_mesh(mesh: Mesh, path: str, fmt: str | None = None, msh_version: str =
         except Exception as exc:  # a writer's own error (meshio): one line, no traceback
             raise DeformeshError(f"{path}: cannot write {fmt}: {exc}") from None
     return fmt
+
+
+def _write_with_sidecar(mesh: Mesh, path: str, writer, ext: str) -> None:
+    """Write both files in a temporary folder next to ``path``, then move them into place."""
+    target = Path(path)
+    folder = check_folder(path)
+    side = target.with_suffix(ext)
+    with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=folder) as d:
+        tmp = Path(d) / target.name
+        try:
+            _quiet(writer, mesh, str(tmp))
+        except DeformeshError:
+            raise
+        except Exception as exc:
+            raise DeformeshError(f"{path}: cannot write {target.suffix[1:]}: {exc}") from None
+        for p in (tmp.with_suffix(ext), tmp):
+            os.chmod(p, 0o644)
+        os.replace(tmp.with_suffix(ext), side)
+        os.replace(tmp, target)
 
 
 def _quiet(writer, mesh, path):
@@ -213,7 +317,7 @@ def read_mesh(path: str, fmt: str | None = None) -> tuple[np.ndarray, np.ndarray
     if p.is_dir():
         raise DeformeshError(f"{path}: is a directory")
     try:
-        with contextlib.redirect_stdout(io.StringIO()):
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
             m = meshio.read(path, file_format=fmt)
     except SystemExit:
         raise DeformeshError(f"{path}: not a mesh file meshio can read") from None

@@ -87,7 +87,7 @@ def parse_svg(data: bytes, source: str = "<svg>", tolerance=None,
             ring = ring.copy()
             ring[:, 1] = height - ring[:, 1] if height else -ring[:, 1]
             ring = _drop_repeats(ring, 1e-9 * diag)
-            if len(np.unique(ring, axis=0)) < 3 or signed_area(ring) == 0:
+            if _flat(ring):
                 notes.append(f"skipped subpath {j + 1} of {name}: it encloses no area")
                 continue
             rings.append(ring)
@@ -205,6 +205,16 @@ def _drop_repeats(ring: np.ndarray, eps: float) -> np.ndarray:
     while len(out) > 1 and np.hypot(*(out[-1] - out[0])) <= eps:
         out = out[:-1]
     return out
+
+
+def _flat(ring: np.ndarray) -> bool:
+    """Fewer than 3 distinct points, or all on one line: no area, nothing to fill."""
+    if len(np.unique(ring, axis=0)) < 3:
+        return True
+    d = ring - ring[0]
+    far = d[np.argmax(np.hypot(d[:, 0], d[:, 1]))]
+    span2 = float((far * far).sum())
+    return bool(np.abs(d[:, 0] * far[1] - d[:, 1] * far[0]).max() <= 1e-13 * span2)
 
 
 def _bounding_rings(rings, element, evenodd) -> np.ndarray:

@@ -88,7 +88,7 @@ def test_load_contour_file_errors(tmp_path):
         load_contour(b)
     s = tmp_path / "c.svg"
     s.write_text("<svg/>")
-    with pytest.raises(InputError, match="SVG input is not supported yet"):
+    with pytest.raises(InputError, match="no filled shape"):
         load_contour(s)
 
 

@@ -1,0 +1,231 @@
+"""SVG input: geometry (transforms, viewBox, y flip, flattening), fill rules, errors, pictures."""
+
+import io
+import json
+import math
+
+import numpy as np
+import pytest
+import shapely
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+
+from deformesh_cli.contour import load_contour
+from deformesh_cli.errors import InputError, OptionError
+from deformesh_cli.svg import parse_svg
+
+from .conftest import SAMPLES
+
+SVG = '<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" {extra}>{body}</svg>'
+
+
+def svg(body, w=100, h=100, extra=""):
+    return SVG.format(w=w, h=h, extra=extra, body=body).encode()
+
+
+def ring_points(c, r):
+    return c.points[c.starts[r]:c.starts[r + 1]]
+
+
+def test_polygon_is_flipped_and_keeps_its_vertices():
+    c = parse_svg(svg('<polygon points="10,10 60,10 60,40 10,40"/>', h=100), "p.svg")
+    # y -> 100 - y; the input order is kept (clockwise after the flip, walked ccw)
+    assert c.points.tolist() == [[10, 90], [60, 90], [60, 60], [10, 60]]
+    assert c.area == pytest.approx(50 * 30)
+
+
+def test_transforms_and_viewbox_are_applied():
+    # viewBox 0 0 50 50 in a 100x100 viewport: everything doubles
+    body = '<g transform="translate(5 5)"><rect x="0" y="0" width="10" height="20" ' \
+           'transform="scale(2 1)"/></g>'
+    c = parse_svg(svg(body, extra='viewBox="0 0 50 50"'), "t.svg")
+    xy = c.points
+    # user box x 5..25, y 5..25 -> viewport x 10..50, y 10..50 -> flipped y 50..90
+    assert xy[:, 0].min() == pytest.approx(10) and xy[:, 0].max() == pytest.approx(50)
+    assert xy[:, 1].min() == pytest.approx(50) and xy[:, 1].max() == pytest.approx(90)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(-180, 180), st.floats(0.2, 3), st.floats(-50, 50), st.floats(-50, 50),
+       st.integers(3, 12), st.integers(0, 10_000))
+def test_random_polygon_under_random_transform_lands_where_the_matrix_says(
+        angle, scale, tx, ty, n, seed):
+    rng = np.random.default_rng(seed)
+    t = np.sort(rng.uniform(0, 2 * np.pi, n))
+    assume(np.diff(np.concatenate([t, [t[0] + 2 * np.pi]])).min() > 1e-3)
+    rad = rng.uniform(5, 20, n)
+    pts = np.column_stack([50 + rad * np.cos(t), 50 + rad * np.sin(t)])
+    assume(shapely.is_simple(shapely.LinearRing(pts)))
+    body = (f'<polygon transform="translate({tx} {ty}) rotate({angle}) scale({scale})" '
+            f'points="{" ".join(f"{float(x)!r},{float(y)!r}" for x, y in pts)}"/>')
+    c = parse_svg(svg(body, w=200, h=150), "r.svg")
+    a = math.radians(angle)
+    rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+    want = pts @ (scale * rot).T + [tx, ty]
+    want[:, 1] = 150 - want[:, 1]
+    assert c.n == n
+    np.testing.assert_allclose(c.points, want, rtol=0, atol=1e-9 * (1 + np.abs(want).max()))
+
+
+@pytest.mark.parametrize("tol", [0.05, 0.5, 2.0])
+def test_circle_flattened_within_tolerance_with_points_on_the_circle(tol):
+    c = parse_svg(svg('<circle cx="50" cy="50" r="30"/>'), "c.svg", tolerance=tol)
+    p = c.points - [50, 50]
+    np.testing.assert_allclose(np.hypot(p[:, 0], p[:, 1]), 30, rtol=1e-12)
+    # sagitta of each chord: r - distance from the centre to the chord's midpoint
+    mid = 0.5 * (p + np.roll(p, -1, axis=0))
+    sag = 30 - np.hypot(mid[:, 0], mid[:, 1])
+    assert sag.max() <= tol
+    assert sag.max() > tol / 4  # not needlessly fine
+
+
+def test_relative_tolerance_and_default_follow_the_drawing_size():
+    small = parse_svg(svg('<circle cx="50" cy="50" r="30"/>'), "c.svg")
+    big = parse_svg(svg('<circle cx="500" cy="500" r="300"/>', 1000, 1000), "c.svg")
+    assert small.n == big.n  # the default is relative: same shape, same points
+    pct = parse_svg(svg('<circle cx="50" cy="50" r="30"/>'), "c.svg", tolerance="1%")
+    assert pct.n < small.n
+    with pytest.raises(OptionError, match="--tolerance"):
+        parse_svg(svg('<circle cx="50" cy="50" r="30"/>'), "c.svg", tolerance="-1")
+
+
+def test_curve_endpoints_are_contour_points():
+    d = "M 10 10 C 30 0 50 20 70 10 Q 80 40 70 70 A 30 30 0 0 1 10 70 Z"
+    c = parse_svg(svg(f'<path d="{d}"/>'), "p.svg", tolerance=0.1)
+    for x, y in [(10, 10), (70, 10), (70, 70), (10, 70)]:
+        assert np.any(np.all(c.points == [x, 100 - y], axis=1)), (x, y)
+    # the same path in relative commands gives the same points
+    rel = "m 10 10 c 20 -10 40 10 60 0 q 10 30 0 60 a 30 30 0 0 1 -60 0 z"
+    c2 = parse_svg(svg(f'<path d="{rel}"/>'), "p.svg", tolerance=0.1)
+    np.testing.assert_allclose(c2.points, c.points, atol=1e-9)
+
+
+SQUARE = "M 10 10 H 90 V 90 H 10 Z"
+INNER_SAME = "M 30 30 H 70 V 70 H 30 Z"  # same direction as SQUARE
+INNER_OPPOSITE = "M 30 30 V 70 H 70 V 30 Z"
+
+
+@pytest.mark.parametrize("rule,inner,holes", [
+    ("evenodd", INNER_SAME, 1),
+    ("evenodd", INNER_OPPOSITE, 1),
+    ("nonzero", INNER_SAME, 0),  # winding 2 inside: filled, the inner ring is no boundary
+    ("nonzero", INNER_OPPOSITE, 1),
+])
+def test_fill_rule_decides_holes(rule, inner, holes):
+    c = parse_svg(svg(f'<path fill-rule="{rule}" d="{SQUARE} {inner}"/>'), "f.svg")
+    assert c.n_rings == 1 + holes
+    assert c.area == pytest.approx(80 * 80 - holes * 40 * 40)
+    if not holes:
+        assert any("dropped path 1 subpath 2" in n for n in c.notes)
+
+
+def test_fill_rule_is_inherited_from_a_group():
+    body = f'<g fill-rule="evenodd"><path d="{SQUARE} {INNER_SAME}"/></g>'
+    assert parse_svg(svg(body), "g.svg").n_rings == 2
+
+
+def test_island_in_a_hole_of_another_element_is_a_part():
+    body = (f'<path id="frame" fill-rule="evenodd" d="{SQUARE} {INNER_SAME}"/>'
+            '<circle id="dot" cx="50" cy="50" r="10"/>')
+    c = parse_svg(svg(body), "i.svg")
+    assert [c.is_hole(r) for r in range(c.n_rings)] == [False, True, False]
+    assert c.ring_labels[2] == "circle#dot subpath 1"
+
+
+def test_overlapping_elements_are_refused_naming_both():
+    body = '<rect id="a" x="10" y="10" width="50" height="50"/>' \
+           '<circle id="b" cx="35" cy="35" r="10"/>'
+    with pytest.raises(InputError, match=r"rect#a and circle#b overlap near .*--id"):
+        parse_svg(svg(body), "o.svg")
+    # --id picks one of them
+    assert parse_svg(svg(body), "o.svg", element_id="b").n_rings == 1
+
+
+def test_unfilled_and_hidden_shapes_are_skipped():
+    body = ('<rect x="10" y="10" width="20" height="20" fill="none" stroke="black"/>'
+            '<defs><circle id="c" cx="5" cy="5" r="3"/></defs>'
+            '<polygon points="50,50 90,50 70,90"/>')
+    c = parse_svg(svg(body), "u.svg")
+    assert c.n_rings == 1 and c.n == 3
+    with pytest.raises(InputError, match="no filled shape"):
+        parse_svg(svg('<rect width="5" height="5" fill="none"/>'), "u.svg")
+
+
+@pytest.mark.parametrize("data,text", [
+    (b"<svg><polygon points='0,0 1,0", "not a readable SVG file"),
+    (svg('<polygon points="0,0 10,10 10,0 0,10"/>'), r"intersects itself near \(5, 95\)"),
+    (svg('<polygon points="0,0 10,0 20,0"/>'), "skipped|no filled area"),
+])
+def test_bad_svg_is_one_line(data, text):
+    with pytest.raises(InputError, match=text) as e:
+        parse_svg(data, "bad.svg")
+    assert "\n" not in str(e.value)
+
+
+def test_self_intersection_names_the_element():
+    with pytest.raises(InputError, match=r"polygon#bow subpath 1"):
+        parse_svg(svg('<polygon id="bow" points="0,0 10,10 10,0 0,10"/>'), "bad.svg")
+
+
+def test_cli_id_errors(run, tmp_path):
+    f = tmp_path / "a.svg"
+    f.write_bytes(svg('<rect id="a" x="10" y="10" width="50" height="50"/>'))
+    r = run("all", f, "-o", tmp_path / "m.vtk", "--id", "nope")
+    assert r.exit_code == 2 and "no element with id 'nope'; ids: a" in r.stderr
+    assert not (tmp_path / "m.vtk").exists()
+    c = tmp_path / "c.csv"
+    c.write_text("0,0\n1,0\n0,1\n")
+    r = run("all", c, "-o", tmp_path / "m.vtk", "--tolerance", "1")
+    assert r.exit_code == 2 and "SVG input only" in r.stderr
+    bad = tmp_path / "b.svg"
+    bad.write_text("<svg><rect")
+    r = run("all", bad, "-o", tmp_path / "m.vtk")
+    assert r.exit_code == 1 and r.stderr.startswith("deformesh: error: ")
+    assert r.stderr.count("\n") == 1 and not (tmp_path / "m.vtk").exists()
+
+
+def test_svg_from_stdin_is_sniffed(run, tmp_path):
+    data = svg('<polygon points="10,10 60,10 35,50"/>').decode()
+    out = tmp_path / "m.vtk"
+    r = run("all", "-", "-o", out, "--json", input=data)
+    assert r.exit_code == 0, r.stderr
+    assert json.loads(r.stdout)["contract"] == "ok"
+
+
+# --- the sample: curves, a transform, a hole; its picture against an independent renderer
+
+
+def test_sample_svg_meshes_with_the_contract(run, tmp_path):
+    out = tmp_path / "b.msh"
+    r = run("all", SAMPLES / "bracket.svg", "-o", out, "--json")
+    assert r.exit_code == 0, r.stderr
+    rec = json.loads(r.stdout)
+    assert rec["contract"] == "ok"
+    assert '"hole_1"' in out.read_text()
+    r = run("quality", out, "--contour", SAMPLES / "bracket.svg", "--json")
+    assert r.exit_code == 0, r.stdout
+    assert json.loads(r.stdout)["contract"] == "ok"
+
+
+def test_sample_svg_mesh_covers_what_resvg_paints(run, tmp_path):
+    """Rasterise our mesh and resvg's rendering of the SVG; they must agree pixel for pixel
+    except along the edges (chord tolerance, anti-aliasing)."""
+    import matplotlib.image as mpimg
+    import meshio
+    import resvg_py
+
+    src = SAMPLES / "bracket.svg"
+    out = tmp_path / "b.vtk"
+    assert run("all", src, "-o", out, "-q").exit_code == 0
+    zoom = 4
+    png = bytes(resvg_py.svg_to_bytes(svg_path=str(src), background="#ffffff", zoom=zoom))
+    img = mpimg.imread(io.BytesIO(png), format="png")
+    painted = img[..., :3].mean(axis=2) < 0.5
+    m = meshio.read(out)
+    domain = shapely.union_all(shapely.polygons(m.points[:, :2][m.cells_dict["triangle"]]))
+    height = img.shape[0] / zoom  # the viewport height, which the y flip used
+    i, j = np.mgrid[:img.shape[0], :img.shape[1]]
+    ours = shapely.contains_xy(domain, (j + 0.5) / zoom, height - (i + 0.5) / zoom)
+    iou = (painted & ours).sum() / (painted | ours).sum()
+    assert painted.sum() > 0.2 * painted.size
+    assert iou > 0.99, iou
