@@ -17,7 +17,7 @@ import click
 from . import __version__, io, pipeline, quality, state
 from .contour import load_contour
 from .deform import DEFAULT_STEPS, SOLVERS
-from .errors import ContractError, DeformeshError, OptionError
+from .errors import DeformeshError, OptionError
 from .select import DEFAULT_MAX_NODES
 
 
@@ -284,20 +284,11 @@ def quality_cmd(mesh_path, contour_path, decimal, tolerance, element_id, as_json
     Exit 1 if a triangle is folded or (with --contour) the contract is broken.
     """
     points, tri = io.read_mesh(mesh_path)
-    rep = {"mesh": mesh_path, **quality.report(points, tri)}
-    problem = f"{rep['folded']} folded triangle(s)" if rep["folded"] else None
-    rep["contract"] = "unchecked (no --contour)"
+    c = None
     if contour_path is not None:
         c = _read_contour(contour_path, decimal, tolerance, element_id)
-        rep["contour"] = c.source
-        try:
-            mesh, box = quality.mesh_for_contour(points, tri, c)
-            quality.check_contract(mesh, c, box)
-            rep["contract"] = "ok"
-            rep["exterior"] = box is not None
-        except ContractError as exc:
-            problem = str(exc)
-            rep["contract"] = f"violated: {problem}"
+    rep, problem = quality.assess(points, tri, c)
+    rep = {"mesh": mesh_path, **rep}
     if as_json:
         click.echo(json.dumps(rep))
     else:

@@ -305,3 +305,29 @@ def mesh_for_contour(points: np.ndarray, tri: np.ndarray, contour: Contour):
     mesh = Mesh(points, tri, np.concatenate(lines), n_contour=m, n_extra=n_extra,
                 line_group=np.concatenate(group), groups=tuple(names))
     return mesh, box
+
+
+def assess(points: np.ndarray, tri: np.ndarray, contour: Contour | None = None):
+    """:func:`report` plus the contract verdict: ``(report, problem or None)``.
+
+    Folded triangles are a problem with or without a contour; with one, the
+    whole contract is checked (:func:`mesh_for_contour`, :func:`check_contract`).
+    """
+    rep = report(points, tri)
+    problem = None
+    if rep["folded"]:  # checked first: a fold also breaks the boundary walk
+        x, y = rep["smallest_area_at"]
+        problem = (f"{rep['folded']} folded triangle(s); the worst, near ({x:.6g}, {y:.6g}), "
+                   f"has signed area {rep['smallest_area']:.3g}")
+    rep["contract"] = "unchecked (no --contour)"
+    if contour is not None:
+        rep["contour"] = contour.source
+        if problem is None:
+            try:
+                mesh, box = mesh_for_contour(points, tri, contour)
+                check_contract(mesh, contour, box)
+                rep["exterior"] = box is not None
+            except ContractError as exc:
+                problem = str(exc)
+        rep["contract"] = f"violated: {problem}" if problem else "ok"
+    return rep, problem

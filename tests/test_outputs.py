@@ -1,0 +1,222 @@
+"""Output formats, the quality command and pictures."""
+
+import json
+import sys
+
+import meshio
+import numpy as np
+import pytest
+
+from deformesh_cli.contour import load_contour
+from deformesh_cli.quality import mesh_for_contour
+
+from .conftest import SAMPLES, shared
+
+
+@pytest.fixture(scope="module")
+def bracket(tmp_path_factory):
+    """The SVG sample meshed once: (mesh path, --json record)."""
+    from click.testing import CliRunner
+
+    from deformesh_cli.cli import cli
+
+    d = tmp_path_factory.mktemp("bracket")
+    out = d / "b.msh"
+    r = CliRunner().invoke(cli, ["all", str(SAMPLES / "bracket.svg"), "-o", str(out), "--json"])
+    assert r.exit_code == 0, r.stderr
+    return out, json.loads(r.stdout)
+
+
+def test_su2_has_a_marker_per_boundary_and_meshio_reads_it(run, tmp_path, bracket):
+    out = tmp_path / "b.su2"
+    assert run("all", SAMPLES / "bracket.svg", "-o", out, "-q").exit_code == 0
+    text = out.read_text().splitlines()
+    assert "NDIME= 2" in text
+    tags = [ln.split("=")[1].strip() for ln in text if ln.startswith("MARKER_TAG=")]
+    assert tags == ["contour", "hole_1"]
+    counts = [int(ln.split("=")[1]) for ln in text if ln.startswith("MARKER_ELEMS=")]
+    m = meshio.read(out)
+    ref = meshio.read(bracket[0])
+    assert np.array_equal(m.points[:, :2], ref.points[:, :2])
+    assert np.array_equal(m.cells_dict["triangle"], ref.cells_dict["triangle"])
+    assert sum(counts) == len(m.cells_dict["line"]) == bracket[1]["boundary_nodes"]
+
+
+def test_exterior_su2_has_the_box_sides(run, tmp_path):
+    out = tmp_path / "n.su2"
+    r = run("all", shared("naca0012_100.csv"), "--exterior", "--box=-2,-2,3,2", "-o", out, "-q")
+    assert r.exit_code == 0, r.stderr
+    tags = [ln.split("=")[1].strip() for ln in out.read_text().splitlines()
+            if ln.startswith("MARKER_TAG=")]
+    assert tags == ["contour", "bottom", "right", "top", "left"]
+
+
+def test_ply_is_planar_and_byte_identical_on_rerun(run, tmp_path, bracket):
+    a, b = tmp_path / "a.ply", tmp_path / "b.ply"
+    for out in (a, b):
+        assert run("all", SAMPLES / "bracket.svg", "-o", out, "-q").exit_code == 0
+    assert a.read_bytes() == b.read_bytes()
+    m = meshio.read(a)
+    assert (m.points[:, 2] == 0).all()
+    assert np.array_equal(m.cells_dict["triangle"], meshio.read(bracket[0]).cells_dict["triangle"])
+
+
+def test_xdmf_writes_its_sidecar_and_reads_back(run, tmp_path, bracket):
+    out = tmp_path / "b.xdmf"
+    assert run("all", SAMPLES / "bracket.svg", "-o", out, "-q").exit_code == 0
+    assert (tmp_path / "b.h5").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["b.h5", "b.xdmf"]  # no temporaries
+    m = meshio.read(out)
+    tags = m.cell_data_dict["group"]
+    assert set(tags["line"]) == {1, 2} and set(tags["triangle"]) == {3}
+    assert len(m.cells_dict["triangle"]) == bracket[1]["triangles"]
+
+
+def test_xdmf_without_h5py_fails_cleanly(run, tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "h5py", None)
+    out = tmp_path / "b.xdmf"
+    r = run("all", SAMPLES / "circle.csv", "-o", out)
+    assert r.exit_code == 1 and "needs h5py" in r.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_xdmf_to_stdout_is_a_usage_error(run):
+    r = run("all", SAMPLES / "circle.csv", "-o", "-", "--format", "xdmf")
+    assert r.exit_code == 2 and "two files" in r.stderr
+
+
+# --- quality
+
+
+@pytest.mark.parametrize("fmt", ["msh", "vtk", "vtu", "obj", "ply", "su2"])
+def test_quality_checks_the_contract_in_every_format(run, tmp_path, fmt):
+    out = tmp_path / f"m.{fmt}"
+    src = shared("square_hole_100.csv")
+    r = run("all", src, "-o", out, "--json")
+    made = json.loads(r.stdout)
+    r = run("quality", out, "--contour", src, "--json")
+    assert r.exit_code == 0, r.stdout + r.stderr
+    rep = json.loads(r.stdout)
+    assert rep["contract"] == "ok" and rep["exterior"] is False
+    assert rep["triangles"] == made["triangles"]
+    assert rep["min_angle"] == pytest.approx(made["min_angle"])
+    assert sum(rep["radius_ratio_histogram"]["counts"]) == rep["triangles"]
+
+
+def test_quality_finds_an_exterior_mesh_and_its_box(run, tmp_path):
+    out = tmp_path / "n.msh"
+    src = shared("naca0012_100.csv")
+    assert run("all", src, "--exterior", "--box=-2,-2,3,2", "-o", out, "-q").exit_code == 0
+    r = run("quality", out, "--contour", src, "--json")
+    assert r.exit_code == 0, r.stdout
+    assert json.loads(r.stdout)["exterior"] is True
+
+
+def _moved(src_mesh, out, fn):
+    m = meshio.read(src_mesh)
+    fn(m)
+    meshio.write(out, m, file_format="vtk")
+
+
+def test_quality_reports_violations_with_exit_1(run, tmp_path, bracket):
+    src = SAMPLES / "bracket.svg"
+
+    def nudge(m):
+        m.points[3, 0] += 1e-9
+
+    def fold(m):
+        t = m.cells[0].data
+        t[0] = t[0][::-1]
+
+    def drop(m):
+        m.cells[0].data = m.cells[0].data[1:]
+
+    cases = [(nudge, "node 3 is at"), (fold, "signed area"), (drop, "boundary")]
+    for fn, text in cases:
+        bad = tmp_path / f"{fn.__name__}.vtk"
+        _moved(bracket[0], bad, fn)
+        r = run("quality", bad, "--contour", src)
+        assert r.exit_code == 1, fn.__name__
+        assert "contract: violated" in r.stdout and text in r.stderr, (fn.__name__, r.stderr)
+    # a folded triangle is an error even without a contour
+    r = run("quality", tmp_path / "fold.vtk")
+    assert r.exit_code == 1 and "1 folded triangle" in r.stderr
+
+
+def test_quality_against_the_wrong_contour_fails(run, bracket):
+    r = run("quality", bracket[0], "--contour", SAMPLES / "circle.csv")
+    assert r.exit_code == 1 and "violated" in r.stdout
+
+
+def test_quality_text_report(run, bracket):
+    r = run("quality", bracket[0])
+    assert r.exit_code == 0
+    lines = r.stdout.splitlines()
+    assert lines[0].startswith(f"{bracket[0]}: {bracket[1]['nodes']} nodes")
+    assert sum(int(ln.split()[1]) for ln in lines if ln.startswith("  0.")) \
+        == bracket[1]["triangles"]
+    assert lines[-1] == "contract: unchecked (no --contour)"
+
+
+@pytest.mark.parametrize("content,text", [(b"garbage", "cannot read mesh|not a mesh"),
+                                          (None, "no such file")])
+def test_quality_bad_mesh_file(run, tmp_path, content, text):
+    f = tmp_path / "m.vtk"
+    if content is not None:
+        f.write_bytes(content)
+    r = run("quality", f)
+    assert r.exit_code == 1 and r.stderr.count("\n") == 1
+    assert r.stderr.startswith("deformesh: error:")
+
+
+def test_mesh_for_contour_rebuilds_groups(bracket):
+    m = meshio.read(bracket[0])
+    c = load_contour(SAMPLES / "bracket.svg")
+    mesh, box = mesh_for_contour(m.points[:, :2], m.cells_dict["triangle"], c)
+    assert box is None and mesh.groups == ("contour", "hole_1")
+    tags = m.cell_data_dict["gmsh:physical"]["line"]
+    # the written group of every boundary edge is the rebuilt one
+    written = {tuple(e): t for e, t in zip(m.cells_dict["line"].tolist(), tags)}
+    rebuilt = {tuple(e): g + 1 for e, g in zip(mesh.lines.tolist(), mesh.line_group)}
+    assert written == rebuilt
+
+
+# --- pictures
+
+
+def _png(path):
+    import matplotlib.image as mpimg
+
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    return mpimg.imread(path)
+
+
+def test_plot_and_png_draw_the_mesh(run, tmp_path, bracket):
+    out = tmp_path / "p.png"
+    r = run("plot", bracket[0], "-o", out, "--contour", SAMPLES / "bracket.svg")
+    assert r.exit_code == 0, r.stderr
+    img = _png(out)
+    assert img.shape[0] > 500 and img.shape[1] > 800
+    # the boundary colour and the quality shades are there, not just a blank canvas
+    rgb = (img[..., :3] * 255).round().astype(int)
+    blue = np.all(np.abs(rgb - [0x1f, 0x3f, 0xbf]) < 8, axis=-1).sum()
+    greens = (rgb[..., 1] > rgb[..., 0] + 40).sum()
+    assert blue > 500 and greens > 50_000
+    png = tmp_path / "all.png"
+    r = run("all", SAMPLES / "bracket.svg", "-o", tmp_path / "m.vtk", "--png", png, "-q")
+    assert r.exit_code == 0 and _png(png).shape == img.shape
+
+
+def test_png_without_matplotlib_leaves_no_file(run, tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "matplotlib", None)
+    r = run("all", SAMPLES / "circle.csv", "-o", tmp_path / "m.vtk", "--png", tmp_path / "m.png")
+    assert r.exit_code == 1 and "pip install 'deformesh[plot]'" in r.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_plot_errors(run, tmp_path, bracket):
+    r = run("plot", tmp_path / "none.vtk", "-o", tmp_path / "p.png")
+    assert r.exit_code == 1 and "no such file" in r.stderr
+    r = run("plot", bracket[0], "-o", tmp_path / "nofolder" / "p.png")
+    assert r.exit_code == 1 and "does not exist" in r.stderr
