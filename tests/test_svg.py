@@ -10,7 +10,6 @@ import shapely
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from deformesh_cli.contour import load_contour
 from deformesh_cli.errors import InputError, OptionError
 from deformesh_cli.svg import parse_svg
 
