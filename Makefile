@@ -23,7 +23,7 @@ install: $(VENV)/.installed
 
 demo: $(VENV)/.installed
 	@mkdir -p $(OUT)
-	$(BIN)/deformesh all $(SAMPLE) -o $(OUT)/demo.vtk
+	$(BIN)/deformesh all $(SAMPLE) -o $(OUT)/demo.vtk --png $(OUT)/demo.png
 
 test: $(VENV)/.installed-test
 	$(BIN)/python -m pytest -q

@@ -6,7 +6,7 @@ endpoint) becomes a contour point; curves (quadratic and cubic Beziers,
 elliptical arcs) are flattened by uniform parameter steps, as few as keep the
 chord within ``tolerance`` of the curve (bound: chord gap <= max|C''| dt^2 / 8).
 y is flipped (SVG's y points down): ``y -> height - y`` with the viewport
-height.  Each subpath is a ring; the element's fill rule (``nonzero`` or
+height (``y -> -y`` if the file gives neither height nor viewBox).  Each subpath is a ring; the element's fill rule (``nonzero`` or
 ``evenodd``) decides which rings bound filled area: a ring whose inside and
 outside are both filled (or both empty) is dropped.  Elements must not
 overlap each other (each would be a separate mesh); ``--id`` picks one.
@@ -73,7 +73,10 @@ def parse_svg(data: bytes, source: str = "<svg>", tolerance=None,
         tol = DEFAULT_RELATIVE_TOLERANCE * diag
     else:
         tol = tol_spec[0] * (diag if tol_spec[1] else 1.0)
-    height = float(svg.height) if svg.height else 0.0
+    # flip about the viewport's height; an SVG giving neither height nor viewBox
+    # has no page to flip in (svgelements would assume 1000 px): y -> -y
+    sized = svg.values.get("height") is not None or svg.viewbox is not None
+    height = float(svg.height) if sized and svg.height else 0.0
 
     rings: list[np.ndarray] = []
     labels: list[str] = []
@@ -85,7 +88,7 @@ def parse_svg(data: bytes, source: str = "<svg>", tolerance=None,
         rule = str(shape.values.get("fill-rule", "nonzero")).strip().lower()
         for j, ring in enumerate(_subpaths(se.Path(shape), se, tol)):
             ring = ring.copy()
-            ring[:, 1] = height - ring[:, 1] if height else -ring[:, 1]
+            ring[:, 1] = height - ring[:, 1]  # height 0: y -> -y
             ring = _drop_repeats(ring, 1e-9 * diag)
             if _flat(ring):
                 notes.append(f"skipped subpath {j + 1} of {name}: it encloses no area")

@@ -33,6 +33,13 @@ def test_polygon_is_flipped_and_keeps_its_vertices():
     assert c.area == pytest.approx(50 * 30)
 
 
+def test_without_height_or_viewbox_y_is_negated():
+    body = '<polygon points="0,0 10,0 0,10"/>'
+    c = parse_svg(SVG.format(w=0, h=0, extra="", body=body).replace(
+        'width="0" height="0" ', "").encode(), "n.svg")
+    assert c.points.tolist() == [[0, 0], [10, 0], [0, -10]]
+
+
 def test_transforms_and_viewbox_are_applied():
     # viewBox 0 0 50 50 in a 100x100 viewport: everything doubles
     body = '<g transform="translate(5 5)"><rect x="0" y="0" width="10" height="20" ' \
@@ -228,3 +235,31 @@ def test_sample_svg_mesh_covers_what_resvg_paints(run, tmp_path):
     iou = (painted & ours).sum() / (painted | ours).sum()
     assert painted.sum() > 0.2 * painted.size
     assert iou > 0.99, iou
+
+
+# --- real icons: matplotlib's toolbar SVGs (installed with the test extra, never downloaded)
+
+
+def _mpl_icon(name):
+    from pathlib import Path
+
+    import matplotlib
+
+    return Path(matplotlib.get_data_path()) / "images" / f"{name}.svg"
+
+
+@pytest.mark.parametrize("name", ["help", "move", "zoom_to_rect", "subplots"])
+def test_real_icons_mesh_with_the_contract(run, tmp_path, name):
+    out = tmp_path / "m.vtk"
+    r = run("all", _mpl_icon(name), "-o", out, "--json")
+    assert r.exit_code == 0, r.stderr
+    assert json.loads(r.stdout)["contract"] == "ok"
+    r = run("quality", out, "--contour", _mpl_icon(name))
+    assert r.exit_code == 0 and r.stdout.endswith("contract: ok\n")
+
+
+def test_real_icon_with_overlapping_shapes_is_refused_by_name(run, tmp_path):
+    r = run("all", _mpl_icon("hand"), "-o", tmp_path / "m.vtk")
+    assert r.exit_code == 1
+    assert "path#path51 and path#path124 overlap near" in r.stderr
+    assert not (tmp_path / "m.vtk").exists()
