@@ -65,6 +65,7 @@ def dumps(state: State) -> bytes:
         "path_rule": sel.path_rule,
         "exterior": bool(sel.exterior),
         "notes": list(sel.notes),
+        "ring_labels": list(state.contour.ring_labels),
     }
     if state.meta:
         meta.update({k: v for k, v in state.meta.items() if k not in meta})
@@ -150,8 +151,12 @@ def loads(data: bytes, name: str = "<state>", want: str | None = None) -> State:
             or (np.diff(starts) < 3).any():
         raise InputError(f"{name}: inconsistent state file (ring starts do not match the "
                          "contour)")
+    labels = meta.get("ring_labels")
+    if labels is not None and (not isinstance(labels, list) or len(labels) != len(starts) - 1):
+        raise InputError(f"{name}: inconsistent state file (ring_labels do not match the rings)")
     contour = make_contour(arrays["contour_points"], arrays["contour_lines"],
-                           str(meta.get("source", name)), ring_starts=starts[:-1])
+                           str(meta.get("source", name)), ring_starts=starts[:-1],
+                           ring_labels=[str(x) for x in labels] if labels else None)
     src = arrays["path_source"]
     if src.max() >= contour.n or np.count_nonzero(src >= 0) != contour.n:
         raise InputError(f"{name}: inconsistent state file (path does not match the contour)")
