@@ -47,7 +47,9 @@ def render(points: np.ndarray, tri: np.ndarray, boundary: np.ndarray | None = No
     rr = quality.radius_ratio(points, tri)
     if boundary is None:
         boundary = quality.boundary_edges(tri, len(points))
-    fig, (ax, axh) = plt.subplots(1, 2, figsize=(9.6, 6.4),
+    span = np.ptp(points, axis=0)
+    height = float(np.clip(7.5 * span[1] / max(span[0], 1e-300), 3.5, 9.0))  # follow the shape
+    fig, (ax, axh) = plt.subplots(1, 2, figsize=(9.6, height + 0.8),
                                   gridspec_kw={"width_ratios": [4.2, 1]})
     lw = 0.4 if len(tri) < 4000 else 0.15 if len(tri) < 40000 else 0.0
     ax.tripcolor(points[:, 0], points[:, 1], tri, facecolors=rr, cmap=CMAP, vmin=0, vmax=1,
