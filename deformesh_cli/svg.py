@@ -20,6 +20,7 @@ import warnings
 
 import numpy as np
 import shapely
+import svgelements as se
 
 from .contour import Contour, make_contour, signed_area
 from .errors import InputError, OptionError
@@ -55,8 +56,6 @@ def parse_svg(data: bytes, source: str = "<svg>", tolerance=None,
     ``tolerance`` is ``None`` (1/1000 of the drawing's diagonal), a number in
     drawing units, or the text of ``--tolerance`` (``0.5%`` = relative).
     """
-    import svgelements as se
-
     tol_spec = parse_tolerance(tolerance)
     try:
         with warnings.catch_warnings():
@@ -64,7 +63,7 @@ def parse_svg(data: bytes, source: str = "<svg>", tolerance=None,
             svg = se.SVG.parse(io.BytesIO(data), reify=True)
     except Exception as exc:  # xml.etree.ParseError and svgelements' own errors
         raise InputError(f"{source}: not a readable SVG file: {_one_line(exc)}") from None
-    shapes = _pick_shapes(svg, se, source, element_id)
+    shapes = _pick_shapes(svg, source, element_id)
     boxes = np.array([s.bbox() for s in shapes if s.bbox() is not None], dtype=float)
     if len(boxes) == 0:
         raise InputError(f"{source}: the SVG's shapes are empty")
@@ -78,37 +77,17 @@ def parse_svg(data: bytes, source: str = "<svg>", tolerance=None,
     sized = svg.values.get("height") is not None or svg.viewbox is not None
     height = float(svg.height) if sized and svg.height else 0.0
 
-    rings: list[np.ndarray] = []
-    labels: list[str] = []
-    element: list[int] = []
-    evenodd: list[bool] = []
-    notes: list[str] = []
-    for k, shape in enumerate(shapes):
-        name = _label(shape, k)
-        rule = str(shape.values.get("fill-rule", "nonzero")).strip().lower()
-        for j, ring in enumerate(_subpaths(se.Path(shape), se, tol)):
-            ring = ring.copy()
-            ring[:, 1] = height - ring[:, 1]  # height 0: y -> -y
-            ring = _drop_repeats(ring, 1e-9 * diag)
-            if _flat(ring):
-                notes.append(f"skipped subpath {j + 1} of {name}: it encloses no area")
-                continue
-            rings.append(ring)
-            labels.append(f"{name} subpath {j + 1}")
-            element.append(k)
-            evenodd.append(rule == "evenodd")
+    rings, labels, element, evenodd, notes = _collect_rings(shapes, tol, height, 1e-9 * diag)
     if not rings:
         raise InputError(f"{source}: no filled area in the SVG (every subpath is empty)")
-
     starts = np.cumsum([0] + [len(r) for r in rings])[:-1]
     # validates every ring and that no two rings cross or touch (names the place)
-    every = make_contour(np.concatenate(rings), None, source, ring_starts=starts,
-                         ring_labels=labels)
+    make_contour(np.concatenate(rings), None, source, ring_starts=starts, ring_labels=labels)
     keep = _bounding_rings(rings, element, evenodd)
     for r in np.flatnonzero(~keep):
         notes.append(f"dropped {labels[r]}: filled on both sides (fill rule "
                      f"{'evenodd' if evenodd[r] else 'nonzero'})")
-    _check_elements_apart(every, rings, keep, element, shapes, source)
+    _check_elements_apart(rings, keep, element, shapes, source)
     kept = [r for r in range(len(rings)) if keep[r]]
     starts = np.cumsum([0] + [len(rings[r]) for r in kept])[:-1]
     c = make_contour(np.concatenate([rings[r] for r in kept]), None, source,
@@ -117,6 +96,28 @@ def parse_svg(data: bytes, source: str = "<svg>", tolerance=None,
                     f"flattened to a chord tolerance of {tol:.3g}")
     return Contour(c.points, c.lines, source, notes=tuple(notes), starts=c.starts,
                    ring_clockwise=c.ring_clockwise, depth=c.depth, ring_labels=c.ring_labels)
+
+
+def _collect_rings(shapes, tol: float, height: float, eps: float):
+    """Every subpath of every shape as a ring, flipped, repeats dropped, flat ones skipped.
+
+    Returns parallel lists: rings, labels, owning shape, evenodd?, and notes.
+    """
+    rings, labels, element, evenodd, notes = [], [], [], [], []
+    for k, shape in enumerate(shapes):
+        name = _label(shape, k)
+        rule = str(shape.values.get("fill-rule", "nonzero")).strip().lower()
+        for j, ring in enumerate(_subpaths(se.Path(shape), tol)):
+            ring[:, 1] = height - ring[:, 1]  # height 0: y -> -y
+            ring = _drop_repeats(ring, eps)
+            if _flat(ring):
+                notes.append(f"skipped subpath {j + 1} of {name}: it encloses no area")
+                continue
+            rings.append(ring)
+            labels.append(f"{name} subpath {j + 1}")
+            element.append(k)
+            evenodd.append(rule == "evenodd")
+    return rings, labels, element, evenodd, notes
 
 
 def _one_line(exc: Exception) -> str:
@@ -134,7 +135,7 @@ def _filled(shape) -> bool:
     return fill is not None and fill.value is not None and fill.alpha != 0
 
 
-def _pick_shapes(svg, se, source: str, element_id: str | None) -> list:
+def _pick_shapes(svg, source: str, element_id: str | None) -> list:
     if element_id is not None:
         found = svg.get_element_by_id(element_id)
         if found is None:
@@ -156,7 +157,7 @@ def _pick_shapes(svg, se, source: str, element_id: str | None) -> list:
     return shapes
 
 
-def _subpaths(path, se, tol: float) -> list[np.ndarray]:
+def _subpaths(path, tol: float) -> list[np.ndarray]:
     """Each subpath's points: the vertices, plus curve points within ``tol``."""
     out: list[list] = []
     cur: list | None = None
@@ -171,7 +172,7 @@ def _subpaths(path, se, tol: float) -> list[np.ndarray]:
         if isinstance(seg, se.Close):
             cur = None
             continue
-        n = _pieces(seg, se, tol)
+        n = _pieces(seg, tol)
         if n > 1:
             t = np.arange(1, n) / n
             cur.extend(map(tuple, np.asarray(seg.npoint(t), dtype=float)))
@@ -179,7 +180,7 @@ def _subpaths(path, se, tol: float) -> list[np.ndarray]:
     return [np.array(p, dtype=float) for p in out]
 
 
-def _pieces(seg, se, tol: float) -> int:
+def _pieces(seg, tol: float) -> int:
     """How many equal parameter steps keep ``seg``'s chords within ``tol``."""
     def p(q):
         return np.array([q.x, q.y], dtype=float)
@@ -238,7 +239,7 @@ def _bounding_rings(rings, element, evenodd) -> np.ndarray:
     return keep
 
 
-def _check_elements_apart(contour, rings, keep, element, shapes, source) -> None:
+def _check_elements_apart(rings, keep, element, shapes, source) -> None:
     """Two shapes whose filled areas overlap would need a union: refuse, name both."""
     element = np.asarray(element)
     owners = sorted(set(element[keep].tolist()))
