@@ -6,6 +6,7 @@ stderr.  Exit codes: 0 ok, 1 processing failure, 2 usage error.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
 import os
@@ -14,7 +15,7 @@ import time
 
 import click
 
-from . import __version__, io, pipeline, quality, state
+from . import __version__, batch, io, pipeline, quality, state
 from .contour import load_contour
 from .deform import DEFAULT_STEPS, SOLVERS
 from .errors import DeformeshError, OptionError
@@ -244,27 +245,153 @@ def summary_line(r: dict) -> str:
 
 
 @cli.command("all")
-@click.argument("contour", type=click.Path(dir_okay=False, allow_dash=True))
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, allow_dash=True),
-              help="Mesh file to write; the format follows the extension.")
+@click.argument("contours", metavar="CONTOUR...", nargs=-1, required=True,
+                type=click.Path(allow_dash=True))
+@click.option("-o", "--output", default=None, type=click.Path(dir_okay=False, allow_dash=True),
+              help="Mesh file to write (one contour); the format follows the extension.")
+@click.option("--out-dir", default=None, type=click.Path(file_okay=False),
+              help="Batch: write each contour's mesh here as NAME.FORMAT (created if missing). "
+                   "CONTOUR may then be several files, folders and glob patterns.")
+@click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,
+              help="Batch: processes to run at once. Default: the number of cores.")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="Batch: run on a Dask distributed cluster (e.g. tcp://host:8786); "
+                   "needs deformesh[dask].")
+@click.option("--fail-fast", is_flag=True, help="Batch: stop at the first failure.")
 @_apply(select_options)
 @steps_option
 @solver_option
 @format_option
 @msh_option
 @png_option
-@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print the summary as JSON on stdout (a batch: one record per contour).")
 @quiet_option
 @_handle_errors
-def all_cmd(contour, output, h, box, margin, strict, max_nodes, decimal, tolerance, element_id,
-            exterior, steps, solver, fmt, msh_version, png, as_json, quiet):
-    """Run select, deform and triangulate in one process."""
+def all_cmd(contours, output, out_dir, jobs, scheduler, fail_fast, h, box, margin, strict,
+            max_nodes, decimal, tolerance, element_id, exterior, steps, solver, fmt, msh_version,
+            png, as_json, quiet):
+    """Run select, deform and triangulate in one process, for one contour or a batch."""
     t0 = time.perf_counter()
+    if out_dir is not None:
+        if output is not None:
+            raise click.UsageError("give -o FILE (one contour) or --out-dir DIR (a batch), "
+                                   "not both")
+        if png is not None:
+            raise click.UsageError("--png names one file; it does not apply to a batch")
+        options = dict(h=h, box=box, margin=margin, strict=strict, max_nodes=max_nodes,
+                       decimal=decimal, tolerance=tolerance, element_id=element_id,
+                       exterior=exterior, steps=steps, solver=solver, msh_version=msh_version)
+        _batch(list(contours), out_dir, fmt, options, jobs, scheduler, fail_fast, as_json, quiet,
+               t0)
+        return
+    if output is None:
+        raise click.UsageError("give -o FILE (one contour) or --out-dir DIR (a batch)")
+    if len(contours) != 1 or (contours[0] != "-" and os.path.isdir(contours[0])):
+        raise click.UsageError("several contours or a folder need --out-dir DIR instead of -o")
+    if jobs is not None or scheduler is not None or fail_fast:
+        raise click.UsageError("--jobs, --scheduler and --fail-fast apply to batches "
+                               "(--out-dir)")
     fmt = _check_mesh_output(output, fmt, as_json)
-    c = _read_contour(contour, decimal, tolerance, element_id)
-    res = pipeline.mesh_contour(c, h, box, margin, strict, max_nodes, steps, solver=solver,
-                                exterior=exterior)
+    c = _read_contour(contours[0], decimal, tolerance, element_id)
+    with _steps_bar(steps, quiet) as progress:
+        res = pipeline.mesh_contour(c, h, box, margin, strict, max_nodes, steps, solver=solver,
+                                    exterior=exterior, callback=progress)
     _finish(c, res.mesh, res.report, output, fmt, as_json, quiet, t0, msh_version, png)
+
+
+def _show_progress(quiet: bool) -> bool:
+    """Progress bars only for a person watching: stderr is a terminal and not --quiet."""
+    return not quiet and sys.stderr.isatty()
+
+
+@contextlib.contextmanager
+def _steps_bar(steps: int, quiet: bool):
+    """A deformation progress callback drawing a bar on stderr (or doing nothing)."""
+    if not _show_progress(quiet):
+        yield None
+        return
+    with click.progressbar(length=1000, label="deforming", file=sys.stderr) as bar:
+        def progress(done, stats):
+            bar.update(int(1000 * done) - bar.pos)
+
+        yield progress
+
+
+def _batch(contours, out_dir, fmt, options, jobs, scheduler, fail_fast, as_json, quiet, t0):
+    fmt = io.format_for(f"x.{fmt or 'msh'}", None)
+    try:
+        os.makedirs(out_dir, exist_ok=True)
+    except OSError as exc:
+        raise DeformeshError(f"{out_dir}: cannot create the output folder: {exc.strerror}") \
+            from None
+    tasks = batch.make_tasks(batch.expand_inputs(contours), out_dir, fmt, options)
+    records: list[dict | None] = [None] * len(tasks)
+    printed = 0
+    bar = None
+    if _show_progress(quiet) and len(tasks) > 1:
+        bar = click.progressbar(length=len(tasks), label="meshing", file=sys.stderr)
+        bar.__enter__()
+    try:
+        for task, rec, files in batch.run(tasks, jobs or os.cpu_count() or 1, scheduler,
+                                          fail_fast):
+            if rec["status"] == "ok":
+                try:
+                    _write_files(out_dir, files)
+                except DeformeshError as exc:
+                    rec.update(status="failed", error=str(exc))
+            if rec["status"] == "failed":
+                click.echo(f"deformesh: error: {rec['error']}", err=True)
+            records[task.index] = rec
+            while printed < len(records) and records[printed] is not None:
+                if as_json:
+                    click.echo(json.dumps(records[printed]))
+                printed += 1
+            if bar is not None:
+                bar.update(1)
+    finally:
+        if bar is not None:
+            bar.__exit__(None, None, None)
+    if not quiet:
+        click.echo(batch_table(records, time.perf_counter() - t0), err=True)
+    if any(r["status"] != "ok" for r in records):
+        sys.exit(1)
+
+
+def _write_files(out_dir: str, files) -> None:
+    """One input's files, each atomically; if one fails, none of them stays."""
+    written = []
+    try:
+        for name, data in files:
+            path = os.path.join(out_dir, name)
+            io.write_bytes(data, path)
+            written.append(path)
+    except BaseException:
+        for path in written:
+            with contextlib.suppress(OSError):
+                os.unlink(path)
+        raise
+
+
+def batch_table(records: list[dict], seconds: float) -> str:
+    """The end-of-batch summary: a count line, then one row per input."""
+    ok = sum(r["status"] == "ok" for r in records)
+    failed = sum(r["status"] == "failed" for r in records)
+    skipped = len(records) - ok - failed
+    head = f"deformesh: {len(records)} contour(s): {ok} ok, {failed} failed"
+    head += f", {skipped} skipped" if skipped else ""
+    rows = [head + f" ({seconds:.2f} s)",
+            f"  {'status':8} {'nodes':>8} {'triangles':>9} {'min angle':>9} {'seconds':>8}  input"]
+    for r in records:
+        if r["status"] == "ok":
+            nums = (f"{r['nodes']:>8} {r['triangles']:>9} {r['min_angle']:>9.1f} "
+                    f"{r['seconds']:>8.2f}")
+            rows.append(f"  {'ok':8} {nums}  {r['input']}")
+        else:
+            why = r["error"].removeprefix(f"{r['input']}: ")
+            rows.append(f"  {r['status']:8} {'-':>8} {'-':>9} {'-':>9} {r['seconds']:>8.2f}  "
+                        f"{r['input']}: {why}")
+    return "\n".join(rows)
 
 
 def _title(name, mesh) -> str:

@@ -251,6 +251,17 @@ def write_mesh(mesh: Mesh, path: str, fmt: str | None = None, msh_version: str =
     return fmt
 
 
+def mesh_files(mesh: Mesh, name: str, fmt: str, msh_version: str = "2.2") -> list[tuple[str, bytes]]:
+    """The files ``write_mesh(mesh, name)`` would write, as ``[(file name, bytes)]`` in the
+    order to write them (a sidecar before the file that refers to it)."""
+    fmt = format_for(name, fmt)
+    with tempfile.TemporaryDirectory() as d:
+        write_mesh(mesh, os.path.join(d, name), fmt, msh_version)
+        main = Path(d) / name
+        others = sorted(p for p in Path(d).iterdir() if p != main)
+        return [(p.name, p.read_bytes()) for p in others + [main]]
+
+
 def _write_with_sidecar(mesh: Mesh, path: str, writer, ext: str) -> None:
     """Write both files in a temporary folder next to ``path``, then move them into place."""
     target = Path(path)

@@ -1,0 +1,188 @@
+"""Batch meshing: many contours, one record per input, a process pool or a Dask cluster.
+
+The caller reads every input (:func:`make_tasks`), the workers mesh them
+(:func:`run_task`: contour bytes in, a record and the output files' bytes
+out, nothing touches the disk), and the caller writes each input's files as
+they arrive.  So a worker needs no shared file system, one input's failure
+never leaves a file behind, and the bytes do not depend on where or in what
+order the inputs ran.  Nothing here prints or exits.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import glob
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterator
+
+from . import io
+from .contour import load_contour
+from .deform import DEFAULT_STEPS
+from .errors import DeformeshError, OptionError
+from .select import DEFAULT_MAX_NODES
+
+#: What a folder given as input contributes: files with these extensions.
+CONTOUR_SUFFIXES = (".csv", ".txt", ".svg", ".svgz")
+
+#: Keys of every batch record (``--json`` prints one per input, in input order).
+RECORD_KEYS = ("input", "output", "status", "error", "seconds", "nodes", "triangles",
+               "min_angle", "contract")
+
+
+@dataclass(frozen=True)
+class Task:
+    """One input: where it came from, what it holds, where its mesh goes, how to mesh it."""
+
+    index: int
+    source: str
+    output: str
+    data: bytes | None = None
+    error: str | None = None  # reading failed: nothing to run
+    options: dict = field(default_factory=dict)
+
+
+def expand_inputs(args: list[str]) -> list[str]:
+    """Files as given, folders' contour files (sorted), and glob patterns (sorted).
+
+    A pattern that matches nothing is kept, so that it is reported as missing.
+    """
+    out: list[str] = []
+    for a in args:
+        p = Path(a)
+        if a != "-" and p.is_dir():
+            found = sorted(str(q) for q in p.iterdir() if q.is_file()
+                           and q.suffix.lower() in CONTOUR_SUFFIXES
+                           and not q.name.startswith("."))
+            if not found:
+                raise OptionError(f"{a}: folder holds no contour files "
+                                  f"({', '.join(CONTOUR_SUFFIXES)})")
+            out += found
+        elif a != "-" and not p.exists() and any(ch in a for ch in "*?["):
+            out += sorted(glob.glob(a)) or [a]
+        else:
+            out.append(a)
+    return out
+
+
+def make_tasks(inputs: list[str], out_dir: str, fmt: str, options: dict,
+               stdin: bytes | None = None) -> list[Task]:
+    """Read every input (a failure becomes the task's error) and name its output.
+
+    Two inputs that would write the same output file are a usage error.
+    """
+    outputs: dict[str, str] = {}
+    tasks = []
+    for k, src in enumerate(inputs):
+        stem = "stdin" if src == "-" else Path(src).name.split(".")[0] or f"input_{k}"
+        out = str(Path(out_dir) / f"{stem}.{fmt}")
+        if out in outputs:
+            raise OptionError(f"{outputs[out]} and {src} would both write {out}; "
+                              "rename one or mesh them in two runs")
+        outputs[out] = src
+        data, error = None, None
+        if src == "-":
+            data = stdin if stdin is not None else io.read_bytes("-")
+        else:
+            try:
+                data = io.read_bytes(src)
+            except DeformeshError as exc:
+                error = str(exc)
+        tasks.append(Task(k, src, out, data, error, dict(options, fmt=fmt)))
+    return tasks
+
+
+def run_task(task: Task) -> tuple[dict, list[tuple[str, bytes]]]:
+    """Mesh one input in memory: ``(record, [(file name, bytes), ...])``; never raises."""
+    from .pipeline import mesh_contour
+
+    t0 = time.perf_counter()
+    o = task.options
+    rec = dict.fromkeys(RECORD_KEYS)
+    rec.update(input=task.source, output=task.output, status="failed")
+    files: list[tuple[str, bytes]] = []
+    try:
+        if task.error is not None:
+            raise DeformeshError(task.error)
+        c = load_contour(task.source, task.data, o.get("decimal", "."), o.get("tolerance"),
+                         o.get("element_id"))
+        res = mesh_contour(c, o.get("h"), o.get("box"), o.get("margin"), o.get("strict", False),
+                           o.get("max_nodes", DEFAULT_MAX_NODES), o.get("steps", DEFAULT_STEPS),
+                           solver=o.get("solver", "auto"), exterior=o.get("exterior", False))
+        files = io.mesh_files(res.mesh, Path(task.output).name, o["fmt"],
+                              o.get("msh_version", "2.2"))
+        r = res.report
+        rec.update(status="ok", nodes=r["nodes"], triangles=r["triangles"],
+                   min_angle=r["min_angle"], contract=r["contract"])
+    except DeformeshError as exc:
+        rec["error"] = str(exc)
+    except MemoryError:
+        rec["error"] = f"{task.source}: out of memory; lower --max-nodes or give a larger --h"
+    except Exception as exc:  # a bug of ours: report it and keep the batch going
+        rec["error"] = f"{task.source}: internal error: {type(exc).__name__}: {exc}"
+    rec["seconds"] = round(time.perf_counter() - t0, 3)
+    return rec, files
+
+
+def run(tasks: list[Task], jobs: int = 1, scheduler: str | None = None,
+        fail_fast: bool = False) -> Iterator[tuple[Task, dict, list]]:
+    """Run every task; yield ``(task, record, files)`` as each finishes.
+
+    ``jobs`` > 1 uses a process pool; ``scheduler`` a Dask distributed cluster.
+    With ``fail_fast`` the first failure stops the rest: tasks not finished
+    are yielded as ``skipped``.
+    """
+    if scheduler is not None:
+        yield from _run_dask(tasks, scheduler, fail_fast)
+        return
+    if jobs <= 1 or len(tasks) <= 1:
+        for k, t in enumerate(tasks):
+            rec, files = run_task(t)
+            yield t, rec, files
+            if fail_fast and rec["status"] != "ok":
+                yield from _skipped(tasks[k + 1:])
+                return
+        return
+    with cf.ProcessPoolExecutor(max_workers=jobs) as pool:
+        futures = {pool.submit(run_task, t): t for t in tasks}
+        yield from _gather(futures, cf.as_completed(futures), fail_fast,
+                           cancel=lambda: pool.shutdown(wait=False, cancel_futures=True))
+
+
+def _gather(futures: dict, completed, fail_fast: bool, cancel) -> Iterator:
+    done = set()
+    for fut in completed:
+        t = futures[fut]
+        rec, files = fut.result()
+        done.add(t.index)
+        yield t, rec, files
+        if fail_fast and rec["status"] != "ok":
+            cancel()
+            yield from _skipped([u for u in futures.values() if u.index not in done])
+            return
+
+
+def _skipped(tasks: list[Task]) -> Iterator:
+    for t in tasks:
+        rec = dict.fromkeys(RECORD_KEYS)
+        rec.update(input=t.source, output=t.output, status="skipped",
+                   error=f"{t.source}: not run (--fail-fast after a failure)", seconds=0.0)
+        yield t, rec, []
+
+
+def _run_dask(tasks: list[Task], scheduler: str, fail_fast: bool) -> Iterator:
+    try:
+        from distributed import Client, as_completed
+    except ImportError:
+        raise DeformeshError("--scheduler needs dask.distributed: "
+                             "pip install 'deformesh[dask]'") from None
+    try:
+        client = Client(scheduler, timeout="10s")
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise DeformeshError(f"--scheduler {scheduler}: cannot connect: {exc}") from None
+    with client:
+        futs = client.map(run_task, tasks, pure=False)
+        futures = dict(zip(futs, tasks))
+        yield from _gather(futures, as_completed(futs), fail_fast,
+                           cancel=lambda: client.cancel(futs))
