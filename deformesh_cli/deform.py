@@ -123,7 +123,21 @@ def _sa_hierarchy(K):
         np.random.set_state(state)
 
 
-def deform(
+def deform(*args, **kwargs) -> tuple[np.ndarray, DeformStats]:
+    """:func:`deform_` with one BLAS thread: the same bits on every machine.
+
+    OpenBLAS splits dot products over its threads, so the summation order, and
+    with it the last bits of every node, depended on the thread count
+    (measured: samples/naca0012.csv with 1 and 2 threads differed in the 16th
+    digit).  The solves here are sparse, so BLAS threads bought no speed.
+    """
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        return deform_(*args, **kwargs)
+
+
+def deform_(
     points: np.ndarray,
     tri: np.ndarray,
     path_nodes: np.ndarray,
