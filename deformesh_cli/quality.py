@@ -112,11 +112,27 @@ def check_contract(mesh: Mesh, contour: Contour, box=None) -> None:
     if box is not None:
         poly = (box[2] - box[0]) * (box[3] - box[1]) - poly
     total = float(area.sum())
-    if abs(total - poly) > AREA_RTOL * poly:
+    if abs(total - poly) > area_tolerance(contour, poly, box):
         raise ContractError(
             f"{src}: mesh area {total:.17g} differs from the domain's {poly:.17g} "
             f"(relative {abs(total - poly) / poly:.2e})"
         )
+
+
+def area_tolerance(contour: Contour, area: float, box=None) -> float:
+    """How far the mesh area may be from the domain's: relative :data:`AREA_RTOL`, plus
+    the round-off of placing boundary nodes at these coordinates.
+
+    An extra boundary node is rounded to the nearest double, up to
+    ``eps * |x|`` off its edge, which moves area by up to that times the edge
+    length: far from the origin (a contour at 1e9) that is the larger term.
+    """
+    length = float(contour.edge_lengths().sum())
+    extent = float(np.abs(contour.points).max())
+    if box is not None:
+        length += 2 * ((box[2] - box[0]) + (box[3] - box[1]))
+        extent = max(extent, *map(abs, box))
+    return AREA_RTOL * area + 4 * np.finfo(float).eps * extent * length
 
 
 def _check_boundary(mesh: Mesh, contour: Contour, box) -> None:

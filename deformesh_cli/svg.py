@@ -77,7 +77,8 @@ def parse_svg(data: bytes, source: str = "<svg>", tolerance=None,
     sized = svg.values.get("height") is not None or svg.viewbox is not None
     height = float(svg.height) if sized and svg.height else 0.0
 
-    rings, labels, element, evenodd, notes = _collect_rings(shapes, tol, height, 1e-9 * diag)
+    rings, labels, element, evenodd, notes = _collect_rings(shapes, tol, height, 1e-9 * diag,
+                                                                source)
     if not rings:
         raise InputError(f"{source}: no filled area in the SVG (every subpath is empty)")
     starts = np.cumsum([0] + [len(r) for r in rings])[:-1]
@@ -98,21 +99,31 @@ def parse_svg(data: bytes, source: str = "<svg>", tolerance=None,
                    ring_clockwise=c.ring_clockwise, depth=c.depth, ring_labels=c.ring_labels)
 
 
-def _collect_rings(shapes, tol: float, height: float, eps: float):
+def _collect_rings(shapes, tol: float, height: float, eps: float, source: str):
     """Every subpath of every shape as a ring, flipped, repeats dropped, flat ones skipped.
 
     Returns parallel lists: rings, labels, owning shape, evenodd?, and notes.
+    A subpath left open (no ``Z``) whose ends differ is refused: SVG would
+    fill it closed, but a contour that does not close is more likely a
+    mistake than a wish for a straight closing edge.
     """
     rings, labels, element, evenodd, notes = [], [], [], [], []
     for k, shape in enumerate(shapes):
         name = _label(shape, k)
         rule = str(shape.values.get("fill-rule", "nonzero")).strip().lower()
-        for j, ring in enumerate(_subpaths(se.Path(shape), tol)):
+        for j, (ring, closed) in enumerate(_subpaths(se.Path(shape), tol)):
             ring[:, 1] = height - ring[:, 1]  # height 0: y -> -y
+            gap = float(np.hypot(*(ring[-1] - ring[0])))
             ring = _drop_repeats(ring, eps)
             if _flat(ring):
                 notes.append(f"skipped subpath {j + 1} of {name}: it encloses no area")
                 continue
+            if not closed and gap > eps:
+                (x0, y0), (x1, y1) = ring[0], ring[-1]
+                raise InputError(
+                    f"{source}: {name} subpath {j + 1} is not closed: it ends at "
+                    f"({x1:.6g}, {y1:.6g}), {gap:.3g} from its start at ({x0:.6g}, {y0:.6g}); "
+                    "end it with Z (or draw a polygon)")
             rings.append(ring)
             labels.append(f"{name} subpath {j + 1}")
             element.append(k)
@@ -157,19 +168,24 @@ def _pick_shapes(svg, source: str, element_id: str | None) -> list:
     return shapes
 
 
-def _subpaths(path, tol: float) -> list[np.ndarray]:
-    """Each subpath's points: the vertices, plus curve points within ``tol``."""
+def _subpaths(path, tol: float) -> list[tuple[np.ndarray, bool]]:
+    """Each subpath's points (the vertices, plus curve points within ``tol``) and
+    whether it was closed (``Z``)."""
     out: list[list] = []
+    closed: list[bool] = []
     cur: list | None = None
     for seg in path.segments():
         if isinstance(seg, se.Move):
             cur = [(seg.end.x, seg.end.y)]
             out.append(cur)
+            closed.append(False)
             continue
-        if cur is None:  # a path not starting with a move
+        if cur is None:  # a path not starting with a move, or going on after a Z
             cur = [(seg.start.x, seg.start.y)]
             out.append(cur)
+            closed.append(False)
         if isinstance(seg, se.Close):
+            closed[-1] = True
             cur = None
             continue
         n = _pieces(seg, tol)
@@ -177,7 +193,7 @@ def _subpaths(path, tol: float) -> list[np.ndarray]:
             t = np.arange(1, n) / n
             cur.extend(map(tuple, np.asarray(seg.npoint(t), dtype=float)))
         cur.append((seg.end.x, seg.end.y))
-    return [np.array(p, dtype=float) for p in out]
+    return [(np.array(p, dtype=float), c) for p, c in zip(out, closed)]
 
 
 def _pieces(seg, tol: float) -> int:
