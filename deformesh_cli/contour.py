@@ -205,8 +205,10 @@ def load_contour(path: str | Path, data: bytes | None = None, decimal: str = "."
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
         raise InputError(
-            f"{name}: not UTF-8 text (byte {exc.start}); expected CSV with x,y columns"
+            f"{name}: line {line}: not UTF-8 text (byte {exc.start}); expected CSV with x,y "
+            "columns"
         ) from None
     return parse_csv(text, name, decimal)
 

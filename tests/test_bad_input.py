@@ -1,0 +1,283 @@
+"""The catalogue of bad input: every case gets its exit code, a one-line message naming the
+file, the problem and where, and leaves no output file behind.  Then the same inputs as
+one batch: the good ones still mesh."""
+
+import json
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from .conftest import SAMPLES
+
+SVG = "<svg xmlns='http://www.w3.org/2000/svg' width='9' height='9'>{}</svg>"
+
+#: name -> (file content, exit code, regex the message must match)
+CASES = {
+    "missing.csv": (None, 1, r"missing\.csv: no such file"),
+    "empty.csv": ("", 1, r"empty\.csv: empty: no points"),
+    "comments.csv": ("# only\n# comments\n", 1, r"comments\.csv: empty: no points"),
+    "binary.csv": (b"\x00\x01\x02\xff", 1, r"binary\.csv: binary file"),
+    "latin1.csv": (b"x,y\n0,0\n1,0\n\xe9,1\n", 1, r"latin1\.csv: line 4: not UTF-8 text \(byte 12\)"),
+    "header.csv": ("a,b\n0,0\n1,0\n0,1\n", 1, r"header\.csv: line 1: header 'a,b' must name"),
+    "onecolumn.csv": ("0\n1\n2\n", 1, r"onecolumn\.csv: line 1: expected 2 columns x,y, got 1"),
+    "ragged.csv": ("0,0,0\n1,0\n0,1,0\n", 1, r"ragged\.csv: line 2: expected 3 columns, got 2"),
+    "word.csv": ("0,0\n1,one\n0,1\n", 1, r"word\.csv: line 2: y value 'one' is not a number"),
+    "nan.csv": ("0,0\n1,0\nnan,1\n", 1, r"nan\.csv: line 3: point 2 has a non-finite "
+                                        r"coordinate \(nan, 1\.0\)"),
+    "inf.csv": ("0,0\n1,-inf\n0,1\n", 1, r"inf\.csv: line 2: point 1 has a non-finite"),
+    "two.csv": ("0,0\n1,0\n0,0\n1,0\n", 1, r"two\.csv: .*fewer than 3 distinct points \(2\)"),
+    "repeat.csv": ("0,0\n1,0\n1,0\n1,1\n", 1, r"repeat\.csv: point 2 \(line 3\) at \(1, 0\) "
+                                              r"repeats the previous point"),
+    "collinear.csv": ("0,0\n1,0\n2,0\n3,0\n", 1, r"collinear\.csv: .*encloses no area"),
+    "spike.csv": ("0,0\n2,0\n2,2\n1,2\n1,3\n1,2\n0,2\n", 1,
+                  r"spike\.csv: the contour intersects itself near \(1, [23]\)"),
+    "bowtie.csv": ("0,0\n1,1\n1,0\n0,1\n", 1, r"bowtie\.csv: the contour intersects itself "
+                                              r"near \(0\.5, 0\.5\): edge from point 0 \(line 1\)"),
+    "touching.csv": ("x,y,ring\n0,0,0\n4,0,0\n4,4,0\n0,4,0\n1,1,1\n4,2,1\n1,3,1\n", 1,
+                     r"touching\.csv: ring 1 touches or crosses ring 0 near \(4, 2\)"),
+    "split.csv": ("x,y,ring\n0,0,0\n4,0,0\n1,1,1\n2,1,1\n1,2,1\n4,4,0\n", 1,
+                  r"split\.csv: line 7: ring 0 starts again"),
+    "noshape.svg": (SVG.format(""), 1, r"noshape\.svg: no filled shape"),
+    "stroked.svg": (SVG.format("<rect width='5' height='5' fill='none' stroke='red'/>"), 1,
+                    r"stroked\.svg: no filled shape in the SVG \(1 unfilled"),
+    "open.svg": (SVG.format("<path id='p' d='M1 1 L8 1 L4 7'/>"), 1,
+                 r"open\.svg: path#p subpath 1 is not closed: it ends at \(4, 2\)"),
+    "broken.svg": ("<svg><path d='M0 0", 1, r"broken\.svg: not a readable SVG file"),
+    "uneven.csv": ("0,0\n1,0\n1,1e-7\n0,1\n", 1,
+                   r"uneven\.csv: the background grid would need .* nodes .*points 1 and 2\)"),
+}
+
+
+def _write(folder: Path, name: str):
+    content = CASES[name][0]
+    if content is None:
+        return
+    p = folder / name
+    if isinstance(content, bytes):
+        p.write_bytes(content)
+    else:
+        p.write_text(content)
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_bad_input_catalogue(run, tmp_path, name):
+    _, code, pattern = CASES[name]
+    src = tmp_path / "in"
+    src.mkdir()
+    _write(src, name)
+    out = tmp_path / "out"
+    out.mkdir()
+    r = run("all", src / name, "-o", out / "m.msh", "--max-nodes", "200000")
+    assert r.exit_code == code
+    lines = r.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("deformesh: error: "), r.stderr
+    assert re.search(pattern, lines[0]), lines[0]
+    assert str(src / name) in lines[0]  # names the file
+    assert list(out.iterdir()) == []
+
+
+def _circle_csv(path, scale=1.0, offset=0.0, n=60):
+    t = 2 * np.pi * np.arange(n) / n
+    p = np.column_stack([np.cos(t) * (1 + 0.3 * np.cos(3 * t)), np.sin(t)]) * scale + offset
+    np.savetxt(path, p, delimiter=",", fmt="%.17g")
+
+
+@pytest.mark.parametrize("scale,offset", [(1e-9, 0.0), (1e-9, 1e-3), (1e9, 0.0), (1.0, 1e9),
+                                          (1e-6, -1e6)])
+def test_tiny_and_huge_coordinates_mesh_with_the_contract(run, tmp_path, scale, offset):
+    f = tmp_path / "c.csv"
+    _circle_csv(f, scale, offset)
+    r = run("all", f, "-o", tmp_path / "m.msh", "--json")
+    assert r.exit_code == 0, r.stderr
+    assert json.loads(r.stdout)["contract"] == "ok"
+    r = run("quality", tmp_path / "m.msh", "--contour", f)
+    assert r.exit_code == 0, r.stderr
+
+
+@pytest.mark.parametrize("args,code,pattern", [
+    (["-o", "{tmp}/nofolder/m.msh"], 1, r"nofolder/m\.msh: cannot write: folder .* does not exist"),
+    (["-o", "{tmp}/m.xyz"], 2, r"unknown output format 'xyz'"),
+    (["-o", "{tmp}"], 2, r"is a directory"),
+    (["-o", "-"], 2, r"writing a mesh to stdout needs --format"),
+    (["-o", "{tmp}/m.msh", "--box", "5,5,6,6"], 2, r"box"),
+    (["-o", "{tmp}/m.msh", "--h", "-1"], 2, r"must be > 0"),
+    (["-o", "{tmp}/m.msh", "--out-dir", "{tmp}"], 2, r"not both"),
+    (["--jobs", "2", "-o", "{tmp}/m.msh"], 2, r"apply to batches"),
+    ([], 2, r"give -o FILE"),
+])
+def test_bad_options_and_outputs(run, tmp_path, args, code, pattern):
+    args = [a.format(tmp=tmp_path) for a in args]
+    r = run("all", SAMPLES / "circle.csv", *args)
+    assert r.exit_code == code
+    assert re.search(pattern, r.stderr), r.stderr
+    assert [p for p in tmp_path.iterdir() if p.is_file()] == []
+
+
+def test_unreadable_input_and_unwritable_output(run, tmp_path, monkeypatch):
+    f = tmp_path / "c.csv"
+    f.write_text("0,0\n1,0\n0,1\n")
+    real = Path.read_bytes
+
+    def deny(self):
+        if self.name == "c.csv":
+            raise PermissionError(13, "Permission denied")
+        return real(self)
+
+    monkeypatch.setattr(Path, "read_bytes", deny)
+    r = run("all", f, "-o", tmp_path / "m.msh")
+    assert r.exit_code == 1 and "c.csv: cannot read: Permission denied" in r.stderr
+    monkeypatch.undo()
+
+    import tempfile
+
+    def no_temp(*a, **k):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(tempfile, "mkstemp", no_temp)
+    r = run("all", f, "-o", tmp_path / "m.msh")
+    assert r.exit_code == 1 and "m.msh: cannot write: Permission denied" in r.stderr
+    assert not (tmp_path / "m.msh").exists()
+
+
+def test_failure_while_writing_leaves_no_file(run, tmp_path, monkeypatch):
+    from deformesh_cli import io
+
+    def boom(mesh, path):
+        Path(path).write_text("half a mesh")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setitem(io.FORMATS, "obj", ("obj", boom))
+    r = run("all", SAMPLES / "circle.csv", "-o", tmp_path / "m.obj")
+    assert r.exit_code == 1 and "No space left on device" in r.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_state_file_of_another_kind(run, tmp_path):
+    s = tmp_path / "s.state"
+    s.write_bytes(b"PK\x03\x04 not really a zip")
+    r = run("deform", s, "-o", tmp_path / "o.state")
+    assert r.exit_code == 1 and r.stderr.startswith(f"deformesh: error: {s}")
+    assert r.stderr.count("\n") == 1 and not (tmp_path / "o.state").exists()
+
+
+def test_broken_pipe_ends_quietly(sh, tmp_path):
+    c = SAMPLES / "peanut.csv"
+    r = sh(f"deformesh all {c} -o - --format obj | head -c 100 > /dev/null; "
+           "echo ${PIPESTATUS[0]}", cwd=tmp_path, check=False)
+    assert r.stdout.strip() in (b"0", b"1")
+    assert b"Traceback" not in r.stderr and b"Error" not in r.stderr
+
+
+# --- the same catalogue as one batch, with good contours among them
+
+
+def _mixed_folder(folder: Path):
+    folder.mkdir()
+    for name in CASES:
+        _write(folder, name)
+    for good in ("circle.csv", "peanut.csv", "bracket.svg"):
+        (folder / good).write_bytes((SAMPLES / good).read_bytes())
+    return sorted(p.name for p in folder.iterdir())
+
+
+def test_batch_meshes_the_good_and_reports_every_bad(run, tmp_path):
+    names = _mixed_folder(tmp_path / "in")
+    out = tmp_path / "out"
+    r = run("all", tmp_path / "in", "--out-dir", out, "--jobs", "2", "--json",
+            "--max-nodes", "200000")
+    assert r.exit_code == 1
+    recs = [json.loads(ln) for ln in r.stdout.splitlines()]
+    assert [Path(x["input"]).name for x in recs] == names  # input order
+    ok = {Path(x["input"]).name for x in recs if x["status"] == "ok"}
+    assert ok == {"circle.csv", "peanut.csv", "bracket.svg"}
+    assert sorted(p.name for p in out.iterdir()) == ["bracket.msh", "circle.msh", "peanut.msh"]
+    for x in recs:
+        assert set(x) == {"input", "output", "status", "error", "seconds", "nodes",
+                          "triangles", "min_angle", "contract"}
+        if x["status"] != "ok":
+            name = Path(x["input"]).name
+            assert re.search(CASES[name][2], x["error"]), x["error"]
+            assert f"deformesh: error: {x['error']}" in r.stderr
+    # the summary table: a count line and a row per input
+    assert f"{len(names)} contour(s): 3 ok, {len(names) - 3} failed" in r.stderr
+
+
+def test_batch_is_byte_identical_across_runs_and_jobs(run, tmp_path):
+    src = tmp_path / "in"
+    src.mkdir()
+    for good in ("circle.csv", "peanut.csv", "bracket.svg", "naca0012.csv"):
+        (src / good).write_bytes((SAMPLES / good).read_bytes())
+    outs = []
+    for k, jobs in enumerate(["1", "2", "2"]):
+        out = tmp_path / f"out{k}"
+        r = run("all", src, "--out-dir", out, "--jobs", jobs, "--format", "vtu", "-q")
+        assert r.exit_code == 0, r.stderr
+        outs.append({p.name: p.read_bytes() for p in out.iterdir()})
+    assert outs[0] == outs[1] == outs[2] and len(outs[0]) == 4
+
+
+def test_batch_fail_fast_skips_the_rest(run, tmp_path):
+    src = tmp_path / "in"
+    src.mkdir()
+    (src / "a_bad.csv").write_text("0,0\n1,0\n")
+    (src / "b.csv").write_bytes((SAMPLES / "circle.csv").read_bytes())
+    r = run("all", src, "--out-dir", tmp_path / "out", "--jobs", "1", "--fail-fast", "--json")
+    assert r.exit_code == 1
+    recs = [json.loads(ln) for ln in r.stdout.splitlines()]
+    assert [x["status"] for x in recs] == ["failed", "skipped"]
+    assert list((tmp_path / "out").iterdir()) == []
+
+
+def test_batch_inputs_globs_and_collisions(run, tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.mkdir()
+    b.mkdir()
+    (a / "c.csv").write_bytes((SAMPLES / "circle.csv").read_bytes())
+    (b / "c.csv").write_bytes((SAMPLES / "circle.csv").read_bytes())
+    r = run("all", a / "c.csv", b / "c.csv", "--out-dir", tmp_path / "out")
+    assert r.exit_code == 2 and "would both write" in r.stderr
+    r = run("all", str(tmp_path / "a" / "*.csv"), "--out-dir", tmp_path / "out", "--json")
+    assert r.exit_code == 0, r.stderr
+    assert [json.loads(ln)["status"] for ln in r.stdout.splitlines()] == ["ok"]
+    r = run("all", str(tmp_path / "nothing*.csv"), "--out-dir", tmp_path / "out")
+    assert r.exit_code == 1 and "no such file" in r.stderr
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    r = run("all", empty, "--out-dir", tmp_path / "out")
+    assert r.exit_code == 2 and "holds no contour files" in r.stderr
+
+
+def test_batch_on_a_dask_cluster_gives_the_same_files(run, tmp_path):
+    distributed = pytest.importorskip("distributed")  # in the test extra: never skipped in CI
+    src = tmp_path / "in"
+    _mixed_folder(src)
+    ref = tmp_path / "ref"
+    r1 = run("all", src, "--out-dir", ref, "--jobs", "2", "--json", "--max-nodes", "200000")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        out = tmp_path / "dask"
+        r2 = run("all", src, "--out-dir", out, "--scheduler", cluster.scheduler_address,
+                 "--json", "--max-nodes", "200000")
+    assert r1.exit_code == r2.exit_code == 1
+
+    def strip(stdout, folder):
+        recs = [json.loads(ln) for ln in stdout.splitlines()]
+        for x in recs:
+            x.pop("seconds")
+            x["output"] = os.path.basename(x["output"])
+        return recs
+
+    assert strip(r1.stdout, ref) == strip(r2.stdout, out)
+    assert {p.name: p.read_bytes() for p in ref.iterdir()} == \
+        {p.name: p.read_bytes() for p in out.iterdir()}
+
+
+def test_scheduler_unreachable_is_one_line(run, tmp_path):
+    pytest.importorskip("distributed")
+    r = run("all", SAMPLES / "circle.csv", "--out-dir", tmp_path / "o",
+            "--scheduler", "tcp://127.0.0.1:9")
+    assert r.exit_code == 1 and "cannot connect" in r.stderr
+    assert r.stderr.count("\n") == 1
