@@ -26,7 +26,7 @@ demo: $(VENV)/.installed
 	$(BIN)/deformesh all $(SAMPLE) -o $(OUT)/demo.vtk --png $(OUT)/demo.png
 
 test: $(VENV)/.installed-test
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q --hypothesis-profile=ci
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache .hypothesis

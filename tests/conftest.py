@@ -6,8 +6,18 @@ from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
+from hypothesis import HealthCheck, settings
 
 from deformesh_cli.cli import cli
+
+# Hypothesis profiles: "dev" (default) for quick local runs; "ci" (what `make test` runs)
+# puts 1,000 random polygons with holes through the whole pipeline, derandomised so a CI
+# run is repeatable.  Tests with their own max_examples keep it under any profile.
+settings.register_profile("dev", max_examples=50, deadline=None,
+                          suppress_health_check=[HealthCheck.too_slow])
+settings.register_profile("ci", max_examples=1000, deadline=None, derandomize=True,
+                          suppress_health_check=[HealthCheck.too_slow])
+settings.load_profile("dev")
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLES = ROOT / "samples"

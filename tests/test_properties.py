@@ -31,11 +31,7 @@ def star_polygons(draw):
     return pts
 
 
-settings.register_profile("default", max_examples=40, deadline=None,
-                          suppress_health_check=[HealthCheck.too_slow])
-settings.load_profile("default")
-
-
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(star_polygons(), st.floats(-3, 3), st.tuples(st.floats(-1e3, 1e3), st.floats(-1e3, 1e3)))
 def test_contract_or_documented_refusal(pts, log_scale, shift):
     pts = pts * 10.0**log_scale + np.array(shift)
@@ -53,6 +49,7 @@ def test_contract_or_documented_refusal(pts, log_scale, shift):
         1e-10 * abs(signed_area(c.points)))
 
 
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(star_polygons(), st.integers(-4, 4), st.integers(-50, 50), st.integers(-50, 50))
 def test_translation_and_power_of_two_scaling_commute(pts, k, dx, dy):
     base = make_contour(pts, source="a")
@@ -65,3 +62,52 @@ def test_translation_and_power_of_two_scaling_commute(pts, k, dx, dy):
     assert np.array_equal(a.mesh.triangles, b.mesh.triangles)
     assert np.allclose(a.mesh.points * 2.0**k + np.array([dx, dy]) * 0.25, b.mesh.points,
                        atol=1e-9 * 2.0**k * (1 + abs(dx) + abs(dy)))
+
+
+# --- polygons with holes, at every scale and far from the origin (the CI profile runs
+# at least 1,000 of these: see conftest.py)
+
+
+def _star(draw, n_lo, n_hi, r_lo, r_hi):
+    n = draw(st.integers(n_lo, n_hi))
+    gaps = np.array(draw(st.lists(st.floats(0.5, 1.0), min_size=n, max_size=n)))
+    theta = 2 * np.pi * np.cumsum(gaps) / gaps.sum() + draw(st.floats(0, 2 * np.pi))
+    r = np.array(draw(st.lists(st.floats(r_lo, r_hi), min_size=n, max_size=n)))
+    return np.column_stack([r * np.cos(theta), r * np.sin(theta)])
+
+
+@st.composite
+def polygons_with_holes(draw):
+    """An outer star (radius 0.7-1) and 0-2 holes (radius 0.1-0.15, centred within 0.35 of
+    the origin) that can touch neither it nor each other; any ring may be clockwise.
+
+    With holes the outer ring has >= 10 points, so its edges stay >= 0.59 from the
+    origin (the widest angular gap is 2 pi / 5.5), beyond the holes' reach of 0.5.
+    """
+    holes = draw(st.integers(0, 2))
+    rings = [_star(draw, 10 if holes else 3, 16, 0.7, 1.0)]
+    for k in range(holes):
+        cx = 0.0 if holes == 1 else (-0.3 if k == 0 else 0.3)
+        rings.append(_star(draw, 3, 8, 0.1, 0.15) + [cx, draw(st.floats(-0.05, 0.05))])
+    rings = [r[::-1] if draw(st.booleans()) else r for r in rings]
+    scale = 10.0 ** draw(st.floats(-6, 6))
+    shift = np.array([draw(st.floats(-1e3, 1e3)), draw(st.floats(-1e3, 1e3))]) * scale
+    return [r * scale + shift for r in rings]
+
+
+@given(polygons_with_holes())  # as many examples as the profile says (ci: 1,000)
+def test_polygons_with_holes_meet_the_contract_or_are_refused(rings):
+    starts = np.cumsum([0] + [len(r) for r in rings])[:-1]
+    c = make_contour(np.concatenate(rings), source="random", ring_starts=starts)
+    assert [c.is_hole(r) for r in range(c.n_rings)] == [False] + [True] * (len(rings) - 1)
+    try:
+        res = mesh_contour(c, max_nodes=MAX_NODES)
+    except REFUSALS as exc:
+        assert str(exc).startswith("random: "), exc
+        return
+    m = res.mesh
+    check_contract(m, c)
+    assert np.array_equal(m.points[: c.n], c.points)
+    assert (signed_areas(m.points, m.triangles) > 0).all()
+    assert m.groups[: c.n_rings] == ("contour",) + tuple(f"hole_{k}" for k in
+                                                          range(1, c.n_rings))

@@ -4,7 +4,7 @@ import itertools
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from deformesh_cli import pipeline
@@ -55,6 +55,7 @@ def _brute_force(P, Q):
     return best
 
 
+@settings(max_examples=40, deadline=None)
 @given(st.integers(3, 6), st.integers(1, 4), st.integers(0, 2**32 - 1))
 def test_assign_is_cyclic_monotone_and_optimal(L, m, seed):
     rng = np.random.default_rng(seed)
@@ -90,6 +91,7 @@ def test_thin_wedge_is_traced_where_appendix_a_fails(h):
     check_contract(mesh, c)
 
 
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(star_polygons(), st.floats(0.01, 0.2))
 def test_traced_paths_mesh_with_the_contract(pts, rel_h):
     c = make_contour(pts, source="random")
