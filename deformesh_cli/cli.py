@@ -340,8 +340,9 @@ def _batch(contours, out_dir, fmt, options, jobs, scheduler, fail_fast, as_json,
                     _write_files(out_dir, files)
                 except DeformeshError as exc:
                     rec.update(status="failed", error=str(exc))
-            if rec["status"] == "failed":
-                click.echo(f"deformesh: error: {rec['error']}", err=True)
+            if rec["status"] == "failed":  # over the progress bar's line, if one is drawn
+                clear = "\r\033[K" if bar is not None else ""
+                click.echo(f"{clear}deformesh: error: {rec['error']}", err=True)
             records[task.index] = rec
             while printed < len(records) and records[printed] is not None:
                 if as_json:

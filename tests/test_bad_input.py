@@ -284,3 +284,41 @@ def test_scheduler_unreachable_is_one_line(run, tmp_path):
             "--scheduler", "tcp://127.0.0.1:9")
     assert r.exit_code == 1 and "cannot connect" in r.stderr
     assert r.stderr.count("\n") == 1
+
+
+def _on_a_terminal(args, cwd):
+    """Run deformesh with stderr on a pseudo-terminal; return what the terminal got."""
+    import pty
+    import subprocess
+
+    from .conftest import deformesh_exe
+
+    main, sub = pty.openpty()
+    p = subprocess.Popen([deformesh_exe(), *map(str, args)], cwd=cwd, stdout=subprocess.PIPE,
+                         stderr=sub, stdin=subprocess.DEVNULL)
+    os.close(sub)
+    chunks = []
+    while True:
+        try:
+            data = os.read(main, 4096)
+        except OSError:  # the child closed the terminal
+            break
+        if not data:
+            break
+        chunks.append(data)
+    p.wait()
+    os.close(main)
+    return p.returncode, b"".join(chunks).decode(errors="replace")
+
+
+def test_progress_bars_on_a_terminal_only(run, tmp_path):
+    code, tty = _on_a_terminal(["all", SAMPLES / "peanut.csv", "-o", "m.vtk"], tmp_path)
+    assert code == 0 and "deforming" in tty and "100%" in tty
+    code, tty = _on_a_terminal(["all", SAMPLES / "peanut.csv", "-o", "m.vtk", "-q"], tmp_path)
+    assert code == 0 and tty == ""
+    code, tty = _on_a_terminal(["all", SAMPLES / "circle.csv", SAMPLES / "peanut.csv",
+                                "--out-dir", "o", "--jobs", "1"], tmp_path)
+    assert code == 0 and "meshing" in tty and "2 contour(s): 2 ok" in tty
+    # not a terminal: no bar, just the summary
+    r = run("all", SAMPLES / "peanut.csv", "-o", tmp_path / "n.vtk")
+    assert "deforming" not in r.stderr and r.stderr.count("\n") == 1

@@ -78,7 +78,7 @@ def test_uneven_contour_refused_with_estimate_and_no_file(run, tmp_path):
 @pytest.mark.parametrize(
     "args, code, text",
     [
-        (["all", "{c}"], 2, "Missing option '-o'"),
+        (["all", "{c}"], 2, "give -o FILE (one contour) or --out-dir DIR"),
         (["all", "{c}", "-o", "{t}/m.vtk", "--box", "1,2,3"], 2, "expected XMIN,YMIN,XMAX,YMAX"),
         (["all", "{c}", "-o", "{t}/m.xyz"], 2, "unknown output format 'xyz'"),
         (["all", "{c}", "-o", "{t}/m.vtk", "--steps", "0"], 2, "--steps"),
