@@ -282,8 +282,8 @@ def _write_with_sidecar(mesh: Mesh, path: str, writer, ext: str) -> None:
 
 
 def _quiet(writer, mesh, path):
-    """Run a writer with meshio's console chatter kept off stdout."""
-    with contextlib.redirect_stdout(io.StringIO()):
+    """Run a writer with meshio's console chatter kept off stdout and stderr."""
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
         writer(mesh, path)
 
 
