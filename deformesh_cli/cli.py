@@ -179,7 +179,9 @@ def deform_cmd(state_in, output, steps, solver, quiet):
     _check_binary_stdout(output)
     name = "<stdin>" if state_in == "-" else state_in
     st = state.loads(io.read_bytes(state_in), name, want="selected")
-    d = pipeline.run_deform(st.contour, st.selection, steps, solver=solver)
+    with _steps_bar(steps, quiet) as progress:
+        d = pipeline.run_deform(st.contour, st.selection, steps, callback=progress,
+                                solver=solver)
     out = state.State("deformed", st.contour, st.selection, d.points, {"steps": steps})
     io.write_bytes(state.dumps(out), output)
     _say(quiet, f"{st.contour.source}: deformed in {d.stats.solves} solves "
