@@ -144,20 +144,57 @@ def run(tasks: list[Task], jobs: int = 1, scheduler: str | None = None,
                 yield from _skipped(tasks[k + 1:])
                 return
         return
+    yield from _run_pool(tasks, jobs, fail_fast)
+
+
+def _run_pool(tasks: list[Task], jobs: int, fail_fast: bool) -> Iterator:
+    """A process pool.  A worker that dies (killed, out of memory) breaks the whole pool:
+    the tasks it took down with it are run again one by one, each in a pool of its own,
+    so only the one that kills its worker fails."""
+    broken: list[Task] = []
+    failed = False
     with cf.ProcessPoolExecutor(max_workers=jobs) as pool:
         futures = {pool.submit(run_task, t): t for t in tasks}
-        yield from _gather(futures, cf.as_completed(futures), fail_fast,
-                           cancel=lambda: pool.shutdown(wait=False, cancel_futures=True))
+        for t, rec, files in _gather(futures, cf.as_completed(futures), fail_fast,
+                                     cancel=lambda: pool.shutdown(wait=False,
+                                                                  cancel_futures=True)):
+            if rec.pop("_broken", False):
+                broken.append(t)
+                continue
+            failed |= rec["status"] != "ok"
+            yield t, rec, files
+    broken.sort(key=lambda u: u.index)
+    for k, t in enumerate(broken):
+        if fail_fast and failed:
+            yield from _skipped(broken[k:])
+            return
+        with cf.ProcessPoolExecutor(max_workers=1) as alone:
+            fut = alone.submit(run_task, t)
+            t, rec, files = next(_gather({fut: t}, [fut], False, cancel=None))
+        rec.pop("_broken", None)
+        failed |= rec["status"] != "ok"
+        yield t, rec, files
 
 
 def _gather(futures: dict, completed, fail_fast: bool, cancel) -> Iterator:
+    """Yield each future's ``(task, record, files)``; a dead worker is a failed record
+    (marked ``_broken`` if it took a process pool down).  With ``fail_fast`` the first
+    failure cancels the rest, which are yielded as skipped."""
     done = set()
     for fut in completed:
         t = futures[fut]
-        rec, files = fut.result()
+        try:
+            rec, files = fut.result()
+        except Exception as exc:  # the worker died (killed, out of memory, lost)
+            rec, files = dict.fromkeys(RECORD_KEYS), []
+            rec.update(input=t.source, output=t.output, status="failed", seconds=0.0,
+                       error=f"{t.source}: the worker process running it died "
+                             f"({type(exc).__name__}; killed or out of memory?)")
+            if isinstance(exc, cf.process.BrokenProcessPool):
+                rec["_broken"] = True
         done.add(t.index)
         yield t, rec, files
-        if fail_fast and rec["status"] != "ok":
+        if fail_fast and rec["status"] != "ok" and not rec.get("_broken"):
             cancel()
             yield from _skipped([u for u in futures.values() if u.index not in done])
             return

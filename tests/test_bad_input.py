@@ -322,3 +322,49 @@ def test_progress_bars_on_a_terminal_only(run, tmp_path):
     # not a terminal: no bar, just the summary
     r = run("all", SAMPLES / "peanut.csv", "-o", tmp_path / "n.vtk")
     assert "deforming" not in r.stderr and r.stderr.count("\n") == 1
+
+
+def test_a_dying_worker_fails_its_input_only(tmp_path, monkeypatch):
+    """A worker killed mid-task (out of memory, say) is one failed record, not a crash."""
+    from deformesh_cli import batch
+
+    src = tmp_path / "in"
+    src.mkdir()
+    for name in ("a.csv", "b.csv"):
+        (src / name).write_bytes((SAMPLES / "circle.csv").read_bytes())
+    tasks = batch.make_tasks(batch.expand_inputs([str(src)]), str(tmp_path / "o"), "msh", {})
+    monkeypatch.setattr(batch, "run_task", _die_on_b)
+    recs = {Path(t.source).name: r for t, r, _ in batch.run(tasks, jobs=2)}
+    assert recs["a.csv"]["status"] == "ok"
+    assert recs["b.csv"]["status"] == "failed"
+    assert "the worker process running it died" in recs["b.csv"]["error"]
+
+
+def _die_on_b(task):
+    if task.source.endswith("b.csv"):
+        os._exit(9)
+    return _RUN_TASK(task)
+
+
+def _load_run_task():
+    from deformesh_cli import batch
+
+    return batch.run_task
+
+
+_RUN_TASK = _load_run_task()
+
+
+def test_batch_fail_fast_with_a_pool_reports_every_input(run, tmp_path):
+    src = tmp_path / "in"
+    src.mkdir()
+    (src / "a_bad.csv").write_text("0,0\n1,0\n")
+    for k in range(4):
+        (src / f"b{k}.csv").write_bytes((SAMPLES / "peanut.csv").read_bytes())
+    r = run("all", src, "--out-dir", tmp_path / "out", "--jobs", "2", "--fail-fast", "--json")
+    assert r.exit_code == 1
+    recs = [json.loads(ln) for ln in r.stdout.splitlines()]
+    assert len(recs) == 5 and recs[0]["status"] == "failed"
+    assert "skipped" in {x["status"] for x in recs}
+    written = {p.name for p in (tmp_path / "out").iterdir()}
+    assert written == {Path(x["output"]).name for x in recs if x["status"] == "ok"}
