@@ -368,3 +368,15 @@ def test_batch_fail_fast_with_a_pool_reports_every_input(run, tmp_path):
     assert "skipped" in {x["status"] for x in recs}
     written = {p.name for p in (tmp_path / "out").iterdir()}
     assert written == {Path(x["output"]).name for x in recs if x["status"] == "ok"}
+
+
+def test_collinear_runs_inside_a_contour_are_fine(run, tmp_path):
+    """Points in a straight row are boundary nodes like any other (only a contour that is
+    all one line, or doubles back on itself, is refused: see the catalogue)."""
+    f = tmp_path / "c.csv"
+    pts = [(i / 10, 0) for i in range(10)] + [(1, 0), (1, 0.5), (1, 1), (0.5, 1), (0, 1)]
+    f.write_text("\n".join(f"{x},{y}" for x, y in pts))
+    r = run("all", f, "-o", tmp_path / "m.msh", "--json")
+    assert r.exit_code == 0, r.stderr
+    r = run("quality", tmp_path / "m.msh", "--contour", f)
+    assert r.exit_code == 0 and "contract: ok" in r.stdout
