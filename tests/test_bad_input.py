@@ -206,6 +206,12 @@ def test_batch_meshes_the_good_and_reports_every_bad(run, tmp_path):
             assert f"deformesh: error: {x['error']}" in r.stderr
     # the summary table: a count line and a row per input
     assert f"{len(names)} contour(s): 3 ok, {len(names) - 3} failed" in r.stderr
+    # run again into the same folder (one job this time): the same bytes, nothing added
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    r2 = run("all", tmp_path / "in", "--out-dir", out, "--jobs", "1", "--json",
+             "--max-nodes", "200000")
+    assert r2.exit_code == 1
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 
 
 def test_batch_is_byte_identical_across_runs_and_jobs(run, tmp_path):
