@@ -22,6 +22,7 @@ from .contour import load_contour
 from .deform import DEFAULT_STEPS
 from .errors import DeformeshError, OptionError
 from .select import DEFAULT_MAX_NODES
+from .size import make as size_make
 
 #: What a folder given as input contributes: files with these extensions.
 CONTOUR_SUFFIXES = (".csv", ".txt", ".svg", ".svgz")
@@ -109,7 +110,8 @@ def run_task(task: Task) -> tuple[dict, list[tuple[str, bytes]]]:
                          o.get("element_id"))
         res = mesh_contour(c, o.get("h"), o.get("box"), o.get("margin"), o.get("strict", False),
                            o.get("max_nodes", DEFAULT_MAX_NODES), o.get("steps", DEFAULT_STEPS),
-                           solver=o.get("solver", "auto"), exterior=o.get("exterior", False))
+                           solver=o.get("solver", "auto"), exterior=o.get("exterior", False),
+                           size=size_make(o.get("size"), o.get("size_field"), c))
         files = io.mesh_files(res.mesh, Path(task.output).name, o["fmt"],
                               o.get("msh_version", "2.2"))
         r = res.report

@@ -16,6 +16,7 @@ import time
 import click
 
 from . import __version__, batch, io, pipeline, quality, state
+from . import size as _size
 from .contour import load_contour
 from .deform import DEFAULT_STEPS, SOLVERS
 from .errors import DeformeshError, OptionError
@@ -111,6 +112,13 @@ select_options = [
                  help="Mesh the box minus the contour (e.g. an airfoil in a far-field box). "
                       "Default margin: the contour's larger extent."),
 ]
+size_options = [
+    click.option("--size", "size_expr", default=None, metavar="EXPR",
+                 help="Size function f: cells end with areas proportional to f. A numpy "
+                      "expression in x, y and d (distance to the contour), e.g. '0.2 + d'."),
+    click.option("--size-field", default=None, type=click.Path(dir_okay=False),
+                 help="Size function as values on a regular grid: rows x, y, f (CSV or .npy)."),
+]
 steps_option = click.option("--steps", type=click.IntRange(min=1), default=DEFAULT_STEPS,
                             show_default=True, help="Pseudo-time steps of the deformation.")
 solver_option = click.option(
@@ -172,17 +180,22 @@ def select_cmd(contour, output, h, box, margin, strict, max_nodes, decimal, tole
               help="Deformed state file to write ('-' for stdout).")
 @steps_option
 @solver_option
+@_apply(size_options)
 @quiet_option
 @_handle_errors
-def deform_cmd(state_in, output, steps, solver, quiet):
+def deform_cmd(state_in, output, steps, solver, size_expr, size_field, quiet):
     """Move the selected nodes onto the contour without folding (stage 2)."""
     _check_binary_stdout(output)
     name = "<stdin>" if state_in == "-" else state_in
     st = state.loads(io.read_bytes(state_in), name, want="selected")
+    size = _size.make(size_expr, size_field, st.contour)
     with _steps_bar(steps, quiet) as progress:
         d = pipeline.run_deform(st.contour, st.selection, steps, callback=progress,
-                                solver=solver)
-    out = state.State("deformed", st.contour, st.selection, d.points, {"steps": steps})
+                                solver=solver, size=size)
+    meta = {"steps": steps}
+    if size is not None:
+        meta.update(size=size_expr, size_field=size_field)
+    out = state.State("deformed", st.contour, st.selection, d.points, meta)
     io.write_bytes(state.dumps(out), output)
     _say(quiet, f"{st.contour.source}: deformed in {d.stats.solves} solves "
                 f"({d.stats.halvings} step halvings)")
@@ -204,7 +217,10 @@ def triangulate_cmd(state_in, output, fmt, msh_version, png, as_json, quiet):
     fmt = _check_mesh_output(output, fmt, as_json)
     name = "<stdin>" if state_in == "-" else state_in
     st = state.loads(io.read_bytes(state_in), name, want="deformed")
-    mesh, report = pipeline.run_triangulate(st.contour, pipeline.Deformed(st.selection, st.points))
+    size = _size.make(st.meta.get("size"), st.meta.get("size_field"), st.contour) \
+        if st.meta else None
+    mesh, report = pipeline.run_triangulate(st.contour, pipeline.Deformed(st.selection, st.points),
+                                            size)
     report.update(pipeline.selection_report(st.selection))
     _finish(st.contour, mesh, report, output, fmt, as_json, quiet, t0, msh_version, png)
 
@@ -263,6 +279,7 @@ def summary_line(r: dict) -> str:
 @_apply(select_options)
 @steps_option
 @solver_option
+@_apply(size_options)
 @format_option
 @msh_option
 @png_option
@@ -271,8 +288,8 @@ def summary_line(r: dict) -> str:
 @quiet_option
 @_handle_errors
 def all_cmd(contours, output, out_dir, jobs, scheduler, fail_fast, h, box, margin, strict,
-            max_nodes, decimal, tolerance, element_id, exterior, steps, solver, fmt, msh_version,
-            png, as_json, quiet):
+            max_nodes, decimal, tolerance, element_id, exterior, steps, solver, size_expr,
+            size_field, fmt, msh_version, png, as_json, quiet):
     """Run select, deform and triangulate in one process, for one contour or a batch."""
     t0 = time.perf_counter()
     if out_dir is not None:
@@ -283,7 +300,8 @@ def all_cmd(contours, output, out_dir, jobs, scheduler, fail_fast, h, box, margi
             raise click.UsageError("--png names one file; it does not apply to a batch")
         options = dict(h=h, box=box, margin=margin, strict=strict, max_nodes=max_nodes,
                        decimal=decimal, tolerance=tolerance, element_id=element_id,
-                       exterior=exterior, steps=steps, solver=solver, msh_version=msh_version)
+                       exterior=exterior, steps=steps, solver=solver, msh_version=msh_version,
+                       size=size_expr, size_field=size_field)
         _batch(list(contours), out_dir, fmt, options, jobs, scheduler, fail_fast, as_json, quiet,
                t0)
         return
@@ -296,9 +314,10 @@ def all_cmd(contours, output, out_dir, jobs, scheduler, fail_fast, h, box, margi
                                "(--out-dir)")
     fmt = _check_mesh_output(output, fmt, as_json)
     c = _read_contour(contours[0], decimal, tolerance, element_id)
+    size = _size.make(size_expr, size_field, c)
     with _steps_bar(steps, quiet) as progress:
         res = pipeline.mesh_contour(c, h, box, margin, strict, max_nodes, steps, solver=solver,
-                                    exterior=exterior, callback=progress)
+                                    exterior=exterior, callback=progress, size=size)
     _finish(c, res.mesh, res.report, output, fmt, as_json, quiet, t0, msh_version, png)
 
 

@@ -148,8 +148,18 @@ def deform_(
     callback: Callable[[float, DeformStats], None] | None = None,
     describe: Callable[[int], str] | None = None,
     solver: str = "auto",
+    size: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> tuple[np.ndarray, DeformStats]:
     """Deform ``points`` so that ``points[path_nodes] == targets`` exactly, never folding.
+
+    With ``size`` (positions -> ``g1 = 1/f``, normalised; :mod:`deformesh_cli.size`)
+    the cells also take the areas ``f`` asks for: at pseudo-time ``t`` the step
+    solves ``div U = -dg/dt = 1 - g1``, ``curl U = 0`` on the current mesh
+    (``g = (1-t) + t g1``), and every node moves by ``f(t) U``, ``f = 1/g``; a
+    selected node's ``U`` is its share of the way to its target divided by its
+    ``f``.  (The paper prints ``div U = dg/dt``; with ``V = f U``,
+    ``d(J g)/dt = J (div U + dg/dt)``, so ``J = f`` needs the minus sign, and
+    the plus sign measurably grows the cells where ``f`` is small.)
 
     Parameters
     ----------
@@ -180,14 +190,26 @@ def deform_(
     while remaining > 0:
         dt = min(1.0, remaining)
         frac = dt / remaining
-        ud[path_nodes] = (targets - pos[path_nodes]) * frac
+        share = (targets - pos[path_nodes]) * frac
+        f = None
+        if size is not None:
+            t0 = 1.0 - remaining / steps
+            g1 = size(pos)
+            f = 1.0 / ((1.0 - t0) + t0 * g1)
+            ud[path_nodes] = share / f[path_nodes, None]
+        else:
+            ud[path_nodes] = share
         disp = np.zeros((n, 2))
         disp[path_nodes] = ud[path_nodes]
         if asm.n_free:
             K, rhs = asm.system(pos, ud)
+            if size is not None:  # div U = -dg/dt = 1 - g1, over this step's pseudo-time
+                rhs += asm.load(pos, (1.0 - g1[tri].mean(axis=1)) * dt / steps)
             # the remaining displacement shrank by the fraction taken last step
             x0 = None if prev is None else prev * frac
             disp[asm.free] = lin.solve(K, rhs, x0)
+        if f is not None:
+            disp *= f[:, None]
         stats.solves += 1
         theta = 1.0
         while True:

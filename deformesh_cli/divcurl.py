@@ -80,6 +80,7 @@ class Assembler:
         self.n_free = nf
         fidx = np.full(n_nodes, -1, dtype=np.int64)
         fidx[self.free] = np.arange(nf)
+        self._fidx = fidx
         r = tri[:, _LOCAL_R].ravel()
         c = tri[:, _LOCAL_C].ravel()
         fr, fc = fidx[r], fidx[c]
@@ -95,6 +96,19 @@ class Assembler:
         self._fd = np.flatnonzero(fd)
         self._fd_row = fr[fd]
         self._fd_col = c[fd]
+
+    def load(self, points: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """The divergence load ``sum_T |T| r_T (gx, gy)`` on the free dofs, (n_free, 2)."""
+        gx, gy, a2 = gradients(points, self.tri)
+        w = (0.5 * a2 * r)[:, None]
+        nodes = self.tri.ravel()
+        free = self._fidx[nodes]
+        ok = free >= 0
+        out = np.empty((self.n_free, 2))
+        for comp, g in enumerate((gx, gy)):
+            out[:, comp] = np.bincount(free[ok], weights=(w * g).ravel()[ok],
+                                       minlength=self.n_free)
+        return out
 
     def system(self, points: np.ndarray, u_dirichlet: np.ndarray):
         """``K_ff`` (CSR) and right-hand sides (n_free, 2) for given Dirichlet values.

@@ -12,10 +12,12 @@ import numpy as np
 
 from . import deform as _deform
 from . import quality, triangulate
+from . import size as _size
 from .contour import Contour
 from .deform import DEFAULT_STEPS, DeformStats
 from .mesh import Mesh
 from .select import DEFAULT_MAX_NODES, Selection, select
+from .size import SizeFunction
 
 
 @dataclass
@@ -42,13 +44,17 @@ def run_select(contour: Contour, h=None, box=None, margin=None, strict=False,
 
 
 def run_deform(contour: Contour, sel: Selection, steps: int = DEFAULT_STEPS,
-               callback=None, solver: str = "auto") -> Deformed:
+               callback=None, solver: str = "auto", size: SizeFunction | None = None) -> Deformed:
+    """Stage 2.  ``size`` (as given; normalised here over the grid's box) shapes the cells."""
     grid = sel.grid
     pts0 = grid.coords()
     tri = sel.triangles()
+    if size is not None:
+        size.normalise(grid.box)
     pos, st = _deform.deform(
         pts0, tri, sel.path_nodes, sel.path_targets, grid.boundary_nodes(),
         steps=steps, callback=callback, describe=_describer(contour, sel), solver=solver,
+        size=None if size is None else size.g1,
     )
     return Deformed(sel, pos, st)
 
@@ -66,25 +72,31 @@ def _describer(contour: Contour, sel: Selection):
     return describe
 
 
-def run_triangulate(contour: Contour, d: Deformed) -> tuple[Mesh, dict]:
+def run_triangulate(contour: Contour, d: Deformed,
+                    size: SizeFunction | None = None) -> tuple[Mesh, dict]:
     sel = d.selection
     mesh = triangulate.extract(contour, sel, d.points)
     quality.check_contract(mesh, contour, sel.grid.box if sel.exterior else None)
     report = quality.stats(mesh)
     report["contract"] = "ok"
+    if size is not None:
+        report["size"] = size.label
+        report["size_correlation"] = _size.spearman(mesh.points, mesh.triangles, size,
+                                                    exclude=mesh.lines.ravel())
     return mesh, report
 
 
 def mesh_contour(contour: Contour, h=None, box=None, margin=None, strict=False,
                  max_nodes=DEFAULT_MAX_NODES, steps=DEFAULT_STEPS, callback=None,
-                 solver: str = "auto", exterior: bool = False) -> MeshResult:
+                 solver: str = "auto", exterior: bool = False,
+                 size: SizeFunction | None = None) -> MeshResult:
     """Mesh the inside of ``contour`` (or the box minus it, ``exterior``).
 
     The result meets the contract or this raises.
     """
     sel = run_select(contour, h, box, margin, strict, max_nodes, exterior)
-    d = run_deform(contour, sel, steps, callback, solver)
-    mesh, report = run_triangulate(contour, d)
+    d = run_deform(contour, sel, steps, callback, solver, size)
+    mesh, report = run_triangulate(contour, d, size)
     report.update(selection_report(sel))
     return MeshResult(mesh, sel, d.stats, report)
 

@@ -1,0 +1,217 @@
+"""Size functions (paper section 3.2): where cells should be small.
+
+The deformation makes ``det grad phi = f``: a cell of the background grid
+ends with ``f`` times its area.  A user gives ``f`` up to a constant, as a
+numpy expression in ``x``, ``y`` and ``d`` (distance to the contour) or as
+values on a regular grid; it is normalised so that the integral of ``1/f``
+over the background box equals the box's area (the box's boundary does not
+move, so the cells' areas must still add up to it).  The deformation then
+needs ``g1 = 1/f`` (normalised) at the moving nodes: :meth:`SizeFunction.g1`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from .contour import Contour, next_on_ring
+from .errors import InputError, OptionError
+
+#: Names an expression may use besides x, y and d.
+_NAMESPACE = {name: getattr(np, name) for name in (
+    "sqrt", "exp", "log", "log10", "sin", "cos", "tan", "arctan2", "tanh", "abs", "minimum",
+    "maximum", "where", "clip", "hypot", "pi", "e")}
+_NAMESPACE.update(min=np.minimum, max=np.maximum)
+
+
+class ContourDistance:
+    """Distance from points to the nearest contour edge (all rings), vectorised.
+
+    The edges are sampled at most ``spacing`` apart into a k-d tree; the
+    nearest sample names an edge, and the exact distance to that edge and its
+    two neighbours is returned (an upper bound within ``spacing / 2`` of the
+    true distance; exact where the nearest edge is found).
+    """
+
+    def __init__(self, contour: Contour, spacing: float | None = None):
+        from scipy.spatial import cKDTree
+
+        p = contour.points
+        nxt = next_on_ring(contour.ring)
+        self.a, self.b = p, p[nxt]
+        self.prev = np.empty_like(nxt)
+        self.prev[nxt] = np.arange(len(nxt))
+        self.next = nxt
+        length = np.hypot(*(self.b - self.a).T)
+        if spacing is None:
+            spacing = max(float(np.median(length)), 1e-300)
+        k = np.maximum(1, np.ceil(length / spacing).astype(np.int64))
+        edge = np.repeat(np.arange(len(p)), k)
+        start = np.repeat(np.cumsum(k) - k, k)
+        t = (np.arange(k.sum()) - start + 0.5) / np.repeat(k, k)
+        samples = self.a[edge] + t[:, None] * (self.b - self.a)[edge]
+        self._edge = edge
+        self._tree = cKDTree(samples)
+
+    def __call__(self, q: np.ndarray) -> np.ndarray:
+        _, i = self._tree.query(q)
+        e = self._edge[i]
+        best = np.full(len(q), np.inf)
+        for cand in (e, self.prev[e], self.next[e]):
+            best = np.minimum(best, _segment_distance(q, self.a[cand], self.b[cand]))
+        return best
+
+
+def _segment_distance(q, a, b):
+    ab = b - a
+    t = np.clip(((q - a) * ab).sum(axis=1) / np.maximum((ab * ab).sum(axis=1), 1e-300), 0, 1)
+    return np.hypot(*(a + t[:, None] * ab - q).T)
+
+
+@dataclass
+class SizeFunction:
+    """``f`` as given (any positive scale), and its normalisation on a box."""
+
+    raw: Callable[[np.ndarray], np.ndarray]  # points (k, 2) -> f (k,)
+    label: str
+    scale: float = 1.0  # f_normalised = scale * raw
+    notes: list = field(default_factory=list)
+
+    def values(self, q: np.ndarray) -> np.ndarray:
+        """``f`` (as given) at points, checked finite and positive."""
+        f = np.asarray(self.raw(q), dtype=np.float64)
+        if f.shape == ():
+            f = np.full(len(q), float(f))
+        if f.shape != (len(q),):
+            raise OptionError(f"size function {self.label}: gave shape {f.shape} for "
+                              f"{len(q)} points")
+        bad = ~(np.isfinite(f) & (f > 0))
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise OptionError(f"size function {self.label} is {f[k]:.3g} at "
+                              f"({q[k, 0]:.6g}, {q[k, 1]:.6g}); it must be finite and > 0 "
+                              "over the whole background box")
+        return f
+
+    def normalise(self, box, n: int = 256) -> None:
+        """Scale so that the mean of ``1/f`` over ``box`` is 1 (midpoint rule, n x n)."""
+        x0, y0, x1, y1 = box
+        xs = x0 + (np.arange(n) + 0.5) * (x1 - x0) / n
+        ys = y0 + (np.arange(n) + 0.5) * (y1 - y0) / n
+        q = np.column_stack([np.repeat(xs, n), np.tile(ys, n)])
+        self.scale = float(np.mean(1.0 / self.values(q)))
+
+    def g1(self, q: np.ndarray) -> np.ndarray:
+        """``1/f`` normalised, at points: the deformation's target density."""
+        return 1.0 / (self.scale * self.values(q))
+
+
+def from_expression(expr: str, contour: Contour) -> SizeFunction:
+    """``--size EXPR``: a numpy expression in x, y and d (distance to the contour)."""
+    try:
+        code = compile(expr, "--size", "eval")
+    except SyntaxError as exc:
+        raise OptionError(f"--size {expr!r} is not an expression: {exc.msg}") from None
+    names = set(code.co_names) - set(_NAMESPACE) - {"x", "y", "d"}
+    if names:
+        raise OptionError(f"--size {expr!r} uses unknown name(s) {', '.join(sorted(names))}; "
+                          f"allowed: x, y, d, {', '.join(sorted(_NAMESPACE))}")
+    dist = ContourDistance(contour) if "d" in code.co_names else None
+
+    def raw(q):
+        ns = dict(_NAMESPACE, x=q[:, 0], y=q[:, 1])
+        if dist is not None:
+            ns["d"] = dist(q)
+        try:
+            with np.errstate(all="ignore"):
+                return eval(code, {"__builtins__": {}}, ns)  # noqa: S307 - names checked
+        except Exception as exc:
+            raise OptionError(f"--size {expr!r} fails: {type(exc).__name__}: {exc}") from None
+
+    return SizeFunction(raw, repr(expr))
+
+
+def from_field(path: str) -> SizeFunction:
+    """``--size-field FILE``: rows ``x, y, f`` on a regular grid (CSV with or without a
+    header, or a (k, 3) .npy array), interpolated bilinearly, held constant outside."""
+    from scipy.interpolate import RegularGridInterpolator
+
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"{path}: no such file")
+    try:
+        if p.suffix.lower() == ".npy":
+            rows = np.load(p, allow_pickle=False)
+        else:
+            rows = np.genfromtxt(p, delimiter=None if b"," not in p.read_bytes()[:4096]
+                                 else ",", comments="#", skip_header=_header_lines(p))
+    except (ValueError, OSError) as exc:
+        raise InputError(f"{path}: cannot read the size field: {exc}") from None
+    rows = np.atleast_2d(np.asarray(rows, dtype=np.float64))
+    if rows.ndim != 2 or rows.shape[1] != 3 or len(rows) < 4:
+        raise InputError(f"{path}: a size field is rows of x, y, f (got shape {rows.shape})")
+    xs, ys = np.unique(rows[:, 0]), np.unique(rows[:, 1])
+    if len(xs) * len(ys) != len(rows) or len(xs) < 2 or len(ys) < 2:
+        raise InputError(f"{path}: the x, y of a size field must form a regular grid "
+                         f"({len(xs)} x values, {len(ys)} y values, {len(rows)} rows)")
+    grid = np.full((len(xs), len(ys)), np.nan)
+    grid[np.searchsorted(xs, rows[:, 0]), np.searchsorted(ys, rows[:, 1])] = rows[:, 2]
+    if np.isnan(grid).any():
+        raise InputError(f"{path}: the size field has repeated or missing grid points")
+    bad = ~(np.isfinite(grid) & (grid > 0))
+    if bad.any():
+        i, j = np.argwhere(bad)[0]
+        raise InputError(f"{path}: f = {grid[i, j]:g} at ({xs[i]:g}, {ys[j]:g}); it must be "
+                         "finite and > 0")
+    interp = RegularGridInterpolator((xs, ys), grid, bounds_error=False, fill_value=None)
+
+    def raw(q):
+        c = np.column_stack([np.clip(q[:, 0], xs[0], xs[-1]), np.clip(q[:, 1], ys[0], ys[-1])])
+        return interp(c)
+
+    return SizeFunction(raw, path)
+
+
+def _header_lines(p: Path) -> int:
+    first = next((ln for ln in p.read_text(errors="replace").splitlines()
+                  if ln.strip() and not ln.lstrip().startswith("#")), "")
+    try:
+        [float(v) for v in first.replace(",", " ").split()]
+        return 0
+    except ValueError:
+        return 1
+
+
+def spearman(points: np.ndarray, tri: np.ndarray, size: SizeFunction,
+             exclude: np.ndarray | None = None) -> float:
+    """Rank correlation of triangle areas with ``f`` at their centroids (``exclude``:
+    node ids whose triangles are left out, e.g. the boundary nodes)."""
+    from scipy.stats import spearmanr
+
+    from .quality import signed_areas
+
+    keep = np.ones(len(tri), dtype=bool)
+    if exclude is not None and len(exclude):
+        mask = np.zeros(len(points), dtype=bool)
+        mask[exclude] = True
+        keep = ~mask[tri].any(axis=1)
+    if keep.sum() < 3:
+        return math.nan
+    t = tri[keep]
+    f = size.values(points[t].mean(axis=1))
+    return float(spearmanr(signed_areas(points, t), f).statistic)
+
+
+def make(expr: str | None, field_path: str | None, contour: Contour) -> SizeFunction | None:
+    """The size function of ``--size`` / ``--size-field`` (at most one), or ``None``."""
+    if expr is not None and field_path is not None:
+        raise OptionError("give --size or --size-field, not both")
+    if expr is not None:
+        return from_expression(expr, contour)
+    if field_path is not None:
+        return from_field(field_path)
+    return None
