@@ -81,8 +81,8 @@ def run_triangulate(contour: Contour, d: Deformed,
     report["contract"] = "ok"
     if size is not None:
         report["size"] = size.label
-        report["size_correlation"] = _size.spearman(mesh.points, mesh.triangles, size,
-                                                    exclude=mesh.lines.ravel())
+        rho = _size.spearman(mesh.points, mesh.triangles, size, exclude=mesh.lines.ravel())
+        report["size_correlation"] = None if np.isnan(rho) else rho
     return mesh, report
 
 

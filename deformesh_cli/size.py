@@ -203,6 +203,8 @@ def spearman(points: np.ndarray, tri: np.ndarray, size: SizeFunction,
         return math.nan
     t = tri[keep]
     f = size.values(points[t].mean(axis=1))
+    if np.ptp(f) == 0:  # a constant f orders nothing
+        return math.nan
     return float(spearmanr(signed_areas(points, t), f).statistic)
 
 

@@ -1,0 +1,154 @@
+"""Size functions (paper section 3.2): cells end with areas that follow f."""
+
+import json
+
+import meshio
+import numpy as np
+import pytest
+from scipy.stats import spearmanr
+
+from deformesh_cli.contour import load_contour
+from deformesh_cli.quality import signed_areas
+from deformesh_cli.size import ContourDistance, from_expression, from_field
+
+from .conftest import SAMPLES
+
+README_SIZE = "0.02 + hypot(x - 0.4, y - 0.2)"  # the README's example
+
+
+def _interior_spearman(path, fn):
+    """Spearman of triangle area vs f at the centroid, triangles not touching the boundary,
+    computed from the file as written."""
+    m = meshio.read(path)
+    p, t = m.points[:, :2], m.cells_dict["triangle"]
+    boundary = np.zeros(len(p), dtype=bool)
+    boundary[m.cells_dict["line"].ravel()] = True
+    keep = ~boundary[t].any(axis=1)
+    c = p[t[keep]].mean(axis=1)
+    return spearmanr(signed_areas(p, t[keep]), fn(c[:, 0], c[:, 1])).statistic, keep.sum()
+
+
+def test_readme_size_example_areas_follow_f(run, tmp_path):
+    out = tmp_path / "m.vtk"
+    r = run("all", SAMPLES / "circle.csv", "-o", out, "--size", README_SIZE, "--json")
+    assert r.exit_code == 0, r.stderr
+    rec = json.loads(r.stdout)
+    assert rec["contract"] == "ok" and rec["size_correlation"] >= 0.9
+    rho, n = _interior_spearman(out, lambda x, y: 0.02 + np.hypot(x - 0.4, y - 0.2))
+    assert n > 1000 and rho >= 0.9
+    assert rho == pytest.approx(rec["size_correlation"], abs=1e-9)
+    # without the size function the same statistic says nothing
+    plain = tmp_path / "p.vtk"
+    run("all", SAMPLES / "circle.csv", "-o", plain)
+    rho0, _ = _interior_spearman(plain, lambda x, y: 0.02 + np.hypot(x - 0.4, y - 0.2))
+    assert abs(rho0) < 0.5
+
+
+@pytest.mark.parametrize("expr,fn", [
+    ("0.1 + d", None),
+    ("1 + x**2", lambda x, y: 1 + x**2),
+    ("exp(-y)", lambda x, y: np.exp(-y)),
+])
+def test_areas_follow_f_on_other_shapes(run, tmp_path, expr, fn):
+    out = tmp_path / "m.vtk"
+    r = run("all", SAMPLES / "peanut.csv", "-o", out, "--size", expr, "--json")
+    assert r.exit_code == 0, r.stderr
+    assert json.loads(r.stdout)["size_correlation"] >= 0.9
+    if fn is not None:
+        assert _interior_spearman(out, fn)[0] >= 0.9
+
+
+def test_cell_areas_match_the_normalised_f(tmp_path):
+    """Not only the order: area / (h^2 f_normalised) stays near 1 away from the contour."""
+    from deformesh_cli import mesh_contour
+
+    c = load_contour(SAMPLES / "circle.csv")
+    size = from_expression("0.3 + x + 2", c)
+    res = mesh_contour(c, size=size)
+    m = res.mesh
+    g = res.selection.grid
+    boundary = np.zeros(m.n_nodes, dtype=bool)
+    boundary[m.lines.ravel()] = True
+    keep = ~boundary[m.triangles].any(axis=1)
+    t = m.triangles[keep]
+    f = 1 / size.g1(m.points[t].mean(axis=1))
+    ratio = signed_areas(m.points, t) / (0.5 * g.hx * g.hy * f)
+    assert 0.85 < np.median(ratio) < 1.15
+    # the normalisation: mean of 1/f over the box is 1
+    x0, y0, x1, y1 = g.box
+    q = np.random.default_rng(0).uniform([x0, y0], [x1, y1], (20000, 2))
+    assert np.mean(size.g1(q)) == pytest.approx(1.0, rel=0.02)
+
+
+def test_constant_size_changes_nothing(run, tmp_path):
+    a, b = tmp_path / "a.vtk", tmp_path / "b.vtk"
+    run("all", SAMPLES / "peanut.csv", "-o", a)
+    run("all", SAMPLES / "peanut.csv", "-o", b, "--size", "3.7 + 0 * x")
+    pa, pb = meshio.read(a).points, meshio.read(b).points
+    np.testing.assert_allclose(pa, pb, atol=1e-12)
+    r = run("all", SAMPLES / "peanut.csv", "-o", b, "--size", "3.7", "--json")
+    assert json.loads(r.stdout)["size_correlation"] is None  # undefined for a constant f
+
+
+def test_size_field_matches_the_expression(run, tmp_path):
+    xs = np.linspace(-2, 2, 41)
+    X, Y = np.meshgrid(xs, xs, indexing="ij")
+    rows = np.column_stack([X.ravel(), Y.ravel(), (1 + X**2).ravel()])
+    csv = tmp_path / "f.csv"
+    np.savetxt(csv, rows, delimiter=",", header="x,y,f", comments="")
+    npy = tmp_path / "f.npy"
+    np.save(npy, rows)
+    outs = []
+    for opt in (["--size-field", csv], ["--size-field", npy], ["--size", "1 + x**2"]):
+        out = tmp_path / f"m{len(outs)}.vtk"
+        r = run("all", SAMPLES / "circle.csv", "-o", out, "--json", *opt)
+        assert r.exit_code == 0, r.stderr
+        outs.append(meshio.read(out).points)
+    np.testing.assert_array_equal(outs[0], outs[1])
+    # bilinear on a 0.1 grid vs the exact parabola: within a hundredth of a cell
+    assert np.abs(outs[0] - outs[2]).max() < 1e-3
+
+
+@pytest.mark.parametrize("opts,code,text", [
+    (["--size", "1 +"], 2, "is not an expression"),
+    (["--size", "__import__('os')"], 2, "unknown name(s) __import__"),
+    (["--size", "x"], 2, "must be finite and > 0 over the whole background box"),
+    (["--size", "1", "--size-field", "f.csv"], 2, "not both"),
+    (["--size-field", "missing.csv"], 1, "missing.csv: no such file"),
+])
+def test_size_errors(run, tmp_path, opts, code, text):
+    r = run("all", SAMPLES / "circle.csv", "-o", tmp_path / "m.vtk",
+            *[str(tmp_path / o) if o.endswith(".csv") else o for o in opts])
+    assert r.exit_code == code, r.stderr
+    assert text in r.stderr
+    assert not (tmp_path / "m.vtk").exists()
+
+
+def test_size_field_errors(tmp_path):
+    f = tmp_path / "f.csv"
+    f.write_text("0,0,1\n1,0,1\n0,1,1\n1,1,-2\n")
+    with pytest.raises(Exception, match=r"f = -2 at \(1, 1\)"):
+        from_field(str(f))
+    f.write_text("0,0,1\n1,0,1\n0,1,1\n2,2,1\n")
+    with pytest.raises(Exception, match="regular grid"):
+        from_field(str(f))
+
+
+def test_contour_distance_is_exact_enough():
+    c = load_contour(SAMPLES / "peanut.csv")
+    q = np.random.default_rng(1).uniform(-2.5, 2.5, (3000, 2))
+    import shapely
+
+    ring = shapely.LinearRing(c.points)
+    exact = shapely.distance(shapely.points(q), ring)
+    ours = ContourDistance(c)(q)
+    assert np.all(ours >= exact - 1e-12)
+    assert np.abs(ours - exact).max() < 1e-9 * 5 + 0.01 * np.median(c.edge_lengths())
+
+
+def test_pipe_carries_the_size_function_to_triangulate(sh, tmp_path):
+    c = SAMPLES / "circle.csv"
+    r = sh(f"deformesh select {c} -o - | deformesh deform - -o - --size 'exp(x)' | "
+           f"deformesh triangulate - -o {tmp_path}/p.vtk --json", cwd=tmp_path)
+    rec = json.loads(r.stdout)
+    assert rec["size"] == "'exp(x)'" and rec["size_correlation"] >= 0.9
