@@ -148,14 +148,15 @@ def deform_(
     callback: Callable[[float, DeformStats], None] | None = None,
     describe: Callable[[int], str] | None = None,
     solver: str = "auto",
-    size: Callable[[np.ndarray], np.ndarray] | None = None,
+    size=None,
 ) -> tuple[np.ndarray, DeformStats]:
     """Deform ``points`` so that ``points[path_nodes] == targets`` exactly, never folding.
 
-    With ``size`` (positions -> ``g1 = 1/f``, normalised; :mod:`deformesh_cli.size`)
-    the cells also take the areas ``f`` asks for: at pseudo-time ``t`` the step
-    solves ``div U = -dg/dt = 1 - g1``, ``curl U = 0`` on the current mesh
-    (``g = (1-t) + t g1``), and every node moves by ``f(t) U``, ``f = 1/g``; a
+    With ``size`` (a :class:`deformesh_cli.size.SizePath`: ``g = 1/f`` and
+    ``dg/dt`` along pseudo-time) the cells also take the areas ``f`` asks for:
+    at pseudo-time ``t`` the step solves ``div U = -dg/dt``, ``curl U = 0`` on
+    the current mesh (on the paper's linear path ``g = (1-t) + t g1``, so
+    ``div U = 1 - g1``), and every node moves by ``f(t) U``, ``f = 1/g``; a
     selected node's ``U`` is its share of the way to its target divided by its
     ``f``.  (The paper prints ``div U = dg/dt``; with ``V = f U``,
     ``d(J g)/dt = J (div U + dg/dt)``, so ``J = f`` needs the minus sign, and
@@ -193,9 +194,8 @@ def deform_(
         share = (targets - pos[path_nodes]) * frac
         f = None
         if size is not None:
-            t0 = 1.0 - remaining / steps
-            g1 = size(pos)
-            f = 1.0 / ((1.0 - t0) + t0 * g1)
+            g, rate = size.g_and_rate(pos, 1.0 - remaining / steps)
+            f = 1.0 / g
             ud[path_nodes] = share / f[path_nodes, None]
         else:
             ud[path_nodes] = share
@@ -203,8 +203,8 @@ def deform_(
         disp[path_nodes] = ud[path_nodes]
         if asm.n_free:
             K, rhs = asm.system(pos, ud)
-            if size is not None:  # div U = -dg/dt = 1 - g1, over this step's pseudo-time
-                rhs += asm.load(pos, (1.0 - g1[tri].mean(axis=1)) * dt / steps)
+            if size is not None:  # div U = -dg/dt, over this step's pseudo-time
+                rhs += asm.load(pos, -rate[tri].mean(axis=1) * dt / steps)
             # the remaining displacement shrank by the fraction taken last step
             x0 = None if prev is None else prev * frac
             disp[asm.free] = lin.solve(K, rhs, x0)

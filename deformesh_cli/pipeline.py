@@ -54,7 +54,7 @@ def run_deform(contour: Contour, sel: Selection, steps: int = DEFAULT_STEPS,
     pos, st = _deform.deform(
         pts0, tri, sel.path_nodes, sel.path_targets, grid.boundary_nodes(),
         steps=steps, callback=callback, describe=_describer(contour, sel), solver=solver,
-        size=None if size is None else size.g1,
+        size=None if size is None else _size.SizePath(size.g1, grid.box),
     )
     return Deformed(sel, pos, st)
 

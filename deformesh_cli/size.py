@@ -217,3 +217,37 @@ def make(expr: str | None, field_path: str | None, contour: Contour) -> SizeFunc
     if field_path is not None:
         return from_field(field_path)
     return None
+
+
+class SizePath:
+    """``g(x, t)``, the target ``1/f`` along pseudo-time, from 1 at t = 0 to ``g1`` at t = 1.
+
+    ``linear`` (the paper): ``g = (1-t) + t g1``, whose box mean stays 1 when
+    ``g1``'s is.  ``geometric``: ``g = g1^t / mean(g1^t)``, renormalised at
+    every ``t`` (the mean over the fixed box, sampled ``n x n``): cells change
+    area by the same factor at every step, which large ratios need (a linear
+    path asks for nearly all of a 1000-fold shrink in the first step).
+    """
+
+    def __init__(self, g1: Callable[[np.ndarray], np.ndarray], box, geometric: bool = False,
+                 n: int = 256):
+        self.g1 = g1
+        self.geometric = geometric
+        if geometric:
+            x0, y0, x1, y1 = box
+            xs = x0 + (np.arange(n) + 0.5) * (x1 - x0) / n
+            ys = y0 + (np.arange(n) + 0.5) * (y1 - y0) / n
+            q = np.column_stack([np.repeat(xs, n), np.tile(ys, n)])
+            self._log_samples = np.log(g1(q))
+
+    def g_and_rate(self, q: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """``g`` and ``dg/dt`` at points ``q`` and pseudo-time ``t``."""
+        g1 = self.g1(q)
+        if not self.geometric:
+            return (1.0 - t) + t * g1, g1 - 1.0
+        ls = self._log_samples
+        w = np.exp(t * ls)
+        mean, mean_log = w.mean(), (w * ls).mean()
+        h = np.exp(t * np.log(g1))
+        g = h / mean
+        return g, g * (np.log(g1) - mean_log / mean)
