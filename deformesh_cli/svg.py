@@ -114,6 +114,13 @@ def _collect_rings(shapes, tol: float, height: float, eps: float, source: str):
         for j, (ring, closed) in enumerate(_subpaths(se.Path(shape), tol)):
             ring[:, 1] = height - ring[:, 1]  # height 0: y -> -y
             gap = float(np.hypot(*(ring[-1] - ring[0])))
+            if not closed and eps < gap <= tol and len(ring) > 3:
+                # an open subpath ending within the chord tolerance of its start (rounded
+                # coordinates, as minified icons have): its end is its start
+                ring = ring[:-1]
+                notes.append(f"closed subpath {j + 1} of {name}: its end was {gap:.3g} from "
+                             "its start (within --tolerance)")
+                gap = 0.0
             ring = _drop_repeats(ring, eps)
             if _flat(ring):
                 notes.append(f"skipped subpath {j + 1} of {name}: it encloses no area")
@@ -123,7 +130,8 @@ def _collect_rings(shapes, tol: float, height: float, eps: float, source: str):
                 raise InputError(
                     f"{source}: {name} subpath {j + 1} is not closed: it ends at "
                     f"({x1:.6g}, {y1:.6g}), {gap:.3g} from its start at ({x0:.6g}, {y0:.6g}); "
-                    "end it with Z (or draw a polygon)")
+                    "end it with Z (or draw a polygon); ends closer than --tolerance are "
+                    "taken as closed")
             rings.append(ring)
             labels.append(f"{name} subpath {j + 1}")
             element.append(k)

@@ -263,3 +263,12 @@ def test_real_icon_with_overlapping_shapes_is_refused_by_name(run, tmp_path):
     assert r.exit_code == 1
     assert "path#path51 and path#path124 overlap near" in r.stderr
     assert not (tmp_path / "m.vtk").exists()
+
+
+def test_nearly_closed_subpath_is_closed_within_the_tolerance():
+    # minified icons: the last point rounds to 0.001 from the first, no Z
+    body = '<path d="M10 10 L20 10 L20 20 L10 20 L10.001 10.001"/>'
+    c = parse_svg(svg(body), "n.svg")
+    assert c.n == 4 and any("closed subpath 1" in n for n in c.notes)
+    with pytest.raises(InputError, match="is not closed"):
+        parse_svg(svg(body), "n.svg", tolerance=1e-4)
