@@ -34,3 +34,4 @@ clean:
 bench: $(VENV)/.installed
 	$(BIN)/python benchmarks/run_issue2.py --repeat 3
 	$(BIN)/python benchmarks/run_batch.py --repeat 3
+	$(BIN)/python benchmarks/run_corpus.py

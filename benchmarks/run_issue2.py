@@ -68,10 +68,9 @@ def main():
             rows.append((name, " ".join(opts), statistics.median(times), rss, code, rec))
             print(f"{name}: {statistics.median(times):.2f} s exit {code}", file=sys.stderr)
     lines = [
-        "# Benchmarks", "",
-        f"Machine: {machine()}.  Date: {time.strftime('%Y-%m-%d')}.", "",
         "## Issue 2: `deformesh all` per contour (whole process, median of "
         f"{args.repeat}, written by `make bench`)", "",
+        f"Machine: {machine()}.  Date: {time.strftime('%Y-%m-%d')}.", "",
         "Peak RSS of each process from wait4. A refusal's time is the whole process "
         "(Python start-up and imports included).", "",
         "| contour | options | seconds | peak RSS MB | exit | grid nodes | triangles | min angle | extra boundary nodes |",
@@ -84,9 +83,10 @@ def main():
         else:
             msg = rec["error"].split(": error: ", 1)[-1][:90]
             lines.append(f"| {name} | {opts} | {t:.2f} | {rss:.0f} | {code} | refused: {msg}... | | | |")
-    out = ROOT / "benchmarks" / "RESULTS.md"
-    out.write_text("\n".join(lines) + "\n")
-    print(f"wrote {out}", file=sys.stderr)
+    from results import write_section
+
+    write_section("issue2", "\n".join(lines))
+    print("wrote benchmarks/RESULTS.md (issue 2 section)", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,74 @@
+"""Mesh the real corpus (tests/data/corpus) at default options, as one batch; write the pass
+rate and the time per contour into benchmarks/RESULTS.md (section "corpus").
+
+Usage: python benchmarks/run_corpus.py [--jobs N] [--max-nodes N]   (make bench)
+"""
+
+import argparse
+import collections
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from results import write_section  # noqa: E402
+from run_issue2 import EXE, ROOT, machine  # noqa: E402
+
+CORPUS = ROOT / "tests" / "data" / "corpus"
+
+
+def kind(name: str) -> str:
+    return {"airfoil": "airfoils", "icon": "icons", "coast": "coastlines"}[name.split("_")[0]]
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--max-nodes", type=int, default=None, help="default: deformesh's own")
+    args = ap.parse_args()
+    extra = ["--max-nodes", str(args.max_nodes)] if args.max_nodes else []
+    with tempfile.TemporaryDirectory() as d:
+        t = time.perf_counter()
+        p = subprocess.run([EXE, "all", str(CORPUS), "--out-dir", d, "--jobs", str(args.jobs),
+                            "--json", "-q", *extra], capture_output=True, text=True)
+        wall = time.perf_counter() - t
+    recs = [json.loads(ln) for ln in p.stdout.splitlines()]
+    by = collections.defaultdict(list)
+    for r in recs:
+        by[kind(Path(r["input"]).name)].append(r)
+    opts = " ".join(extra) or "default options"
+    lines = [
+        "## Corpus: real contours at default options (issue 5)", "",
+        f"Machine: {machine()}.  Date: {time.strftime('%Y-%m-%d')}.", "",
+        f"`deformesh all tests/data/corpus --out-dir ... --jobs {args.jobs}` ({opts}); "
+        f"{len(recs)} contours in {wall:.0f} s wall. Seconds are per contour, inside the "
+        "batch (no start-up).", "",
+        "| kind | contours | meshed (contract ok) | refused | median s (meshed) | "
+        "max s (meshed) | max s (refused) |",
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    for k in sorted(by) + ["all"]:
+        rs = recs if k == "all" else by[k]
+        ok = [r["seconds"] for r in rs if r["status"] == "ok"]
+        bad = [r["seconds"] for r in rs if r["status"] != "ok"]
+        lines.append(f"| {k} | {len(rs)} | {len(ok)} ({100 * len(ok) / len(rs):.0f}%) | "
+                     f"{len(bad)} | {statistics.median(ok) if ok else 0:.2f} | "
+                     f"{max(ok, default=0):.2f} | {max(bad, default=0):.2f} |")
+    lines += ["", "| contour | status | seconds | nodes | min angle | reason |",
+              "| --- | --- | ---: | ---: | ---: | --- |"]
+    for r in recs:
+        why = (r["error"] or "").removeprefix(f"{r['input']}: ")[:110].replace("|", "/")
+        angle = f"{r['min_angle']:.1f}" if r["min_angle"] is not None else ""
+        lines.append(f"| {Path(r['input']).name} | {r['status']} | {r['seconds']:.2f} | "
+                     f"{r['nodes'] or ''} | {angle} | {why} |")
+    write_section("corpus", "\n".join(lines))
+    print(f"corpus: {sum(r['status'] == 'ok' for r in recs)}/{len(recs)} meshed, "
+          f"{wall:.0f} s; wrote benchmarks/RESULTS.md", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
