@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Iterator
 
 from . import io
-from .contour import load_contour
+from .contour import load_contour, parse_spacing, resample
 from .deform import DEFAULT_STEPS
 from .errors import DeformeshError, OptionError
 from .select import DEFAULT_MAX_NODES
@@ -108,6 +108,8 @@ def run_task(task: Task) -> tuple[dict, list[tuple[str, bytes]]]:
             raise DeformeshError(task.error)
         c = load_contour(task.source, task.data, o.get("decimal", "."), o.get("tolerance"),
                          o.get("element_id"))
+        if o.get("resample") is not None:
+            c = resample(c, parse_spacing(o["resample"], c))
         res = mesh_contour(c, o.get("h"), o.get("box"), o.get("margin"), o.get("strict", False),
                            o.get("max_nodes", DEFAULT_MAX_NODES), o.get("steps", DEFAULT_STEPS),
                            solver=o.get("solver", "auto"), exterior=o.get("exterior", False),

@@ -17,6 +17,7 @@ import click
 
 from . import __version__, batch, io, pipeline, quality, state
 from . import size as _size
+from . import contour as contour_mod
 from .contour import load_contour
 from .deform import DEFAULT_STEPS, SOLVERS
 from .errors import DeformeshError, OptionError
@@ -75,9 +76,13 @@ def _check_binary_stdout(out: str) -> None:
                                "use -o FILE or a pipe")
 
 
-def _read_contour(path: str, decimal: str = ".", tolerance=None, element_id=None):
+def _read_contour(path: str, decimal: str = ".", tolerance=None, element_id=None,
+                  resample=None):
     data = io.read_bytes(path) if path == "-" else None
-    return load_contour(path, data, decimal, tolerance, element_id)
+    c = load_contour(path, data, decimal, tolerance, element_id)
+    if resample is not None:
+        c = contour_mod.resample(c, contour_mod.parse_spacing(resample, c))
+    return c
 
 
 contour_options = [
@@ -90,6 +95,10 @@ contour_options = [
     click.option("--id", "element_id", default=None, metavar="ID",
                  help="SVG: mesh only the element with this id (a shape or a group). "
                       "Default: every filled shape."),
+    click.option("--resample", default=None, metavar="SPACING",
+                 help="Re-space the contour evenly (corners kept) at SPACING, in contour units "
+                      "or as a percentage of its diagonal ('1%'). The given points are then "
+                      "no longer all boundary nodes."),
 ]
 
 select_options = [
@@ -163,10 +172,10 @@ def cli():
 @quiet_option
 @_handle_errors
 def select_cmd(contour, output, h, box, margin, strict, max_nodes, decimal, tolerance,
-               element_id, exterior, quiet):
+               element_id, resample, exterior, quiet):
     """Lay the background grid and pick one grid node per contour point (stage 1)."""
     _check_binary_stdout(output)
-    c = _read_contour(contour, decimal, tolerance, element_id)
+    c = _read_contour(contour, decimal, tolerance, element_id, resample)
     sel = pipeline.run_select(c, h, box, margin, strict, max_nodes, exterior)
     io.write_bytes(state.dumps(state.State("selected", c, sel)), output)
     g = sel.grid
@@ -288,8 +297,8 @@ def summary_line(r: dict) -> str:
 @quiet_option
 @_handle_errors
 def all_cmd(contours, output, out_dir, jobs, scheduler, fail_fast, h, box, margin, strict,
-            max_nodes, decimal, tolerance, element_id, exterior, steps, solver, size_expr,
-            size_field, fmt, msh_version, png, as_json, quiet):
+            max_nodes, decimal, tolerance, element_id, resample, exterior, steps, solver,
+            size_expr, size_field, fmt, msh_version, png, as_json, quiet):
     """Run select, deform and triangulate in one process, for one contour or a batch."""
     t0 = time.perf_counter()
     if out_dir is not None:
@@ -300,6 +309,7 @@ def all_cmd(contours, output, out_dir, jobs, scheduler, fail_fast, h, box, margi
             raise click.UsageError("--png names one file; it does not apply to a batch")
         options = dict(h=h, box=box, margin=margin, strict=strict, max_nodes=max_nodes,
                        decimal=decimal, tolerance=tolerance, element_id=element_id,
+                       resample=resample,
                        exterior=exterior, steps=steps, solver=solver, msh_version=msh_version,
                        size=size_expr, size_field=size_field)
         _batch(list(contours), out_dir, fmt, options, jobs, scheduler, fail_fast, as_json, quiet,
@@ -313,7 +323,7 @@ def all_cmd(contours, output, out_dir, jobs, scheduler, fail_fast, h, box, margi
         raise click.UsageError("--jobs, --scheduler and --fail-fast apply to batches "
                                "(--out-dir)")
     fmt = _check_mesh_output(output, fmt, as_json)
-    c = _read_contour(contours[0], decimal, tolerance, element_id)
+    c = _read_contour(contours[0], decimal, tolerance, element_id, resample)
     size = _size.make(size_expr, size_field, c)
     with _steps_bar(steps, quiet) as progress:
         res = pipeline.mesh_contour(c, h, box, margin, strict, max_nodes, steps, solver=solver,
@@ -427,7 +437,7 @@ def _title(name, mesh) -> str:
 @_apply(contour_options)
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 @_handle_errors
-def quality_cmd(mesh_path, contour_path, decimal, tolerance, element_id, as_json):
+def quality_cmd(mesh_path, contour_path, decimal, tolerance, element_id, resample, as_json):
     """Report a mesh's angles, areas and radius ratios; check the contract against a contour.
 
     Exit 1 if a triangle is folded or (with --contour) the contract is broken.
@@ -435,7 +445,7 @@ def quality_cmd(mesh_path, contour_path, decimal, tolerance, element_id, as_json
     points, tri = io.read_mesh(mesh_path)
     c = None
     if contour_path is not None:
-        c = _read_contour(contour_path, decimal, tolerance, element_id)
+        c = _read_contour(contour_path, decimal, tolerance, element_id, resample)
     rep, problem = quality.assess(points, tri, c)
     rep = {"mesh": mesh_path, **rep}
     if as_json:
@@ -473,7 +483,7 @@ def quality_text(r: dict) -> str:
               help="Draw this contour's points over the mesh.")
 @_apply(contour_options)
 @_handle_errors
-def plot_cmd(mesh_path, output, contour_path, decimal, tolerance, element_id):
+def plot_cmd(mesh_path, output, contour_path, decimal, tolerance, element_id, resample):
     """Draw a mesh to PNG: triangles shaded by radius ratio, the boundary, a histogram."""
     from . import plot
 
@@ -481,7 +491,7 @@ def plot_cmd(mesh_path, output, contour_path, decimal, tolerance, element_id):
     points, tri = io.read_mesh(mesh_path)
     cpts = None
     if contour_path is not None:
-        cpts = _read_contour(contour_path, decimal, tolerance, element_id).points
+        cpts = _read_contour(contour_path, decimal, tolerance, element_id, resample).points
     plot.draw(points, tri, output, contour_points=cpts,
               title=f"{mesh_path}: {len(points)} nodes, {len(tri)} triangles")
 

@@ -441,3 +441,61 @@ def _check_simple(c: Contour, where=None) -> None:
         f"{c.source}: the contour intersects itself near ({x:.6g}, {y:.6g}): edge from "
         f"{where(a)} {verb} edge from {where(b)}"
     )
+
+
+def parse_spacing(value, contour: Contour, option: str = "--resample") -> float:
+    """A length option: a number in contour units, or ``P%`` of the contour's diagonal."""
+    s = str(value).strip()
+    try:
+        v = float(s.rstrip("%"))
+    except ValueError:
+        raise OptionError(f"{option} {value!r} is not a number (or a percentage)") from None
+    if s.endswith("%"):
+        v *= float(np.hypot(*np.ptp(contour.points, axis=0))) / 100
+    if not (np.isfinite(v) and v > 0):
+        raise OptionError(f"{option} must be > 0, got {value!r}")
+    return v
+
+
+#: A vertex turning by more than this (degrees) is a corner that resampling keeps.
+CORNER_DEGREES = 30.0
+
+
+def resample(contour: Contour, spacing: float) -> Contour:
+    """The contour re-spaced: each ring's corners (turning > :data:`CORNER_DEGREES`) kept,
+    the pieces between them cut into equal chords about ``spacing`` long.
+
+    The given points are no longer the boundary nodes (a note says so); the result is
+    validated like any contour.
+    """
+    pts, starts, notes = [], [0], []
+    for r in range(contour.n_rings):
+        p = contour.points[contour.ring_order(r)]
+        d_in = p - np.roll(p, 1, axis=0)
+        d_out = np.roll(p, -1, axis=0) - p
+        turn = np.degrees(np.abs(np.arctan2(d_in[:, 0] * d_out[:, 1] - d_in[:, 1] * d_out[:, 0],
+                                            (d_in * d_out).sum(axis=1))))
+        corners = np.flatnonzero(turn > CORNER_DEGREES)
+        if len(corners) == 0:
+            corners = np.array([0])
+        new = []
+        for a, b in zip(corners, np.roll(corners, -1)):
+            idx = np.arange(a, b + 1 if b > a else b + len(p) + 1) % len(p)
+            piece = p[idx]
+            seg = np.hypot(*np.diff(piece, axis=0).T)
+            cum = np.concatenate([[0.0], np.cumsum(seg)])
+            k = max(1, int(round(cum[-1] / spacing)))
+            s = cum[-1] * np.arange(k) / k
+            new.append(np.column_stack([np.interp(s, cum, piece[:, 0]),
+                                        np.interp(s, cum, piece[:, 1])]))
+        ring = np.vstack(new)
+        pts.append(ring)
+        starts.append(starts[-1] + len(ring))
+        notes.append(f"{contour.ring_name(r)}: resampled {len(p)} points to {len(ring)} at "
+                     f"spacing {spacing:.3g} (corners kept); the given points are not all "
+                     "boundary nodes")
+    c = make_contour(np.concatenate(pts), None, contour.source, ring_starts=starts[:-1],
+                     ring_labels=list(contour.ring_labels))
+    return Contour(c.points, c.lines, c.source, notes=tuple(contour.notes) + tuple(notes),
+                   starts=c.starts, ring_clockwise=c.ring_clockwise, depth=c.depth,
+                   ring_labels=c.ring_labels)

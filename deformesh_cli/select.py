@@ -192,8 +192,10 @@ def _too_many_nodes(contour, est, h, rule, d_c, ka, kb, box_size, margin_cells,
     if h_try > h and est_try <= max_nodes:
         return (f"{head}: try --h {h_try:.3g} (the smallest spacing between consecutive "
                 "points; with a larger h crowded points get no node of their own)")
-    fix = ("resample the contour more evenly (this version lays one uniform grid)"
-           if ratio > EVEN_SPACING_RATIO else "use fewer contour points")
+    fix = ("use fewer contour points" if ratio <= EVEN_SPACING_RATIO else
+           "re-space it with --resample SPACING (corners kept; e.g. --resample "
+           f"{float(np.median(seg)):.3g}, its median spacing; the given points are then not "
+           "all boundary nodes)")
     return (
         f"{head}; even h = {h_try:.3g}, the smallest spacing between consecutive points, "
         f"would need {est_try:.2g} nodes (the spacing varies {ratio:.3g}x along the contour): "

@@ -198,3 +198,17 @@ def test_clockwise_input_keeps_node_numbering(run, tmp_path):
     assert run("all", f, "-o", out).exit_code == 0
     m = meshio.read(out)
     assert np.array_equal(m.points[: len(pts), :2], pts)
+
+
+def test_resample_meshes_an_uneven_contour_and_quality_follows(run, tmp_path):
+    src = shared("naca0012_100.csv")  # spacing varies 32x
+    out = tmp_path / "m.msh"
+    r = run("all", src, "-o", out, "--resample", "3%", "--json")
+    assert r.exit_code == 0, r.stderr
+    rec = json.loads(r.stdout)
+    assert any("resampled 100 points to" in n for n in rec["notes"])
+    # quality checks the contract against the same resampled contour
+    r = run("quality", out, "--contour", src, "--resample", "3%")
+    assert r.exit_code == 0 and r.stdout.endswith("contract: ok\n")
+    r = run("quality", out, "--contour", src)
+    assert r.exit_code == 1  # against the given points it is not their mesh

@@ -123,3 +123,32 @@ def test_edge_lengths_stay_on_each_ring():
     text = "x,y,ring\n0,0,0\n4,0,0\n4,4,0\n0,4,0\n1,1,1\n1,2,1\n2,2,1\n"
     c = parse_csv(text, "t.csv")
     assert c.edge_lengths().tolist() == [4, 4, 4, 4, 1, 1, 2 ** 0.5]
+
+
+def test_resample_keeps_corners_and_evens_the_spacing():
+    from deformesh_cli.contour import parse_spacing, resample
+
+    # a square with crowded points on one side: corners are kept, chords even out
+    side = [(x, 0.0) for x in (0, 0.001, 0.002, 0.5)] + [(1, 0), (1, 1), (0, 1)]
+    c = make_contour(side, source="sq")
+    r = resample(c, 0.1)
+    for corner in [(0, 0), (1, 0), (1, 1), (0, 1)]:
+        assert np.any(np.all(r.points == corner, axis=1)), corner
+    e = r.edge_lengths()
+    assert e.min() == pytest.approx(0.1) and e.max() == pytest.approx(0.1)
+    assert r.area == pytest.approx(1.0)
+    assert "resampled 7 points to 40" in r.notes[-1]
+    assert parse_spacing("10%", c) == pytest.approx(np.sqrt(2) / 10)
+    with pytest.raises(Exception, match="--resample"):
+        parse_spacing("-1", c)
+
+
+def test_resample_on_a_curve_stays_on_the_polyline():
+    from deformesh_cli.contour import resample
+
+    t = 2 * np.pi * np.arange(200) / 200
+    c = make_contour(np.column_stack([np.cos(t), np.sin(t)]), source="c")
+    r = resample(c, 0.1)
+    rad = np.hypot(*r.points.T)
+    assert rad.max() <= 1 + 1e-12 and rad.min() > 1 - 1e-3
+    assert abs(r.n - 2 * np.pi / 0.1) <= 1

@@ -66,7 +66,8 @@ def test_grid_limit_refused_with_estimate_and_hint():
     msg = str(e.value)
     assert "3.6e+10 nodes" in msg and "--max-nodes" in msg
     # no uniform grid within the limit can give each crowded point its own node
-    assert "try --h" not in msg and "resample the contour more evenly" in msg
+    assert "try --h" not in msg and "re-space it with --resample SPACING" in msg
+    assert "--resample 0.00224" in msg  # its median spacing (that it works: test_contour.py)
 
 
 def test_grid_limit_hint_names_an_h_that_works():
