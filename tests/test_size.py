@@ -9,7 +9,7 @@ from scipy.stats import spearmanr
 
 from deformesh_cli.contour import load_contour
 from deformesh_cli.quality import signed_areas
-from deformesh_cli.size import ContourDistance, from_expression, from_field
+from deformesh_cli.size import ContourDistance, SizeFunction, from_expression, from_field
 
 from .conftest import SAMPLES
 
@@ -152,3 +152,24 @@ def test_pipe_carries_the_size_function_to_triangulate(sh, tmp_path):
            f"deformesh triangulate - -o {tmp_path}/p.vtk --json", cwd=tmp_path)
     rec = json.loads(r.stdout)
     assert rec["size"] == "'exp(x)'" and rec["size_correlation"] >= 0.9
+
+
+def test_geometric_path_keeps_the_box_mean_and_ends_at_g1():
+    from deformesh_cli.size import SizePath
+
+    box = (0.0, 0.0, 2.0, 1.0)
+    s = SizeFunction(lambda q: 0.01 + q[:, 0] ** 2, "x^2")
+    s.normalise(box)
+    path = SizePath(s.g1, box, geometric=True)
+    q = np.random.default_rng(2).uniform([0, 0], [2, 1], (40000, 2))
+    for t in (0.0, 0.3, 0.7, 1.0):
+        g, rate = path.g_and_rate(q, t)
+        assert g.mean() == pytest.approx(1.0, rel=0.02)
+        assert rate.mean() == pytest.approx(0.0, abs=0.05 * np.abs(rate).mean())
+    g, _ = path.g_and_rate(q, 1.0)
+    np.testing.assert_allclose(g, s.g1(q), rtol=0.02)
+    # the rate is the derivative of g
+    _, r0 = path.g_and_rate(q, 0.5)
+    ga, _ = path.g_and_rate(q, 0.5 - 1e-5)
+    gb, _ = path.g_and_rate(q, 0.5 + 1e-5)
+    np.testing.assert_allclose((gb - ga) / 2e-5, r0, rtol=1e-5, atol=1e-7)
