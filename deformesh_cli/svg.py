@@ -121,7 +121,13 @@ def _collect_rings(shapes, tol: float, height: float, eps: float, source: str):
                 notes.append(f"closed subpath {j + 1} of {name}: its end was {gap:.3g} from "
                              "its start (within --tolerance)")
                 gap = 0.0
-            ring = _drop_repeats(ring, eps)
+            exact = len(_drop_repeats(ring, eps))
+            # points closer than the tolerance to the previous one are the same point at
+            # the drawing's precision (minified icons round 0.0005 away from their start)
+            ring = _drop_repeats(ring, max(eps, tol))
+            if len(ring) < exact:
+                notes.append(f"merged {exact - len(ring)} point(s) of {name} subpath {j + 1} "
+                             f"closer than the tolerance {tol:.3g} to the previous one")
             if _flat(ring):
                 notes.append(f"skipped subpath {j + 1} of {name}: it encloses no area")
                 continue

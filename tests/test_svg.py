@@ -272,3 +272,14 @@ def test_nearly_closed_subpath_is_closed_within_the_tolerance():
     assert c.n == 4 and any("closed subpath 1" in n for n in c.notes)
     with pytest.raises(InputError, match="is not closed"):
         parse_svg(svg(body), "n.svg", tolerance=1e-4)
+
+
+def test_vertices_closer_than_the_tolerance_are_merged():
+    # bootstrap-icons' star: the last vertex lands 0.001 from the first (rounded), with Z
+    body = '<path d="M10 10 L20 10 L20 20 L10 20 L10 10.001 Z"/>'
+    c = parse_svg(svg(body), "m.svg")
+    assert c.n == 4 and any("merged 1 point(s)" in n for n in c.notes)
+    e = c.edge_lengths()
+    assert e.min() == pytest.approx(10.0)
+    # with a finer tolerance the vertex stays
+    assert parse_svg(svg(body), "m.svg", tolerance=1e-4).n == 5
