@@ -70,7 +70,7 @@ def test_uneven_contour_refused_with_estimate_and_no_file(run, tmp_path):
     out = tmp_path / "naca.vtk"
     r = run("all", shared("naca0012_1000.csv"), "-o", out)
     assert r.exit_code == 1
-    assert "3.6e+10 nodes" in r.stderr and "resample the contour" in r.stderr
+    assert "3.6e+10 nodes" in r.stderr and "--resample 0.00224" in r.stderr
     assert r.stderr.count("\n") == 1
     assert not out.exists() and list(tmp_path.iterdir()) == []
 
