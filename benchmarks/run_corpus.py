@@ -42,7 +42,7 @@ def main():
         by[kind(Path(r["input"]).name)].append(r)
     opts = " ".join(extra) or "default options"
     lines = [
-        "## Corpus: real contours at default options (issue 5)", "",
+        f"## Corpus: real contours, {opts} (issue 5)", "",
         f"Machine: {machine()}.  Date: {time.strftime('%Y-%m-%d')}.", "",
         f"`deformesh all tests/data/corpus --out-dir ... --jobs {args.jobs}` ({opts}); "
         f"{len(recs)} contours in {wall:.0f} s wall. Seconds are per contour, inside the "
