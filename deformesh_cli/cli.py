@@ -351,12 +351,16 @@ def _steps_bar(steps: int, quiet: bool):
 
 def _batch(contours, out_dir, fmt, options, jobs, scheduler, fail_fast, as_json, quiet, t0):
     fmt = io.format_for(f"x.{fmt or 'msh'}", None)
+    if options.get("size") is not None:  # usage errors before any work, not once per input
+        _size.compile_expression(options["size"])
+        if options.get("size_field") is not None:
+            raise OptionError("give --size or --size-field, not both")
+    tasks = batch.make_tasks(batch.expand_inputs(contours), out_dir, fmt, options)
     try:
         os.makedirs(out_dir, exist_ok=True)
     except OSError as exc:
         raise DeformeshError(f"{out_dir}: cannot create the output folder: {exc.strerror}") \
             from None
-    tasks = batch.make_tasks(batch.expand_inputs(contours), out_dir, fmt, options)
     records: list[dict | None] = [None] * len(tasks)
     printed = 0
     bar = None

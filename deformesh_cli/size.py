@@ -110,8 +110,8 @@ class SizeFunction:
         return 1.0 / (self.scale * self.values(q))
 
 
-def from_expression(expr: str, contour: Contour) -> SizeFunction:
-    """``--size EXPR``: a numpy expression in x, y and d (distance to the contour)."""
+def compile_expression(expr: str):
+    """``--size EXPR`` compiled, or an :class:`OptionError` (syntax, unknown names)."""
     try:
         code = compile(expr, "--size", "eval")
     except SyntaxError as exc:
@@ -120,6 +120,12 @@ def from_expression(expr: str, contour: Contour) -> SizeFunction:
     if names:
         raise OptionError(f"--size {expr!r} uses unknown name(s) {', '.join(sorted(names))}; "
                           f"allowed: x, y, d, {', '.join(sorted(_NAMESPACE))}")
+    return code
+
+
+def from_expression(expr: str, contour: Contour) -> SizeFunction:
+    """``--size EXPR``: a numpy expression in x, y and d (distance to the contour)."""
+    code = compile_expression(expr)
     dist = ContourDistance(contour) if "d" in code.co_names else None
 
     def raw(q):

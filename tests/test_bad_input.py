@@ -386,3 +386,12 @@ def test_collinear_runs_inside_a_contour_are_fine(run, tmp_path):
     assert r.exit_code == 0, r.stderr
     r = run("quality", tmp_path / "m.msh", "--contour", f)
     assert r.exit_code == 0 and "contract: ok" in r.stdout
+
+
+def test_batch_usage_errors_come_first_and_create_nothing(run, tmp_path):
+    out = tmp_path / "out"
+    r = run("all", SAMPLES / "circle.csv", "--out-dir", out, "--size", "1 +")
+    assert r.exit_code == 2 and "is not an expression" in r.stderr
+    r = run("all", SAMPLES / "circle.csv", SAMPLES / "circle.csv", "--out-dir", out)
+    assert r.exit_code == 2 and "would both write" in r.stderr
+    assert not out.exists()
