@@ -220,3 +220,15 @@ def test_plot_errors(run, tmp_path, bracket):
     assert r.exit_code == 1 and "no such file" in r.stderr
     r = run("plot", bracket[0], "-o", tmp_path / "nofolder" / "p.png")
     assert r.exit_code == 1 and "does not exist" in r.stderr
+
+
+def test_batch_xdmf_writes_each_sidecar_under_its_own_name(run, tmp_path):
+    out = tmp_path / "out"
+    r = run("all", SAMPLES / "circle.csv", SAMPLES / "peanut.csv", "--out-dir", out,
+            "--format", "xdmf", "-q")
+    assert r.exit_code == 0, r.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["circle.h5", "circle.xdmf", "peanut.h5",
+                                                     "peanut.xdmf"]
+    assert "peanut.h5:/" in (out / "peanut.xdmf").read_text()
+    m = meshio.read(out / "peanut.xdmf")
+    assert len(m.cells_dict["triangle"]) > 1000
