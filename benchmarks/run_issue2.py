@@ -27,6 +27,7 @@ CASES = [
     ("star_100.csv", []), ("channel_100.csv", []),
     ("naca0012_100.csv", ["--h", "0.01"]),
     ("naca0012_1000.csv", []),  # refused: measures the time to refuse
+    ("naca0012_1000.csv", ["--resample", "0.5%"]),  # what the refusal advises
 ]
 
 

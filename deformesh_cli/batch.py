@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Iterator
 
 from . import io
-from .contour import load_contour, parse_spacing, resample
+from .contour import load_contour
 from .deform import DEFAULT_STEPS
 from .errors import DeformeshError, OptionError
 from .select import DEFAULT_MAX_NODES
@@ -67,8 +67,7 @@ def expand_inputs(args: list[str]) -> list[str]:
     return out
 
 
-def make_tasks(inputs: list[str], out_dir: str, fmt: str, options: dict,
-               stdin: bytes | None = None) -> list[Task]:
+def make_tasks(inputs: list[str], out_dir: str, fmt: str, options: dict) -> list[Task]:
     """Read every input (a failure becomes the task's error) and name its output.
 
     Two inputs that would write the same output file are a usage error.
@@ -83,13 +82,10 @@ def make_tasks(inputs: list[str], out_dir: str, fmt: str, options: dict,
                               "rename one or mesh them in two runs")
         outputs[out] = src
         data, error = None, None
-        if src == "-":
-            data = stdin if stdin is not None else io.read_bytes("-")
-        else:
-            try:
-                data = io.read_bytes(src)
-            except DeformeshError as exc:
-                error = str(exc)
+        try:
+            data = io.read_bytes(src)
+        except DeformeshError as exc:
+            error = str(exc)
         tasks.append(Task(k, src, out, data, error, dict(options, fmt=fmt)))
     return tasks
 
@@ -100,16 +96,13 @@ def run_task(task: Task) -> tuple[dict, list[tuple[str, bytes]]]:
 
     t0 = time.perf_counter()
     o = task.options
-    rec = dict.fromkeys(RECORD_KEYS)
-    rec.update(input=task.source, output=task.output, status="failed")
+    rec = _record(task, "failed")
     files: list[tuple[str, bytes]] = []
     try:
         if task.error is not None:
             raise DeformeshError(task.error)
         c = load_contour(task.source, task.data, o.get("decimal", "."), o.get("tolerance"),
-                         o.get("element_id"))
-        if o.get("resample") is not None:
-            c = resample(c, parse_spacing(o["resample"], c))
+                         o.get("element_id"), o.get("resample"))
         res = mesh_contour(c, o.get("h"), o.get("box"), o.get("margin"), o.get("strict", False),
                            o.get("max_nodes", DEFAULT_MAX_NODES), o.get("steps", DEFAULT_STEPS),
                            solver=o.get("solver", "auto"), exterior=o.get("exterior", False),
@@ -190,10 +183,8 @@ def _gather(futures: dict, completed, fail_fast: bool, cancel) -> Iterator:
         try:
             rec, files = fut.result()
         except Exception as exc:  # the worker died (killed, out of memory, lost)
-            rec, files = dict.fromkeys(RECORD_KEYS), []
-            rec.update(input=t.source, output=t.output, status="failed", seconds=0.0,
-                       error=f"{t.source}: the worker process running it died "
-                             f"({type(exc).__name__}; killed or out of memory?)")
+            rec, files = _record(t, "failed", f"{t.source}: the worker process running it "
+                                 f"died ({type(exc).__name__}; killed or out of memory?)"), []
             if isinstance(exc, cf.process.BrokenProcessPool):
                 rec["_broken"] = True
         done.add(t.index)
@@ -206,10 +197,14 @@ def _gather(futures: dict, completed, fail_fast: bool, cancel) -> Iterator:
 
 def _skipped(tasks: list[Task]) -> Iterator:
     for t in tasks:
-        rec = dict.fromkeys(RECORD_KEYS)
-        rec.update(input=t.source, output=t.output, status="skipped",
-                   error=f"{t.source}: not run (--fail-fast after a failure)", seconds=0.0)
-        yield t, rec, []
+        yield t, _record(t, "skipped", f"{t.source}: not run (--fail-fast after a failure)"), []
+
+
+def _record(t: Task, status: str, error: str | None = None) -> dict:
+    """A record with every key of :data:`RECORD_KEYS`, the mesh numbers still empty."""
+    rec = dict.fromkeys(RECORD_KEYS)
+    rec.update(input=t.source, output=t.output, status=status, error=error, seconds=0.0)
+    return rec
 
 
 def _run_dask(tasks: list[Task], scheduler: str, fail_fast: bool) -> Iterator:

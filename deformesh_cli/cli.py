@@ -17,7 +17,6 @@ import click
 
 from . import __version__, batch, io, pipeline, quality, state
 from . import size as _size
-from . import contour as contour_mod
 from .contour import load_contour
 from .deform import DEFAULT_STEPS, SOLVERS
 from .errors import DeformeshError, OptionError
@@ -78,11 +77,7 @@ def _check_binary_stdout(out: str) -> None:
 
 def _read_contour(path: str, decimal: str = ".", tolerance=None, element_id=None,
                   resample=None):
-    data = io.read_bytes(path) if path == "-" else None
-    c = load_contour(path, data, decimal, tolerance, element_id)
-    if resample is not None:
-        c = contour_mod.resample(c, contour_mod.parse_spacing(resample, c))
-    return c
+    return load_contour(path, None, decimal, tolerance, element_id, resample)
 
 
 contour_options = [
@@ -351,10 +346,8 @@ def _steps_bar(steps: int, quiet: bool):
 
 def _batch(contours, out_dir, fmt, options, jobs, scheduler, fail_fast, as_json, quiet, t0):
     fmt = io.format_for(f"x.{fmt or 'msh'}", None)
-    if options.get("size") is not None:  # usage errors before any work, not once per input
-        _size.compile_expression(options["size"])
-        if options.get("size_field") is not None:
-            raise OptionError("give --size or --size-field, not both")
+    # usage errors before any work, not once per input
+    _size.check_options(options.get("size"), options.get("size_field"))
     tasks = batch.make_tasks(batch.expand_inputs(contours), out_dir, fmt, options)
     try:
         os.makedirs(out_dir, exist_ok=True)

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import shapely
 
+from . import io
 from .errors import InputError, OptionError
 
 _DELIMITERS = (",", ";", "\t")
@@ -168,24 +169,26 @@ def signed_area(p: np.ndarray) -> float:
 
 
 def load_contour(path: str | Path, data: bytes | None = None, decimal: str = ".",
-                 tolerance=None, element_id: str | None = None) -> Contour:
+                 tolerance=None, element_id: str | None = None,
+                 resample_spacing=None) -> Contour:
     """Read a contour file: CSV, or SVG (by extension, or text starting with ``<``).
 
-    ``path == "-"`` with ``data`` reads the bytes given.  ``decimal`` is the
-    CSV decimal mark (``.`` or ``,``); ``tolerance`` and ``element_id`` are
-    the SVG options (see :func:`deformesh_cli.svg.parse_svg`).
+    ``data``, if given, are the file's bytes (``path`` names them; ``-`` is
+    stdin).  ``decimal`` is the CSV decimal mark (``.`` or ``,``);
+    ``tolerance`` and ``element_id`` are the SVG options (see
+    :func:`deformesh_cli.svg.parse_svg`); ``resample_spacing`` (the text of
+    ``--resample``) re-spaces the contour read (:func:`resample`).
     """
+    c = _read(path, data, decimal, tolerance, element_id)
+    if resample_spacing is not None:
+        c = resample(c, parse_spacing(resample_spacing, c))
+    return c
+
+
+def _read(path, data, decimal, tolerance, element_id) -> Contour:
     name = "<stdin>" if str(path) == "-" else str(path)
     if data is None:
-        p = Path(path)
-        if not p.exists():
-            raise InputError(f"{name}: no such file")
-        if p.is_dir():
-            raise InputError(f"{name}: is a directory, not a contour file")
-        try:
-            data = p.read_bytes()
-        except OSError as exc:
-            raise InputError(f"{name}: cannot read: {exc.strerror}") from None
+        data = io.read_bytes(str(path))
     suffix = Path(name).suffix.lower()
     if suffix in (".svg", ".svgz") or data.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"<"):
         if suffix == ".svgz" or data[:2] == b"\x1f\x8b":

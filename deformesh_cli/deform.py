@@ -187,7 +187,7 @@ def deform_(
     remaining = float(steps)  # pseudo-time left, in units of 1/steps
     ud = np.zeros((n, 2))
     lin = LinearSolver(solver)
-    prev = None  # last free-node displacement per unit of step, for warm starts
+    prev = None  # last free-node solution (U) per unit of step, for warm starts
     while remaining > 0:
         dt = min(1.0, remaining)
         frac = dt / remaining
@@ -207,7 +207,8 @@ def deform_(
                 rhs += asm.load(pos, -rate[tri].mean(axis=1) * dt / steps)
             # the remaining displacement shrank by the fraction taken last step
             x0 = None if prev is None else prev * frac
-            disp[asm.free] = lin.solve(K, rhs, x0)
+            u_free = lin.solve(K, rhs, x0)
+            disp[asm.free] = u_free
         if f is not None:
             disp *= f[:, None]
         stats.solves += 1
@@ -226,7 +227,7 @@ def deform_(
             stats.halvings += 1
         pos = new
         if asm.n_free:
-            prev = disp[asm.free] / frac * (1.0 - theta * frac)
+            prev = u_free / frac * (1.0 - theta * frac)  # U, not f U: what the solve returns
         remaining = 0.0 if (theta == 1.0 and frac == 1.0) else remaining - theta * dt
         stats.iterations = list(lin.iterations)
         if callback is not None:

@@ -18,7 +18,7 @@ from typing import Callable
 
 import numpy as np
 
-from .errors import DeformeshError, OptionError
+from .errors import DeformeshError, InputError, OptionError
 from .mesh import Mesh
 
 def groups(mesh: Mesh) -> dict[str, tuple[int, int]]:
@@ -299,19 +299,25 @@ def write_bytes(data: bytes, path: str) -> None:
             f.write(data)
 
 
+def _existing_file(path: str) -> Path:
+    """``path`` as a Path, or an :class:`InputError` if it is missing or a folder."""
+    p = Path(path)
+    if not p.exists():
+        raise InputError(f"{path}: no such file")
+    if p.is_dir():
+        raise InputError(f"{path}: is a directory")
+    return p
+
+
 def read_bytes(path: str) -> bytes:
     """Read a whole file, or all of stdin for ``-`` (works on non-seekable pipes)."""
     if path == "-":
         return sys.stdin.buffer.read()
-    p = Path(path)
-    if not p.exists():
-        raise DeformeshError(f"{path}: no such file")
-    if p.is_dir():
-        raise DeformeshError(f"{path}: is a directory")
+    p = _existing_file(path)
     try:
         return p.read_bytes()
     except OSError as exc:
-        raise DeformeshError(f"{path}: cannot read: {exc.strerror}") from None
+        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
 
 
 def read_mesh(path: str, fmt: str | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -322,11 +328,7 @@ def read_mesh(path: str, fmt: str | None = None) -> tuple[np.ndarray, np.ndarray
     """
     import meshio
 
-    p = Path(path)
-    if not p.exists():
-        raise DeformeshError(f"{path}: no such file")
-    if p.is_dir():
-        raise DeformeshError(f"{path}: is a directory")
+    _existing_file(path)
     try:
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
             m = meshio.read(path, file_format=fmt)

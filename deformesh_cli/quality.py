@@ -58,22 +58,20 @@ def radius_ratio(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
         return np.nan_to_num(2 * r_in / r_circ)
 
 
+#: The measures of :func:`report` that a meshing summary (``--json``) carries.
+SUMMARY_KEYS = ("min_angle", "max_angle", "smallest_area", "mean_radius_ratio",
+                "min_radius_ratio", "area")
+
+
 def stats(mesh: Mesh) -> dict:
-    """Summary numbers of a mesh (JSON-ready)."""
-    ang = angles(mesh.points, mesh.triangles)
-    area = signed_areas(mesh.points, mesh.triangles)
-    rr = radius_ratio(mesh.points, mesh.triangles)
+    """Summary numbers of a mesh (JSON-ready): counts, then :data:`SUMMARY_KEYS`."""
+    r = report(mesh.points, mesh.triangles)
     return {
-        "nodes": int(mesh.n_nodes),
-        "triangles": int(len(mesh.triangles)),
+        "nodes": r["nodes"],
+        "triangles": r["triangles"],
         "boundary_nodes": int(len(mesh.lines)),
         "extra_boundary_nodes": int(mesh.n_extra),
-        "min_angle": float(ang.min()),
-        "max_angle": float(ang.max()),
-        "smallest_area": float(area.min()),
-        "mean_radius_ratio": float(rr.mean()),
-        "min_radius_ratio": float(rr.min()),
-        "area": float(area.sum()),
+        **{k: r[k] for k in SUMMARY_KEYS},
     }
 
 
@@ -137,15 +135,12 @@ def area_tolerance(contour: Contour, area: float, box=None) -> float:
 
 def _check_boundary(mesh: Mesh, contour: Contour, box) -> None:
     src = contour.source
-    tri, pts = mesh.triangles, mesh.points
-    n = len(pts)
-    e = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
-    key = np.minimum(e[:, 0], e[:, 1]) * n + np.maximum(e[:, 0], e[:, 1])
-    uk, counts = np.unique(key, return_counts=True)
-    if (counts > 2).any():
+    n = len(mesh.points)
+    e, uses = _edge_uses(mesh.triangles, n)
+    if (uses > 2).any():
         raise ContractError(f"{src}: an edge is shared by more than two triangles")
     # directed boundary edges (domain on the left) must equal the line cells
-    directed = e[np.isin(key, uk[counts == 1])]
+    directed = e[uses == 1]
     lines = mesh.lines
     if len(directed) != len(lines) or not np.array_equal(
         np.unique(directed[:, 0] * n + directed[:, 1]), np.unique(lines[:, 0] * n + lines[:, 1])
@@ -247,12 +242,18 @@ def report(points: np.ndarray, tri: np.ndarray) -> dict:
     }
 
 
-def boundary_edges(tri: np.ndarray, n: int) -> np.ndarray:
-    """Directed edges used by one triangle only (domain on their left for CCW triangles)."""
+def _edge_uses(tri: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Every triangle's directed edges (3t, 2) and how many triangles use each one."""
     e = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
     key = np.minimum(e[:, 0], e[:, 1]) * n + np.maximum(e[:, 0], e[:, 1])
-    uk, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
-    return e[counts[inv] == 1]
+    _, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
+    return e, counts[inv]
+
+
+def boundary_edges(tri: np.ndarray, n: int) -> np.ndarray:
+    """Directed edges used by one triangle only (domain on their left for CCW triangles)."""
+    e, uses = _edge_uses(tri, n)
+    return e[uses == 1]
 
 
 def mesh_for_contour(points: np.ndarray, tri: np.ndarray, contour: Contour):

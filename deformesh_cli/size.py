@@ -66,6 +66,14 @@ class ContourDistance:
         return best
 
 
+def box_samples(box, n: int) -> np.ndarray:
+    """The centres of an n x n split of ``box``: the midpoint rule's nodes for box means."""
+    x0, y0, x1, y1 = box
+    xs = x0 + (np.arange(n) + 0.5) * (x1 - x0) / n
+    ys = y0 + (np.arange(n) + 0.5) * (y1 - y0) / n
+    return np.column_stack([np.repeat(xs, n), np.tile(ys, n)])
+
+
 def _segment_distance(q, a, b):
     ab = b - a
     t = np.clip(((q - a) * ab).sum(axis=1) / np.maximum((ab * ab).sum(axis=1), 1e-300), 0, 1)
@@ -99,11 +107,7 @@ class SizeFunction:
 
     def normalise(self, box, n: int = 256) -> None:
         """Scale so that the mean of ``1/f`` over ``box`` is 1 (midpoint rule, n x n)."""
-        x0, y0, x1, y1 = box
-        xs = x0 + (np.arange(n) + 0.5) * (x1 - x0) / n
-        ys = y0 + (np.arange(n) + 0.5) * (y1 - y0) / n
-        q = np.column_stack([np.repeat(xs, n), np.tile(ys, n)])
-        self.scale = float(np.mean(1.0 / self.values(q)))
+        self.scale = float(np.mean(1.0 / self.values(box_samples(box, n))))
 
     def g1(self, q: np.ndarray) -> np.ndarray:
         """``1/f`` normalised, at points: the deformation's target density."""
@@ -214,10 +218,17 @@ def spearman(points: np.ndarray, tri: np.ndarray, size: SizeFunction,
     return float(spearmanr(signed_areas(points, t), f).statistic)
 
 
-def make(expr: str | None, field_path: str | None, contour: Contour) -> SizeFunction | None:
-    """The size function of ``--size`` / ``--size-field`` (at most one), or ``None``."""
+def check_options(expr: str | None, field_path: str | None) -> None:
+    """The usage errors of ``--size`` / ``--size-field``, found before any contour is read."""
     if expr is not None and field_path is not None:
         raise OptionError("give --size or --size-field, not both")
+    if expr is not None:
+        compile_expression(expr)
+
+
+def make(expr: str | None, field_path: str | None, contour: Contour) -> SizeFunction | None:
+    """The size function of ``--size`` / ``--size-field`` (at most one), or ``None``."""
+    check_options(expr, field_path)
     if expr is not None:
         return from_expression(expr, contour)
     if field_path is not None:
@@ -240,11 +251,7 @@ class SizePath:
         self.g1 = g1
         self.geometric = geometric
         if geometric:
-            x0, y0, x1, y1 = box
-            xs = x0 + (np.arange(n) + 0.5) * (x1 - x0) / n
-            ys = y0 + (np.arange(n) + 0.5) * (y1 - y0) / n
-            q = np.column_stack([np.repeat(xs, n), np.tile(ys, n)])
-            self._log_samples = np.log(g1(q))
+            self._log_samples = np.log(g1(box_samples(box, n)))
 
     def g_and_rate(self, q: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
         """``g`` and ``dg/dt`` at points ``q`` and pseudo-time ``t``."""
