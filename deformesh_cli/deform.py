@@ -149,6 +149,7 @@ def deform_(
     describe: Callable[[int], str] | None = None,
     solver: str = "auto",
     size=None,
+    slide=None,
 ) -> tuple[np.ndarray, DeformStats]:
     """Deform ``points`` so that ``points[path_nodes] == targets`` exactly, never folding.
 
@@ -172,6 +173,10 @@ def deform_(
     callback : called with (pseudo-time done in [0, 1], stats) after each accepted step.
     describe : turns a node id into words for error messages.
     solver : one of :data:`SOLVERS`.
+    slide : a :class:`deformesh_cli.respace.Slide`: the path nodes then follow
+        the contour (``slide.at(t)``; the first step closes the gap from the
+        grid node to the contour) instead of straight lines; ``targets`` must
+        equal ``slide.at(1)``.
 
     Returns the new coordinates and :class:`DeformStats`.
     """
@@ -188,10 +193,19 @@ def deform_(
     ud = np.zeros((n, 2))
     lin = LinearSolver(solver)
     prev = None  # last free-node solution (U) per unit of step, for warm starts
+    offset0 = None if slide is None else pos[path_nodes] - slide.at(0.0)
     while remaining > 0:
         dt = min(1.0, remaining)
         frac = dt / remaining
-        share = (targets - pos[path_nodes]) * frac
+        if slide is None:
+            share = (targets - pos[path_nodes]) * frac
+        else:
+            t_next = 1.0 if frac == 1.0 else 1.0 - (remaining - dt) / steps
+            # the offset from the grid node to the contour is closed in the first step:
+            # carried further, it would point the wrong way once the node has slid
+            # round a bend (measured: folds on naca0012_1000 at t = 0.9)
+            fade = max(0.0, 1.0 - steps * t_next)
+            share = slide.at(t_next) + fade * offset0 - pos[path_nodes]
         f = None
         if size is not None:
             g, rate = size.g_and_rate(pos, 1.0 - remaining / steps)

@@ -12,11 +12,13 @@ import numpy as np
 
 from . import deform as _deform
 from . import quality, triangulate
+from . import respace as _respace
 from . import size as _size
 from .contour import Contour
 from .deform import DEFAULT_STEPS, DeformStats
+from .errors import FoldError, OptionError
 from .mesh import Mesh
-from .select import DEFAULT_MAX_NODES, Selection, select
+from .select import DEFAULT_MAX_NODES, EVEN_SPACING_RATIO, Selection, select
 from .size import SizeFunction
 
 
@@ -37,10 +39,37 @@ class MeshResult:
     report: dict = field(default_factory=dict)
 
 
+#: ``--grid`` choices: ``adapt`` selects on the evenly re-spaced contour and slides
+#: (:mod:`.respace`); ``uniform`` is Appendix A's grid; ``auto`` adapts when the
+#: spacing is uneven (ratio over :data:`~.select.EVEN_SPACING_RATIO`), ``--h`` is
+#: not given and the mesh is not exterior.
+GRIDS = ("auto", "adapt", "uniform")
+
+
+def grid_mode(contour: Contour, grid: str = "auto", h=None, exterior: bool = False) -> str:
+    if grid not in GRIDS:
+        raise OptionError(f"--grid must be one of {', '.join(GRIDS)}, got {grid!r}")
+    if grid != "auto":
+        return grid
+    if h is not None or exterior:
+        return "uniform"
+    return "adapt" if _respace.spacing_ratio(contour) > EVEN_SPACING_RATIO else "uniform"
+
+
+def candidate_selections(contour: Contour, h=None, box=None, margin=None, strict=False,
+                         max_nodes=DEFAULT_MAX_NODES, exterior=False, grid: str = "auto"):
+    """The selections ``all`` tries in turn (one for a uniform grid)."""
+    if grid_mode(contour, grid, h, exterior) == "adapt":
+        yield from _respace.candidate_selections(contour, h, box, margin, strict, max_nodes,
+                                                 exterior)
+    else:
+        yield select(contour, h=h, box=box, margin=margin, strict=strict,
+                     max_nodes=max_nodes, exterior=exterior)
+
+
 def run_select(contour: Contour, h=None, box=None, margin=None, strict=False,
-               max_nodes=DEFAULT_MAX_NODES, exterior=False) -> Selection:
-    return select(contour, h=h, box=box, margin=margin, strict=strict, max_nodes=max_nodes,
-                  exterior=exterior)
+               max_nodes=DEFAULT_MAX_NODES, exterior=False, grid: str = "auto") -> Selection:
+    return next(candidate_selections(contour, h, box, margin, strict, max_nodes, exterior, grid))
 
 
 def run_deform(contour: Contour, sel: Selection, steps: int = DEFAULT_STEPS,
@@ -55,6 +84,9 @@ def run_deform(contour: Contour, sel: Selection, steps: int = DEFAULT_STEPS,
         pts0, tri, sel.path_nodes, sel.path_targets, grid.boundary_nodes(),
         steps=steps, callback=callback, describe=_describer(contour, sel), solver=solver,
         size=None if size is None else _size.SizePath(size.g1, grid.box),
+        slide=None if sel.path_slide is None else _respace.Slide(
+            contour, sel.path_ring, sel.path_slide[:, 0], sel.path_slide[:, 1],
+            sel.path_targets),
     )
     return Deformed(sel, pos, st)
 
@@ -89,13 +121,21 @@ def run_triangulate(contour: Contour, d: Deformed,
 def mesh_contour(contour: Contour, h=None, box=None, margin=None, strict=False,
                  max_nodes=DEFAULT_MAX_NODES, steps=DEFAULT_STEPS, callback=None,
                  solver: str = "auto", exterior: bool = False,
-                 size: SizeFunction | None = None) -> MeshResult:
+                 size: SizeFunction | None = None, grid: str = "auto") -> MeshResult:
     """Mesh the inside of ``contour`` (or the box minus it, ``exterior``).
 
-    The result meets the contract or this raises.
+    On an adapted grid, a selection whose deformation folds gives way to the
+    next finer one.  The result meets the contract or this raises.
     """
-    sel = run_select(contour, h, box, margin, strict, max_nodes, exterior)
-    d = run_deform(contour, sel, steps, callback, solver, size)
+    fold = None
+    for sel in candidate_selections(contour, h, box, margin, strict, max_nodes, exterior, grid):
+        try:
+            d = run_deform(contour, sel, steps, callback, solver, size)
+            break
+        except FoldError as exc:
+            fold = fold or exc
+    else:
+        raise fold
     mesh, report = run_triangulate(contour, d, size)
     report.update(selection_report(sel))
     return MeshResult(mesh, sel, d.stats, report)

@@ -228,6 +228,9 @@ class Selection:
     path_rule: str = "appendix-a"
     path_ring: np.ndarray | None = None
     exterior: bool = False
+    #: (n_path, 2) arc lengths along the contour where each path node starts and
+    #: ends when the grid was adapted (:mod:`.respace`); None for straight moves.
+    path_slide: np.ndarray | None = None
 
     def __post_init__(self):
         if self.path_ring is None:

@@ -75,7 +75,8 @@ class Between:
 
     def g_and_rate(self, q, t):
         a, b = (np.ones(len(q)) if self.g_start is None else self.g_start(q)), self.g_end(q)
-        return (1 - t) * a + t * b, b - a
+        g = a ** (1 - t) * b ** t
+        return g, g * (np.log(b) - np.log(a))
 
 
 def adapt(grid, tri, s, s_k, box, steps, ratio):
