@@ -106,7 +106,8 @@ def run_task(task: Task) -> tuple[dict, list[tuple[str, bytes]]]:
         res = mesh_contour(c, o.get("h"), o.get("box"), o.get("margin"), o.get("strict", False),
                            o.get("max_nodes", DEFAULT_MAX_NODES), o.get("steps", DEFAULT_STEPS),
                            solver=o.get("solver", "auto"), exterior=o.get("exterior", False),
-                           size=size_make(o.get("size"), o.get("size_field"), c))
+                           size=size_make(o.get("size"), o.get("size_field"), c),
+                           grid=o.get("grid", "auto"))
         files = io.mesh_files(res.mesh, Path(task.output).name, o["fmt"],
                               o.get("msh_version", "2.2"))
         r = res.report

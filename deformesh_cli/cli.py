@@ -115,6 +115,12 @@ select_options = [
     click.option("--exterior", is_flag=True,
                  help="Mesh the box minus the contour (e.g. an airfoil in a far-field box). "
                       "Default margin: the contour's larger extent."),
+    click.option("--grid", "grid", type=click.Choice(pipeline.GRIDS), default="auto",
+                 show_default=True,
+                 help="'adapt': select on the points evenly re-spaced between corners with h "
+                      "their median spacing, then slide each node along the contour to its "
+                      "point; 'uniform': Appendix A's grid; 'auto': adapt when the spacing "
+                      "varies more than 4x (and no --h, not --exterior)."),
 ]
 size_options = [
     click.option("--size", "size_expr", default=None, metavar="EXPR",
@@ -167,11 +173,11 @@ def cli():
 @quiet_option
 @_handle_errors
 def select_cmd(contour, output, h, box, margin, strict, max_nodes, decimal, tolerance,
-               element_id, resample, exterior, quiet):
+               element_id, resample, exterior, grid, quiet):
     """Lay the background grid and pick one grid node per contour point (stage 1)."""
     _check_binary_stdout(output)
     c = _read_contour(contour, decimal, tolerance, element_id, resample)
-    sel = pipeline.run_select(c, h, box, margin, strict, max_nodes, exterior)
+    sel = pipeline.run_select(c, h, box, margin, strict, max_nodes, exterior, grid)
     io.write_bytes(state.dumps(state.State("selected", c, sel)), output)
     g = sel.grid
     _say(quiet, f"{c.source}: selected {c.n} grid nodes on a {g.nx}x{g.ny} grid "
@@ -292,7 +298,7 @@ def summary_line(r: dict) -> str:
 @quiet_option
 @_handle_errors
 def all_cmd(contours, output, out_dir, jobs, scheduler, fail_fast, h, box, margin, strict,
-            max_nodes, decimal, tolerance, element_id, resample, exterior, steps, solver,
+            max_nodes, decimal, tolerance, element_id, resample, exterior, grid, steps, solver,
             size_expr, size_field, fmt, msh_version, png, as_json, quiet):
     """Run select, deform and triangulate in one process, for one contour or a batch."""
     t0 = time.perf_counter()
@@ -305,7 +311,8 @@ def all_cmd(contours, output, out_dir, jobs, scheduler, fail_fast, h, box, margi
         options = dict(h=h, box=box, margin=margin, strict=strict, max_nodes=max_nodes,
                        decimal=decimal, tolerance=tolerance, element_id=element_id,
                        resample=resample,
-                       exterior=exterior, steps=steps, solver=solver, msh_version=msh_version,
+                       exterior=exterior, grid=grid, steps=steps, solver=solver,
+                       msh_version=msh_version,
                        size=size_expr, size_field=size_field)
         _batch(list(contours), out_dir, fmt, options, jobs, scheduler, fail_fast, as_json, quiet,
                t0)
@@ -322,7 +329,7 @@ def all_cmd(contours, output, out_dir, jobs, scheduler, fail_fast, h, box, margi
     size = _size.make(size_expr, size_field, c)
     with _steps_bar(steps, quiet) as progress:
         res = pipeline.mesh_contour(c, h, box, margin, strict, max_nodes, steps, solver=solver,
-                                    exterior=exterior, callback=progress, size=size)
+                                    exterior=exterior, callback=progress, size=size, grid=grid)
     _finish(c, res.mesh, res.report, output, fmt, as_json, quiet, t0, msh_version, png)
 
 

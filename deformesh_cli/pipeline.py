@@ -58,13 +58,23 @@ def grid_mode(contour: Contour, grid: str = "auto", h=None, exterior: bool = Fal
 
 def candidate_selections(contour: Contour, h=None, box=None, margin=None, strict=False,
                          max_nodes=DEFAULT_MAX_NODES, exterior=False, grid: str = "auto"):
-    """The selections ``all`` tries in turn (one for a uniform grid)."""
-    if grid_mode(contour, grid, h, exterior) == "adapt":
+    """The selections ``all`` tries in turn.
+
+    On an adapted grid: the re-spaced ones (:func:`.respace.candidate_selections`),
+    then, if none could be selected or all of them folded, Appendix A's uniform grid
+    (whose errors are the ones reported).
+    """
+    mode = grid_mode(contour, grid, h, exterior)
+    if mode == "adapt":
         yield from _respace.candidate_selections(contour, h, box, margin, strict, max_nodes,
                                                  exterior)
-    else:
-        yield select(contour, h=h, box=box, margin=margin, strict=strict,
-                     max_nodes=max_nodes, exterior=exterior)
+        h = None if grid == "auto" else h
+    sel = select(contour, h=h, box=box, margin=margin, strict=strict,
+                 max_nodes=max_nodes, exterior=exterior)
+    if mode == "adapt":
+        sel.notes.insert(0, "the adapted grid did not work here (selection or folding): "
+                         "fell back to the uniform grid")
+    yield sel
 
 
 def run_select(contour: Contour, h=None, box=None, margin=None, strict=False,

@@ -187,8 +187,9 @@ class Slide:
         return out
 
 
-#: How many times the ladder halves the typical spacing before giving up.
-MAX_HALVINGS = 4
+#: How many times the ladder halves the typical spacing before giving up (each
+#: halving doubles how many cells a node slides; s1223 still folded at h/16).
+MAX_HALVINGS = 1
 
 
 def candidate_selections(contour: Contour, h=None, box=None, margin=None, strict: bool = False,
@@ -200,22 +201,20 @@ def candidate_selections(contour: Contour, h=None, box=None, margin=None, strict
     node of its own) and is halved while the copy's path touches itself
     (features narrower than a cell) and the grid fits ``max_nodes``.  The
     caller deforms each until one does not fold.  A given ``h`` starts the
-    ladder instead.  Raises the first
-    :class:`LimitError` or :class:`SelectionError` when no step works.
+    ladder instead.  Yields nothing more when no step works (the caller
+    falls back to the uniform grid).
     """
     rs = respace(contour)
     ref = rs.copy if rs is not None else contour
     h0 = float(np.median(ref.edge_lengths())) if h is None else float(h)
-    first_error = None
     for k in range(MAX_HALVINGS + 1):
         h = h0 / 2**k
         try:
             sel = select(ref, h=h, box=box, margin=margin, strict=strict,
                          max_nodes=max_nodes, exterior=exterior)
-        except LimitError as exc:
-            raise (first_error or exc) from None
-        except SelectionError as exc:
-            first_error = first_error or exc
+        except LimitError:
+            return
+        except SelectionError:
             continue
         s0, s1, final = (path_arclengths(rs, sel.path_source, sel.path_targets)
                          if rs is not None else (None, None, sel.path_targets))
@@ -227,5 +226,3 @@ def candidate_selections(contour: Contour, h=None, box=None, margin=None, strict
                          "evenly re-spaced between corners" + (f" / {2**k}" if k else "")
                          + "; the deformation slides each node along the contour to its point")
         yield sel
-    if first_error is not None:
-        raise first_error

@@ -79,6 +79,8 @@ def dumps(state: State) -> bytes:
         "contour_starts": np.asarray(state.contour.starts, dtype=np.int64),
         "diagonals": sel.diagonals,
     }
+    if sel.path_slide is not None:
+        arrays["path_slide"] = sel.path_slide
     if state.stage == "deformed":
         arrays["points"] = state.points
     buf = io.BytesIO()
@@ -119,6 +121,8 @@ def loads(data: bytes, name: str = "<state>", want: str | None = None) -> State:
     spec = dict(_ARRAYS)
     if stage == "deformed":
         spec["points"] = ("f", 2, (2,))
+    if "path_slide.npy" in zf.namelist():  # optional: an adapted grid's slide
+        spec["path_slide"] = ("f", 2, (2,))
     arrays = {}
     try:
         for key, (kind, ndim, tail) in spec.items():
@@ -140,6 +144,7 @@ def loads(data: bytes, name: str = "<state>", want: str | None = None) -> State:
         and len(arrays["diagonals"]) == grid.nx * grid.ny
         and len(arrays["path_targets"]) == p and len(arrays["path_source"]) == p
         and len(arrays["path_ring"]) == p
+        and len(arrays.get("path_slide", arrays["path_ring"])) == p
         and p >= 3 and arrays["path_nodes"].min() >= 0 and arrays["path_nodes"].max() < n
         and len(arrays["contour_lines"]) == len(arrays["contour_points"])
         and (stage != "deformed" or arrays["points"].shape == (n, 2))
@@ -174,5 +179,6 @@ def loads(data: bytes, name: str = "<state>", want: str | None = None) -> State:
         path_rule=str(meta.get("path_rule", "appendix-a")),
         path_ring=arrays["path_ring"].astype(np.int64),
         exterior=bool(meta.get("exterior", False)),
+        path_slide=arrays.get("path_slide"),
     )
     return State(stage, contour, sel, arrays.get("points"), meta)

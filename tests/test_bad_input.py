@@ -46,8 +46,9 @@ CASES = {
     "open.svg": (SVG.format("<path id='p' d='M1 1 L8 1 L4 7'/>"), 1,
                  r"open\.svg: path#p subpath 1 is not closed: it ends at \(4, 2\)"),
     "broken.svg": ("<svg><path d='M0 0", 1, r"broken\.svg: not a readable SVG file"),
-    "uneven.csv": ("0,0\n1,0\n1,1e-7\n0,1\n", 1,
-                   r"uneven\.csv: the background grid would need .* nodes .*points 1 and 2\)"),
+    # a slit 1e-7 wide: beyond the adapted grid (its path touches itself) and Appendix A's
+    "slit.csv": ("0,0\n1,0\n1,1\n0.5,1\n0.5,1e-7\n0.4999999,1\n0,1\n", 1,
+                 r"slit\.csv: the background grid would need .* nodes .*points 3 and 5\)"),
 }
 
 

@@ -66,13 +66,23 @@ def test_naca0012_100_with_h_001(run, tmp_path):
     assert any("traced the grid path" in n for n in rec["notes"])
 
 
-def test_uneven_contour_refused_with_estimate_and_no_file(run, tmp_path):
+def test_uneven_contour_on_the_uniform_grid_refused_with_estimate_and_no_file(run, tmp_path):
     out = tmp_path / "naca.vtk"
-    r = run("all", shared("naca0012_1000.csv"), "-o", out)
+    r = run("all", shared("naca0012_1000.csv"), "-o", out, "--grid", "uniform")
     assert r.exit_code == 1
     assert "3.6e+10 nodes" in r.stderr and "--resample 0.00224" in r.stderr
     assert r.stderr.count("\n") == 1
     assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_uneven_contour_meshes_on_the_adapted_grid_by_default_and_through_a_pipe(run, tmp_path):
+    c = shared("naca0012_1000.csv")
+    rec = _mesh_ok(run, c, tmp_path / "a.vtk")
+    assert rec["h_rule"] == "typical-spacing" and rec["extra_boundary_nodes"] == 0
+    assert run("select", c, "-o", tmp_path / "s").exit_code == 0
+    assert run("deform", tmp_path / "s", "-o", tmp_path / "d").exit_code == 0
+    assert run("triangulate", tmp_path / "d", "-o", tmp_path / "b.vtk").exit_code == 0
+    assert (tmp_path / "a.vtk").read_bytes() == (tmp_path / "b.vtk").read_bytes()
 
 
 @pytest.mark.parametrize(

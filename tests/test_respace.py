@@ -1,0 +1,149 @@
+"""The adapted grid (issue 5): select on the contour evenly re-spaced between corners,
+then slide every node along the contour to its real point."""
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from deformesh_cli import respace
+from deformesh_cli.contour import load_contour, make_contour, next_on_ring
+from deformesh_cli.pipeline import candidate_selections, grid_mode, mesh_contour, run_select
+from deformesh_cli.quality import check_contract
+
+from .conftest import shared
+
+
+def _on_polygon(p, q):
+    """Distance from each point of p to the closed polygon q."""
+    a, b = q, np.roll(q, -1, axis=0)
+    ab = b - a
+    t = np.clip(((p[:, None, :] - a) * ab).sum(-1) / (ab * ab).sum(-1), 0, 1)
+    return np.hypot(*(a + t[..., None] * ab - p[:, None, :]).transpose(2, 0, 1)).min(axis=1)
+
+
+def _cosine_airfoil(n=200, clockwise=False):
+    th = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    x = (1 + np.cos(th)) / 2
+    y = 0.12 / 0.2 * np.sign(np.sin(th)) * (0.2969 * np.sqrt(x) - 0.126 * x - 0.3516 * x**2
+                                             + 0.2843 * x**3 - 0.1036 * x**4)
+    p = np.column_stack([x, y])
+    return make_contour(p[::-1] if clockwise else p)
+
+
+def test_naca0012_1000_meshes_with_exactly_its_points_and_no_extra_node():
+    c = load_contour(shared("naca0012_1000.csv"))
+    assert grid_mode(c) == "adapt"
+    res = mesh_contour(c)  # raises unless the contract holds
+    r = res.report
+    assert r["h_rule"] == "typical-spacing"
+    assert r["extra_boundary_nodes"] == 0
+    assert len(res.mesh.lines) == 1000  # boundary edges: exactly the contour's
+    on = np.unique(res.mesh.lines.ravel())
+    assert len(on) == 1000
+    np.testing.assert_array_equal(np.sort(res.mesh.points[on], axis=0), np.sort(c.points, axis=0))
+    # the grid followed the typical spacing, not the smallest (Appendix A: 3.6e10 nodes)
+    assert r["grid_nodes"] < 50_000
+
+
+@pytest.mark.parametrize("clockwise", [False, True])
+def test_copy_lies_on_the_contour_evenly_spaced_between_corners(clockwise):
+    c = _cosine_airfoil(clockwise=clockwise)
+    rs = respace.respace(c)
+    assert rs is not None
+    assert _on_polygon(rs.copy.points, c.points).max() < 1e-12
+    e_real, e_copy = c.edge_lengths(), rs.copy.edge_lengths()
+    assert e_real.max() / e_real.min() > 30
+    corners = respace.corners(c.points)
+    np.testing.assert_array_equal(rs.copy.points[corners], c.points[corners])
+    # between consecutive piece ends the copy's spacing is even (to round-off)
+    ends = np.union1d([0, c.n], corners)
+    nxt = next_on_ring(c.ring)
+    for i, j in zip(ends[:-1], ends[1:]):
+        seg = np.hypot(*(c.points[nxt[i:j]] - c.points[i:j]).T)
+        s = np.cumsum(seg)
+        piece = e_copy[i:j - 1] if j - i > 1 else e_copy[i:i]
+        if len(piece):  # chords of an even arc-length split: never longer than the arc step
+            assert piece.max() <= s[-1] / (j - i) * (1 + 1e-9)
+    assert np.all(np.diff(rs.s_copy) > 0) and np.all(np.diff(rs.s_real) > 0)
+
+
+def test_slide_starts_on_the_copy_and_ends_exactly_on_the_points():
+    c = _cosine_airfoil(clockwise=True)
+    rs = respace.respace(c)
+    sel = next(respace.candidate_selections(c))
+    s0, s1 = sel.path_slide.T
+    sl = respace.Slide(c, sel.path_ring, s0, s1, sel.path_targets)
+    on = sel.path_source >= 0
+    np.testing.assert_allclose(sl.at(0.0)[on], rs.copy.points[sel.path_source[on]], atol=1e-12)
+    np.testing.assert_array_equal(sl.at(1.0)[on], c.points[sel.path_source[on]])
+    # half way, every node is on the contour
+    assert _on_polygon(sl.at(0.5), c.points).max() < 1e-12
+
+
+def test_extra_nodes_end_on_their_contour_edge():
+    c = _cosine_airfoil(n=120, clockwise=True)
+    sel = run_select(c, h=float(np.median(c.edge_lengths())) / 4, grid="adapt")
+    extra = np.flatnonzero(sel.path_source < 0)
+    assert len(extra) > 10
+    src = sel.path_source
+    for k in extra:
+        a = k - 1
+        while src[a] < 0:
+            a -= 1
+        b = (k + 1) % len(src)
+        while src[b] < 0:
+            b = (b + 1) % len(src)
+        pa, pb, q = c.points[src[a]], c.points[src[b]], sel.path_targets[k]
+        cross = (pb - pa)[0] * (q - pa)[1] - (pb - pa)[1] * (q - pa)[0]
+        assert abs(cross) <= 1e-12 * np.dot(pb - pa, pb - pa) ** 0.5 + 1e-15
+        assert 0 <= np.dot(q - pa, pb - pa) <= np.dot(pb - pa, pb - pa)
+    res = mesh_contour(c, h=float(np.median(c.edge_lengths())) / 4, grid="adapt")
+    check_contract(res.mesh, c)
+
+
+def test_grid_mode_rules():
+    even = make_contour(np.column_stack([np.cos(np.linspace(0, 6.28, 50, endpoint=False)),
+                                         np.sin(np.linspace(0, 6.28, 50, endpoint=False))]))
+    uneven = _cosine_airfoil()
+    assert grid_mode(even) == "uniform"
+    assert grid_mode(uneven) == "adapt"
+    assert grid_mode(uneven, h=0.01) == "uniform"
+    assert grid_mode(uneven, exterior=True) == "uniform"
+    assert grid_mode(even, "adapt") == "adapt"
+
+
+def test_falls_back_to_the_uniform_grid_when_the_copy_has_no_simple_path():
+    # a slit narrower than the copy's spacing: the copy's path touches itself at h and h/2
+    p = np.array([[0, 0], [1, 0], [1, 1], [0.52, 1], [0.52, 0.2], [0.5, 0.2], [0.5, 1],
+                  [0, 1]], float)
+    c = make_contour(p)
+    sels = list(candidate_selections(c, grid="adapt", max_nodes=400_000))
+    assert sels[-1].h_rule == "appendix-a"
+    assert "fell back to the uniform grid" in sels[-1].notes[0]
+
+
+@st.composite
+def clustered_rings(draw):
+    """Star-shaped rings whose points cluster: angles from a random monotone warp."""
+    n = draw(st.integers(12, 80))
+    k = draw(st.integers(1, 3))
+    amp = draw(st.floats(0.0, 0.35))
+    power = draw(st.floats(1.5, 4.0))
+    u = np.arange(n) / n
+    warp = u - np.sin(2 * np.pi * k * u) / (2 * np.pi * k) * draw(st.floats(0.5, 0.98))
+    th = 2 * np.pi * warp ** 1.0
+    th = np.sort(np.mod(th + 0.1, 2 * np.pi))
+    if np.min(np.diff(np.r_[th, th[0] + 2 * np.pi])) < 1e-4:
+        th = 2 * np.pi * u
+    r = 1 + amp * np.cos(draw(st.integers(2, 6)) * th) ** 2 * np.sign(np.cos(th)) / power
+    return np.column_stack([r * np.cos(th), r * np.sin(th)])
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(clustered_rings())
+def test_adapted_grid_meets_the_contract_on_clustered_rings(pts):
+    c = make_contour(pts)
+    res = mesh_contour(c, grid="adapt", max_nodes=400_000)  # raises on any contract breach
+    on = np.unique(res.mesh.lines.ravel())
+    assert len(on) == c.n + res.report["extra_boundary_nodes"]
