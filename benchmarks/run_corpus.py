@@ -2,6 +2,8 @@
 rate and the time per contour into benchmarks/RESULTS.md (section "corpus").
 
 Usage: python benchmarks/run_corpus.py [--jobs N] [--max-nodes N]   (make bench)
+       python benchmarks/run_corpus.py --records FILE --wall SECONDS  (format a run already
+       made: FILE holds the batch's --json output)
 """
 
 import argparse
@@ -29,14 +31,21 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--max-nodes", type=int, default=None, help="default: deformesh's own")
+    ap.add_argument("--records", help="the --json output of a batch run already made")
+    ap.add_argument("--wall", type=float, default=0.0, help="with --records: its wall time")
     args = ap.parse_args()
     extra = ["--max-nodes", str(args.max_nodes)] if args.max_nodes else []
-    with tempfile.TemporaryDirectory() as d:
-        t = time.perf_counter()
-        p = subprocess.run([EXE, "all", str(CORPUS), "--out-dir", d, "--jobs", str(args.jobs),
-                            "--json", "-q", *extra], capture_output=True, text=True)
-        wall = time.perf_counter() - t
-    recs = [json.loads(ln) for ln in p.stdout.splitlines()]
+    if args.records:
+        out, wall = Path(args.records).read_text(), args.wall
+    else:
+        with tempfile.TemporaryDirectory() as d:
+            t = time.perf_counter()
+            p = subprocess.run([EXE, "all", str(CORPUS), "--out-dir", d, "--jobs",
+                                str(args.jobs), "--json", "-q", *extra],
+                               capture_output=True, text=True)
+            wall = time.perf_counter() - t
+        out = p.stdout
+    recs = [json.loads(ln) for ln in out.splitlines()]
     by = collections.defaultdict(list)
     for r in recs:
         by[kind(Path(r["input"]).name)].append(r)

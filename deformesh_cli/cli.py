@@ -119,8 +119,8 @@ select_options = [
                  show_default=True,
                  help="'adapt': select on the points evenly re-spaced between corners with h "
                       "their median spacing, then slide each node along the contour to its "
-                      "point; 'uniform': Appendix A's grid; 'auto': adapt when the spacing "
-                      "varies more than 4x (and no --h, not --exterior)."),
+                      "point; 'uniform': Appendix A's grid; 'auto': adapt when the median "
+                      "spacing is over 4x the smallest (and no --h, not --exterior)."),
 ]
 size_options = [
     click.option("--size", "size_expr", default=None, metavar="EXPR",

@@ -41,8 +41,10 @@ class MeshResult:
 
 #: ``--grid`` choices: ``adapt`` selects on the evenly re-spaced contour and slides
 #: (:mod:`.respace`); ``uniform`` is Appendix A's grid; ``auto`` adapts when the
-#: spacing is uneven (ratio over :data:`~.select.EVEN_SPACING_RATIO`), ``--h`` is
-#: not given and the mesh is not exterior.
+#: median spacing is over :data:`~.select.EVEN_SPACING_RATIO` times the smallest
+#: (Appendix A's grid would be that squared times bigger), ``--h`` is not given
+#: and the mesh is not exterior.  Icons (long edges, even small spacing: median
+#: / smallest 1.1-2) keep Appendix A's grid, which gave them 15-21 degrees.
 GRIDS = ("auto", "adapt", "uniform")
 
 

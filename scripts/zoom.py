@@ -1,0 +1,36 @@
+"""Draw a mesh whole and zoomed: python scripts/zoom.py OUT.png MESH CONTOUR CX,CY,HALF ...
+
+Each CX,CY,HALF adds a panel showing the square of half-width HALF around (CX, CY).
+Used for docs/naca0012_1000.png (README, "The adapted grid").
+"""
+
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import meshio  # noqa: E402
+
+from deformesh_cli.contour import load_contour  # noqa: E402
+
+
+def main(out, mesh_path, contour_path, *windows):
+    m = meshio.read(mesh_path)
+    tri = m.cells_dict["triangle"]
+    c = load_contour(contour_path).points
+    fig, axes = plt.subplots(1, len(windows), figsize=(5 * len(windows), 5))
+    for ax, w in zip(axes, windows):
+        cx, cy, half = (float(v) for v in w.split(","))
+        ax.triplot(m.points[:, 0], m.points[:, 1], tri, lw=0.3, color="k")
+        ax.plot(c[:, 0], c[:, 1], "r.", ms=2)
+        ax.set_xlim(cx - half, cx + half)
+        ax.set_ylim(cy - half, cy + half)
+        ax.set_aspect("equal")
+        ax.set_title(f"({cx:g}, {cy:g}) +- {half:g}")
+    fig.tight_layout()
+    fig.savefig(out, dpi=80)
+
+
+if __name__ == "__main__":
+    main(*sys.argv[1:])
