@@ -16,7 +16,7 @@ from . import respace as _respace
 from . import size as _size
 from .contour import Contour
 from .deform import DEFAULT_STEPS, DeformStats
-from .errors import FoldError, OptionError
+from .errors import FoldError, LimitError, OptionError, SelectionError
 from .mesh import Mesh
 from .select import DEFAULT_MAX_NODES, EVEN_SPACING_RATIO, Selection, select
 from .size import SizeFunction
@@ -130,25 +130,48 @@ def run_triangulate(contour: Contour, d: Deformed,
     return mesh, report
 
 
+#: An adapted-grid mesh whose smallest angle is below this (degrees) gives way to the
+#: next rung of the ladder, and is kept only if no later rung meshes (measured:
+#: icon_si_spotify slid at h had a triangle of 3e-10 degrees).
+MIN_ADAPTED_ANGLE = 1.0
+
+
 def mesh_contour(contour: Contour, h=None, box=None, margin=None, strict=False,
                  max_nodes=DEFAULT_MAX_NODES, steps=DEFAULT_STEPS, callback=None,
                  solver: str = "auto", exterior: bool = False,
                  size: SizeFunction | None = None, grid: str = "auto") -> MeshResult:
     """Mesh the inside of ``contour`` (or the box minus it, ``exterior``).
 
-    On an adapted grid, a selection whose deformation folds gives way to the
-    next finer one.  The result meets the contract or this raises.
+    On an adapted grid, a rung whose deformation folds, or whose mesh has an
+    angle under :data:`MIN_ADAPTED_ANGLE`, gives way to the next one (the
+    nearly flat mesh is kept if nothing later meshes).  The result meets the
+    contract or this raises.
     """
-    fold = None
-    for sel in candidate_selections(contour, h, box, margin, strict, max_nodes, exterior, grid):
+    fold = flat = None
+    candidates = candidate_selections(contour, h, box, margin, strict, max_nodes, exterior, grid)
+    while True:
+        try:
+            sel = next(candidates)
+        except StopIteration:
+            sel = None
+        except (SelectionError, LimitError):
+            if flat is None:
+                raise
+            sel = None
+        if sel is None:
+            if flat is None:
+                raise fold
+            sel, d, mesh, report = flat
+            break
         try:
             d = run_deform(contour, sel, steps, callback, solver, size)
-            break
         except FoldError as exc:
             fold = fold or exc
-    else:
-        raise fold
-    mesh, report = run_triangulate(contour, d, size)
+            continue
+        mesh, report = run_triangulate(contour, d, size)
+        if sel.h_rule != "typical-spacing" or report["min_angle"] >= MIN_ADAPTED_ANGLE:
+            break
+        flat = flat or (sel, d, mesh, report)  # nearly flat: try the next rung first
     report.update(selection_report(sel))
     return MeshResult(mesh, sel, d.stats, report)
 
