@@ -464,6 +464,15 @@ def parse_spacing(value, contour: Contour, option: str = "--resample") -> float:
 CORNER_DEGREES = 30.0
 
 
+def ring_corners(p: np.ndarray) -> np.ndarray:
+    """Indices of one ring's vertices turning by more than :data:`CORNER_DEGREES`."""
+    d_in = p - np.roll(p, 1, axis=0)
+    d_out = np.roll(p, -1, axis=0) - p
+    turn = np.degrees(np.abs(np.arctan2(d_in[:, 0] * d_out[:, 1] - d_in[:, 1] * d_out[:, 0],
+                                        (d_in * d_out).sum(axis=1))))
+    return np.flatnonzero(turn > CORNER_DEGREES)
+
+
 def resample(contour: Contour, spacing: float) -> Contour:
     """The contour re-spaced: each ring's corners (turning > :data:`CORNER_DEGREES`) kept,
     the pieces between them cut into equal chords about ``spacing`` long.
@@ -474,11 +483,7 @@ def resample(contour: Contour, spacing: float) -> Contour:
     pts, starts, notes = [], [0], []
     for r in range(contour.n_rings):
         p = contour.points[contour.ring_order(r)]
-        d_in = p - np.roll(p, 1, axis=0)
-        d_out = np.roll(p, -1, axis=0) - p
-        turn = np.degrees(np.abs(np.arctan2(d_in[:, 0] * d_out[:, 1] - d_in[:, 1] * d_out[:, 0],
-                                            (d_in * d_out).sum(axis=1))))
-        corners = np.flatnonzero(turn > CORNER_DEGREES)
+        corners = ring_corners(p)
         if len(corners) == 0:
             corners = np.array([0])
         new = []

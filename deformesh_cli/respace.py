@@ -36,7 +36,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .contour import CORNER_DEGREES, Contour, make_contour, next_on_ring
+from .contour import Contour, make_contour, next_on_ring
+from .contour import ring_corners as corners
 from .errors import InputError, LimitError, SelectionError
 from .select import DEFAULT_MAX_NODES, select
 
@@ -60,15 +61,6 @@ def spacing_ratio(contour: Contour) -> float:
     """The typical (median) spacing over the smallest: what makes Appendix A's grid big."""
     e = contour.edge_lengths()
     return float(np.median(e) / e.min())
-
-
-def corners(p: np.ndarray) -> np.ndarray:
-    """Indices of one ring's vertices turning by more than CORNER_DEGREES."""
-    d_in = p - np.roll(p, 1, axis=0)
-    d_out = np.roll(p, -1, axis=0) - p
-    turn = np.degrees(np.abs(np.arctan2(d_in[:, 0] * d_out[:, 1] - d_in[:, 1] * d_out[:, 0],
-                                        (d_in * d_out).sum(axis=1))))
-    return np.flatnonzero(turn > CORNER_DEGREES)
 
 
 def respace(contour: Contour) -> Respaced | None:
