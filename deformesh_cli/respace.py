@@ -21,9 +21,12 @@ So, by default for unevenly spaced contours (``--grid adapt``):
    so the grid is compressed where the real points are dense.  That is the
    adaptation: cells near dense points end about as wide as their spacing.
 
+Where that fails, :func:`candidate_selections` walks a short ladder of other
+steps (:data:`LADDER`) before the caller falls back to Appendix A's grid.
+
 Measured (2026-11-24, 2 cores): naca0012_1000 (spacing ratio 316) meshes with
 its 1,000 points and no extra boundary node on a 32k-node grid in 3 s; a
-uniform grid at Appendix A's step would need 4e9 nodes.  A first prototype
+uniform grid at Appendix A's step would need 3.6e10 nodes.  A first prototype
 that adapted the grid with a size function built from the spacing
 (``scripts/prototype_adapt.py``) folded there: the discrete divergence at the
 trailing edge was 2-3 times the prescribed one, because the size function
@@ -96,11 +99,13 @@ def respace(contour: Contour) -> Respaced | None:
     return Respaced(c, copy, s_real, s_copy, lengths)
 
 
-def path_arclengths(rs: Respaced, source: np.ndarray, targets_on_copy: np.ndarray):
+def path_arclengths(rs: Respaced, source: np.ndarray, ring: np.ndarray,
+                    targets_on_copy: np.ndarray):
     """Start and end arc length of every path node, and its exact final position.
 
     A node carrying contour point k goes from ``s_copy[k]`` to ``s_real[k]``
-    and ends exactly on point k.  An extra boundary node on the copy's edge
+    and ends exactly on point k (``ring``: the path's ring of each node).  An
+    extra boundary node on the copy's edge
     (a, b), a fraction ``u`` along it, goes to the same fraction of the real
     edge (a, b), so it ends on that contour edge.
     """
@@ -112,14 +117,17 @@ def path_arclengths(rs: Respaced, source: np.ndarray, targets_on_copy: np.ndarra
     s0[on], s1[on] = rs.s_copy[source[on]], rs.s_real[source[on]]
     final[on] = c.points[source[on]]
     nxt = next_on_ring(c.ring)
+    # each ring's path is one contiguous, cyclic block: search neighbours within it
     for k in np.flatnonzero(~on):  # extra nodes: few, since h follows the copy's spacing
-        a = k - 1
-        while source[a] < 0:
-            a -= 1
-        b = (k + 1) % n
-        while source[b] < 0:
-            b = (b + 1) % n
-        pa, pb = int(source[a]), int(source[b])
+        block = np.flatnonzero(ring == ring[k])
+        lo, size = block[0], len(block)
+        a = (k - lo - 1) % size
+        while source[lo + a] < 0:
+            a = (a - 1) % size
+        b = (k - lo + 1) % size
+        while source[lo + b] < 0:
+            b = (b + 1) % size
+        pa, pb = int(source[lo + a]), int(source[lo + b])
         qa, qb = rs.copy.points[pa], rs.copy.points[pb]
         u = float(np.dot(targets_on_copy[k] - qa, qb - qa) / np.dot(qb - qa, qb - qa))
         u = min(max(u, 0.0), 1.0)
@@ -232,7 +240,8 @@ def candidate_selections(contour: Contour, h=None, box=None, margin=None, strict
             continue
         sel.h_rule = "typical-spacing"
         if slide:
-            s0, s1, sel.path_targets = path_arclengths(rs, sel.path_source, sel.path_targets)
+            s0, s1, sel.path_targets = path_arclengths(rs, sel.path_source, sel.path_ring,
+                                                       sel.path_targets)
             sel.path_slide = np.column_stack([s0, s1])
             sel.notes.insert(0, f"adapted grid: h = {step:.4g}, the median spacing of the "
                              "points evenly re-spaced between corners"

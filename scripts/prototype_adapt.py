@@ -68,7 +68,7 @@ def spacing_field(c, gamma):
 
 
 class Between:
-    """Linear path from density 1/g_start to 1/g_end (both with box mean 1): a stage."""
+    """Geometric path from density 1/g_start to 1/g_end (both with box mean 1): a stage."""
 
     def __init__(self, g_start, g_end):
         self.g_start, self.g_end = g_start, g_end

@@ -81,19 +81,35 @@ def test_slide_starts_on_the_copy_and_ends_exactly_on_the_points():
     assert _on_polygon(sl.at(0.5), c.points).max() < 1e-12
 
 
-def test_extra_nodes_end_on_their_contour_edge():
-    c = _cosine_airfoil(n=120, clockwise=True)
+def _with_hole():
+    outer = _cosine_airfoil(n=120, clockwise=True).points * 4
+    th = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    th = th + 0.6 * np.sin(th)  # uneven on the hole too
+    hole = np.column_stack([1.2 + 0.08 * np.cos(th), 0.08 * np.sin(th)])
+    return make_contour(np.vstack([outer, hole]), ring_starts=[0, 120])
+
+
+@pytest.mark.parametrize("shape", ["airfoil", "with hole"])
+def test_extra_nodes_end_on_their_contour_edge(shape):
+    c = _cosine_airfoil(n=120, clockwise=True) if shape == "airfoil" else _with_hole()
     sel = run_select(c, h=float(np.median(c.edge_lengths())) / 4, grid="adapt")
+    assert sel.path_slide is not None
     extra = np.flatnonzero(sel.path_source < 0)
     assert len(extra) > 10
     src = sel.path_source
     for k in extra:
-        a = k - 1
+        block = np.flatnonzero(sel.path_ring == sel.path_ring[k])  # the ring's cyclic path
+        i = int(np.flatnonzero(block == k)[0])
+        a = block[(i - 1) % len(block)]
         while src[a] < 0:
-            a -= 1
-        b = (k + 1) % len(src)
+            i -= 1
+            a = block[(i - 1) % len(block)]
+        j = int(np.flatnonzero(block == k)[0])
+        b = block[(j + 1) % len(block)]
         while src[b] < 0:
-            b = (b + 1) % len(src)
+            j += 1
+            b = block[(j + 1) % len(block)]
+        assert c.ring[src[a]] == c.ring[src[b]] == sel.path_ring[k]
         pa, pb, q = c.points[src[a]], c.points[src[b]], sel.path_targets[k]
         cross = (pb - pa)[0] * (q - pa)[1] - (pb - pa)[1] * (q - pa)[0]
         assert abs(cross) <= 1e-12 * np.dot(pb - pa, pb - pa) ** 0.5 + 1e-15
