@@ -166,7 +166,7 @@ def mesh_contour(contour: Contour, h=None, box=None, margin=None, strict=False,
         try:
             d = run_deform(contour, sel, steps, callback, solver, size)
         except FoldError as exc:
-            fold = fold or exc
+            fold = exc  # the last one: the uniform grid's, when all rungs folded
             continue
         mesh, report = run_triangulate(contour, d, size)
         if sel.h_rule != "typical-spacing" or report["min_angle"] >= MIN_ADAPTED_ANGLE:
