@@ -200,7 +200,7 @@ def deform_(
         if slide is None:
             share = (targets - pos[path_nodes]) * frac
         else:
-            t_next = 1.0 if frac == 1.0 else 1.0 - (remaining - dt) / steps
+            t_next = 1.0 - (remaining - dt) / steps  # exactly 1.0 on the last step
             # the offset from the grid node to the contour is closed in the first step:
             # carried further, it would point the wrong way once the node has slid
             # round a bend (measured: folds on naca0012_1000 at t = 0.9)

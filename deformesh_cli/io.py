@@ -251,7 +251,8 @@ def write_mesh(mesh: Mesh, path: str, fmt: str | None = None, msh_version: str =
     return fmt
 
 
-def mesh_files(mesh: Mesh, name: str, fmt: str, msh_version: str = "2.2") -> list[tuple[str, bytes]]:
+def mesh_files(mesh: Mesh, name: str, fmt: str,
+               msh_version: str = "2.2") -> list[tuple[str, bytes]]:
     """The files ``write_mesh(mesh, name)`` would write, as ``[(file name, bytes)]`` in the
     order to write them (a sidecar before the file that refers to it)."""
     fmt = format_for(name, fmt)

@@ -70,11 +70,11 @@ def candidate_selections(contour: Contour, h=None, box=None, margin=None, strict
     if mode == "adapt":
         yield from _respace.candidate_selections(contour, h, box, margin, strict, max_nodes,
                                                  exterior)
-        h = None if grid == "auto" else h
     sel = select(contour, h=h, box=box, margin=margin, strict=strict,
                  max_nodes=max_nodes, exterior=exterior)
     if mode == "adapt":
-        sel.notes.insert(0, "the adapted grid did not work here (selection or folding): "
+        sel.notes.insert(0, "the adapted grid did not work here (no simple path, a fold, or "
+                         "an angle under 1 degree on every rung): "
                          "fell back to the uniform grid")
     yield sel
 
@@ -148,30 +148,26 @@ def mesh_contour(contour: Contour, h=None, box=None, margin=None, strict=False,
     contract or this raises.
     """
     fold = flat = None
-    candidates = candidate_selections(contour, h, box, margin, strict, max_nodes, exterior, grid)
-    while True:
-        try:
-            sel = next(candidates)
-        except StopIteration:
-            sel = None
-        except (SelectionError, LimitError):
-            if flat is None:
-                raise
-            sel = None
-        if sel is None:
+    try:
+        for sel in candidate_selections(contour, h, box, margin, strict, max_nodes, exterior,
+                                        grid):
+            try:
+                d = run_deform(contour, sel, steps, callback, solver, size)
+            except FoldError as exc:
+                fold = exc  # the last one: the uniform grid's, when every rung folded
+                continue
+            mesh, report = run_triangulate(contour, d, size)
+            if sel.h_rule != "typical-spacing" or report["min_angle"] >= MIN_ADAPTED_ANGLE:
+                break
+            flat = flat or (sel, d, mesh, report)  # nearly flat: try the next rung first
+        else:
             if flat is None:
                 raise fold
             sel, d, mesh, report = flat
-            break
-        try:
-            d = run_deform(contour, sel, steps, callback, solver, size)
-        except FoldError as exc:
-            fold = exc  # the last one: the uniform grid's, when all rungs folded
-            continue
-        mesh, report = run_triangulate(contour, d, size)
-        if sel.h_rule != "typical-spacing" or report["min_angle"] >= MIN_ADAPTED_ANGLE:
-            break
-        flat = flat or (sel, d, mesh, report)  # nearly flat: try the next rung first
+    except (SelectionError, LimitError):  # from the uniform grid, after the rungs
+        if flat is None:
+            raise
+        sel, d, mesh, report = flat
     report.update(selection_report(sel))
     return MeshResult(mesh, sel, d.stats, report)
 

@@ -75,22 +75,17 @@ def respace(contour: Contour) -> Respaced | None:
     caller then selects on the real points.
     """
     c = contour
-    s_real = np.empty(c.n)
-    s_copy = np.empty(c.n)
-    lengths = np.empty(c.n_rings)
+    s_real, lengths = arclengths(c)
+    s_copy = s_real.copy()
     new = np.empty_like(c.points)
     for r in range(c.n_rings):
         a, b = c.starts[r], c.starts[r + 1]
-        p = c.points[a:b]
-        q = np.vstack([p, p[:1]])
-        cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(q, axis=0).T))])
-        ends = np.union1d([0, len(p)], corners(p))
-        s = cum[:-1].copy()
+        q, cum = _ring_polyline(c, s_real, lengths, r)
+        ends = np.union1d([0, b - a], corners(q[:-1]))
         for i, j in zip(ends[:-1], ends[1:]):  # points i..j-1 between piece ends i and j
-            s[i:j] = cum[i] + (cum[j] - cum[i]) * np.arange(j - i) / (j - i)
-        s_real[a:b], s_copy[a:b], lengths[r] = cum[:-1], s, cum[-1]
-        new[a:b, 0] = np.interp(s, cum, q[:, 0])
-        new[a:b, 1] = np.interp(s, cum, q[:, 1])
+            s_copy[a + i:a + j] = cum[i] + (cum[j] - cum[i]) * np.arange(j - i) / (j - i)
+        new[a:b, 0] = np.interp(s_copy[a:b], cum, q[:, 0])
+        new[a:b, 1] = np.interp(s_copy[a:b], cum, q[:, 1])
     try:
         copy = make_contour(new, c.lines, c.source, ring_starts=list(c.starts[:-1]),
                             ring_labels=list(c.ring_labels))
@@ -159,6 +154,13 @@ def arclengths(contour: Contour) -> tuple[np.ndarray, np.ndarray]:
     return s, lengths
 
 
+def _ring_polyline(c: Contour, s: np.ndarray, lengths: np.ndarray, r: int):
+    """Ring ``r`` closed (first point repeated) and the arc length at each of its vertices."""
+    a, b = c.starts[r], c.starts[r + 1]
+    p = c.points[a:b]
+    return np.vstack([p, p[:1]]), np.concatenate([s[a:b], [lengths[r]]])
+
+
 class Slide:
     """Targets along the contour over pseudo-time: path node i at arc length
     ``(1-t) s0[i] + t s1[i]`` on its ring, exactly ``final[i]`` at ``t = 1``."""
@@ -167,15 +169,8 @@ class Slide:
                  final: np.ndarray):
         self.s0, self.s1, self.final = s0, s1, final
         s, lengths = arclengths(contour)
-        self._groups = []
-        for r in range(contour.n_rings):
-            members = np.flatnonzero(ring == r)
-            if len(members):
-                a, b = contour.starts[r], contour.starts[r + 1]
-                p = contour.points[a:b]
-                q = np.vstack([p, p[:1]])
-                cum = np.concatenate([s[a:b], [lengths[r]]])
-                self._groups.append((members, q, cum, lengths[r]))
+        self._groups = [(np.flatnonzero(ring == r), *_ring_polyline(contour, s, lengths, r),
+                         lengths[r]) for r in range(contour.n_rings)]
 
     def at(self, t: float) -> np.ndarray:
         if t >= 1.0:
@@ -217,8 +212,8 @@ def candidate_selections(contour: Contour, h=None, box=None, margin=None, strict
     copy (a given ``h`` replaces it).  A slid rung selects on the copy at
     ``h0 / d`` and records each node's slide; an unslid rung selects on the
     real points at the real median spacing ``/ d``.  Rungs whose path touches
-    itself are skipped, and so are the slid ones on a jagged contour
-    (:data:`JAGGED`); the ladder stops at the first grid over ``max_nodes``.
+    itself or whose grid is over ``max_nodes`` are skipped, and so are the
+    slid ones on a jagged contour (:data:`JAGGED`).
     The caller deforms each until one does not fold, and falls back to the
     uniform grid when none is left.
     """
@@ -234,9 +229,7 @@ def candidate_selections(contour: Contour, h=None, box=None, margin=None, strict
         try:
             sel = select(ref, h=step, box=box, margin=margin, strict=strict,
                          max_nodes=max_nodes, exterior=exterior)
-        except LimitError:
-            return
-        except SelectionError:
+        except (LimitError, SelectionError):  # the estimate is made before any work
             continue
         sel.h_rule = "typical-spacing"
         if slide:
@@ -250,6 +243,5 @@ def candidate_selections(contour: Contour, h=None, box=None, margin=None, strict
                              "point")
         else:
             sel.notes.insert(0, f"adapted grid: h = {step:.4g}, the median spacing of the "
-                             f"points / {d} (the contour too jagged to slide along at a "
-                             "coarser step)")
+                             f"points / {d}, on the points as given (not slid)")
         yield sel

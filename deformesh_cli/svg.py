@@ -6,7 +6,8 @@ endpoint) becomes a contour point; curves (quadratic and cubic Beziers,
 elliptical arcs) are flattened by uniform parameter steps, as few as keep the
 chord within ``tolerance`` of the curve (bound: chord gap <= max|C''| dt^2 / 8).
 y is flipped (SVG's y points down): ``y -> height - y`` with the viewport
-height (``y -> -y`` if the file gives neither height nor viewBox).  Each subpath is a ring; the element's fill rule (``nonzero`` or
+height (``y -> -y`` if the file gives neither height nor viewBox).  Each
+subpath is a ring; the element's fill rule (``nonzero`` or
 ``evenodd``) decides which rings bound filled area: a ring whose inside and
 outside are both filled (or both empty) is dropped.  Elements must not
 overlap each other (each would be a separate mesh); ``--id`` picks one.

@@ -207,8 +207,8 @@ def assign(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
     if m * L <= 20_000_000:
         dist = ((Q[:, None, 0] - P[None, :, 0]) ** 2 + (Q[:, None, 1] - P[None, :, 1]) ** 2)
     for s in starts:
-        Ps = np.roll(P, -int(s), axis=0)
-        ds = None if dist is None else np.roll(dist, -int(s), axis=1)
+        cols = np.roll(idx, -int(s))  # path positions counted from this start
+        Ps = P[cols]
         cost = np.full(L, np.inf)
         cost[0] = d0[s]
         back = np.zeros((m, L), dtype=np.int32)
@@ -217,7 +217,7 @@ def assign(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
             run = np.minimum.accumulate(prev)
             newmin = prev < np.concatenate([[np.inf], run[:-1]])
             back[k] = np.maximum.accumulate(np.where(newmin, idx, 0)) - 1
-            cost = run + (ds[k] if ds is not None else np.sum((Ps - Q[k]) ** 2, axis=1))
+            cost = run + (dist[k, cols] if dist is not None else np.sum((Ps - Q[k]) ** 2, axis=1))
             cost[: k] = np.inf
             cost[L - (m - k) + 1:] = np.inf
         t = int(np.argmin(cost))

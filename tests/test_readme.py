@@ -48,3 +48,17 @@ def test_readme_lists_every_json_key(run, tmp_path):
     assert r.exit_code == 0, r.stderr
     for key in json.loads(r.stdout):
         assert f"`{key}`" in README, f"--json key {key} missing from README"
+
+
+SCRIPT_BLOCKS = [b for b in BLOCKS if "python scripts/" in b]
+
+
+@pytest.mark.parametrize("block", SCRIPT_BLOCKS)
+def test_readme_blocks_with_scripts_run_in_order(sh, tmp_path, block):
+    # a script line uses what the lines before it wrote: run the block as a whole
+    for name in ("samples", "scripts"):
+        os.symlink(ROOT / name, tmp_path / name)
+    (tmp_path / "out").mkdir()
+    (tmp_path / "docs").mkdir()
+    sh("set -e\n" + block, cwd=tmp_path)
+    assert list((tmp_path / "docs").iterdir())  # the picture the README shows

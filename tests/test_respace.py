@@ -7,11 +7,15 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from deformesh_cli import respace
-from deformesh_cli.contour import load_contour, make_contour, next_on_ring
-from deformesh_cli.pipeline import candidate_selections, grid_mode, mesh_contour, run_select
+from deformesh_cli.contour import load_contour, make_contour
+from deformesh_cli.errors import LimitError
+from deformesh_cli.pipeline import (MIN_ADAPTED_ANGLE, candidate_selections, grid_mode,
+                                    mesh_contour, run_select)
 from deformesh_cli.quality import check_contract
 
-from .conftest import shared
+from .conftest import ROOT, shared
+
+CORPUS = ROOT / "tests" / "data" / "corpus"
 
 
 def _on_polygon(p, q):
@@ -56,15 +60,14 @@ def test_copy_lies_on_the_contour_evenly_spaced_between_corners(clockwise):
     assert e_real.max() / e_real.min() > 30
     corners = respace.corners(c.points)
     np.testing.assert_array_equal(rs.copy.points[corners], c.points[corners])
-    # between consecutive piece ends the copy's spacing is even (to round-off)
+    # between consecutive piece ends the copy's points are an even arc-length split: its
+    # chords are the arc step, a little less where the contour bends
     ends = np.union1d([0, c.n], corners)
-    nxt = next_on_ring(c.ring)
     for i, j in zip(ends[:-1], ends[1:]):
-        seg = np.hypot(*(c.points[nxt[i:j]] - c.points[i:j]).T)
-        s = np.cumsum(seg)
-        piece = e_copy[i:j - 1] if j - i > 1 else e_copy[i:i]
-        if len(piece):  # chords of an even arc-length split: never longer than the arc step
-            assert piece.max() <= s[-1] / (j - i) * (1 + 1e-9)
+        step = (rs.s_real[j] if j < c.n else rs.lengths[0]) - rs.s_real[i]
+        chords = e_copy[i:j - 1]
+        assert np.all(chords <= step / (j - i) * (1 + 1e-9))
+        assert np.all(chords >= 0.9 * step / (j - i))
     assert np.all(np.diff(rs.s_copy) > 0) and np.all(np.diff(rs.s_real) > 0)
 
 
@@ -96,24 +99,10 @@ def test_extra_nodes_end_on_their_contour_edge(shape):
     assert sel.path_slide is not None
     extra = np.flatnonzero(sel.path_source < 0)
     assert len(extra) > 10
-    src = sel.path_source
-    for k in extra:
-        block = np.flatnonzero(sel.path_ring == sel.path_ring[k])  # the ring's cyclic path
-        i = int(np.flatnonzero(block == k)[0])
-        a = block[(i - 1) % len(block)]
-        while src[a] < 0:
-            i -= 1
-            a = block[(i - 1) % len(block)]
-        j = int(np.flatnonzero(block == k)[0])
-        b = block[(j + 1) % len(block)]
-        while src[b] < 0:
-            j += 1
-            b = block[(j + 1) % len(block)]
-        assert c.ring[src[a]] == c.ring[src[b]] == sel.path_ring[k]
-        pa, pb, q = c.points[src[a]], c.points[src[b]], sel.path_targets[k]
-        cross = (pb - pa)[0] * (q - pa)[1] - (pb - pa)[1] * (q - pa)[0]
-        assert abs(cross) <= 1e-12 * np.dot(pb - pa, pb - pa) ** 0.5 + 1e-15
-        assert 0 <= np.dot(q - pa, pb - pa) <= np.dot(pb - pa, pb - pa)
+    for r in range(c.n_rings):  # each extra node lies on an edge of its own ring
+        mine = extra[sel.path_ring[extra] == r]
+        ring = c.points[c.starts[r]:c.starts[r + 1]]
+        assert _on_polygon(sel.path_targets[mine], ring).max() < 1e-12 if len(mine) else True
     res = mesh_contour(c, h=float(np.median(c.edge_lengths())) / 4, grid="adapt")
     check_contract(res.mesh, c)
 
@@ -129,14 +118,38 @@ def test_grid_mode_rules():
     assert grid_mode(even, "adapt") == "adapt"
 
 
-def test_falls_back_to_the_uniform_grid_when_the_copy_has_no_simple_path():
-    # a slit narrower than the copy's spacing: the copy's path touches itself at h and h/2
-    p = np.array([[0, 0], [1, 0], [1, 1], [0.52, 1], [0.52, 0.2], [0.5, 0.2], [0.5, 1],
-                  [0, 1]], float)
-    c = make_contour(p)
-    sels = list(candidate_selections(c, grid="adapt", max_nodes=400_000))
-    assert sels[-1].h_rule == "appendix-a"
-    assert "fell back to the uniform grid" in sels[-1].notes[0]
+def test_when_no_rung_selects_the_uniform_grid_meshes_and_says_so(monkeypatch):
+    monkeypatch.setattr(respace, "LADDER", ())  # as if every rung's path touched itself
+    c = _cosine_airfoil(n=60)
+    res = mesh_contour(c, grid="adapt")
+    assert res.report["h_rule"] == "appendix-a"
+    assert "fell back to the uniform grid" in res.report["notes"][0]
+
+
+def test_a_slit_meshes_on_a_rung_or_is_refused_by_the_uniform_grid():
+    # a slit 1e-7 wide; the uniform grid (what auto picks: the median spacing is only twice
+    # the smallest) is out of reach, and its refusal names the two close points
+    c = make_contour(np.array([[0, 0], [1, 0], [1, 1], [0.5, 1], [0.5, 1e-7],
+                               [0.4999999, 1], [0, 1]]))
+    assert grid_mode(c) == "uniform"
+    with pytest.raises(LimitError, match=r"points 3 and 5"):
+        mesh_contour(c, max_nodes=200_000)
+    # forced onto the ladder it meshes, with the sliver the 1e-7 gap forces
+    res = mesh_contour(c, grid="adapt", max_nodes=200_000)
+    assert res.report["h_rule"] == "typical-spacing" and res.report["min_angle"] < 1e-3
+
+
+def test_a_nearly_flat_rung_gives_way_to_the_next():
+    c = load_contour(CORPUS / "icon_si_spotify.svg")  # slid at h: a 3e-10 degree triangle
+    first = next(candidate_selections(c))
+    assert first.path_slide is not None
+    flat = mesh_contour(c, grid="adapt", max_nodes=400_000)
+    assert flat.report["min_angle"] >= MIN_ADAPTED_ANGLE
+    assert flat.selection.path_slide is None  # a later rung
+    from deformesh_cli.pipeline import run_deform, run_triangulate
+
+    _, report = run_triangulate(c, run_deform(c, first))
+    assert report["min_angle"] < MIN_ADAPTED_ANGLE
 
 
 @st.composite
@@ -144,15 +157,15 @@ def clustered_rings(draw):
     """Star-shaped rings whose points cluster: angles from a random monotone warp."""
     n = draw(st.integers(12, 80))
     k = draw(st.integers(1, 3))
-    amp = draw(st.floats(0.0, 0.35))
-    power = draw(st.floats(1.5, 4.0))
+    amp = draw(st.floats(0.0, 0.35)) / draw(st.floats(1.5, 4.0))
     u = np.arange(n) / n
+    # warp' = 1 - c cos(2 pi k u) in [1 - c, 1 + c]: spacing ratios up to 99
     warp = u - np.sin(2 * np.pi * k * u) / (2 * np.pi * k) * draw(st.floats(0.5, 0.98))
-    th = 2 * np.pi * warp ** 1.0
+    th = 2 * np.pi * warp
     th = np.sort(np.mod(th + 0.1, 2 * np.pi))
     if np.min(np.diff(np.r_[th, th[0] + 2 * np.pi])) < 1e-4:
         th = 2 * np.pi * u
-    r = 1 + amp * np.cos(draw(st.integers(2, 6)) * th) ** 2 * np.sign(np.cos(th)) / power
+    r = 1 + amp * np.cos(draw(st.integers(2, 6)) * th) ** 2 * np.sign(np.cos(th))
     return np.column_stack([r * np.cos(th), r * np.sin(th)])
 
 
@@ -161,5 +174,6 @@ def clustered_rings(draw):
 def test_adapted_grid_meets_the_contract_on_clustered_rings(pts):
     c = make_contour(pts)
     res = mesh_contour(c, grid="adapt", max_nodes=400_000)  # raises on any contract breach
+    assert res.report["h_rule"] == "typical-spacing"  # a rung of the ladder, not the fallback
     on = np.unique(res.mesh.lines.ravel())
     assert len(on) == c.n + res.report["extra_boundary_nodes"]
