@@ -189,8 +189,10 @@ def _close(grid, cells: np.ndarray, q: np.ndarray, channels=None) -> np.ndarray:
 
     A pinch whose empty cells include a ``channels`` cell is opened instead:
     one of its two region cells is removed (and kept out from then on), so a
-    channel running diagonally stays one open, edge-connected strip.  A
-    channel cell left enclosed by the region is filled like any hole.
+    channel running diagonally stays one open, edge-connected strip; the
+    removed cell joins ``channels`` (updated in place, so that the caller does
+    not add it back).  A channel cell left enclosed by the region is filled
+    like any hole.
     """
     import shapely
     from scipy import ndimage
@@ -202,7 +204,6 @@ def _close(grid, cells: np.ndarray, q: np.ndarray, channels=None) -> np.ndarray:
         d = shapely.distance(shapely.points(centres), ring)
         return (d[:, 1] < d[:, 0]).astype(np.int64)
 
-    channels = None if channels is None else channels.copy()
     cells = ndimage.binary_fill_holes(cells)
     # only adding cells always ends; opening channels could go back and forth
     for _ in (itertools.count() if channels is None else range(MAX_CLOSE_ROUNDS)):

@@ -43,6 +43,7 @@ def test_corpus_meshes_or_refuses_with_a_reason(run, tmp_path):
             why = x["error"].removeprefix(f"{x['input']}: ")
             assert REFUSALS.match(why), x["error"]
     ok = sum(x["status"] == "ok" for x in recs)
-    assert ok >= 45  # measured: 21 when the corpus came in, 26 with the SVG merge, 45 with
-    # the adapted grid (issue 5); may only go up
+    assert ok >= 46  # measured: 21 when the corpus came in, 26 with the SVG merge, 45 with
+    # the adapted grid (issue 5), 46 with the "thin" trace rule; may only go up (at
+    # default options coast_india meshes too, on 1.75e6 grid nodes: not in this cap)
     assert r.exit_code == (0 if ok == len(recs) else 1)

@@ -7,12 +7,12 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from deformesh_cli import pipeline
+from deformesh_cli import pipeline, trace
 from deformesh_cli.contour import make_contour, signed_area
 from deformesh_cli.errors import FoldError, SelectionError
 from deformesh_cli.quality import check_contract
 from deformesh_cli.select import Grid, select
-from deformesh_cli.trace import assign, outline, region_cells
+from deformesh_cli.trace import assign, outline, region_cells, thin_features
 
 from .test_properties import star_polygons
 
@@ -140,3 +140,72 @@ def test_random_star_polygons_all_mesh_at_the_default_h():
         check_contract(mesh, c)
         rules.add(sel.path_rule)
     assert "traced" in rules
+
+
+def _side(a, b, n):
+    t = np.arange(n)[:, None] / n
+    return np.asarray(a, float) + t * (np.subtract(b, a))
+
+
+def _comb(w, n=3):
+    """A 10 x 10 square with an inlet ``w`` wide and 6 deep cut in from below and a
+    peninsula ``w`` wide and 5 long on top, ``n`` points on each of their sides."""
+    return make_contour(np.vstack([
+        _side((0, 0), (4, 0), 4), _side((4, 0), (4 + w / 2, 6), n),
+        _side((4 + w / 2, 6), (4 + w, 0), n), _side((4 + w, 0), (10, 0), 6),
+        _side((10, 0), (10, 10), 10), _side((10, 10), (6 + w, 10), 4),
+        _side((6 + w, 10), (6 + w / 2, 15), n), _side((6 + w / 2, 15), (6, 10), n),
+        _side((6, 10), (0, 10), 6), _side((0, 10), (0, 0), 10)]), source="comb")
+
+
+def test_thin_rule_keeps_an_inlet_and_a_peninsula_thinner_than_a_cell():
+    c = _comb(0.3)
+    grid = Grid(-1.0, -1.0, 1.0, 1.0, 12, 17)
+    inlet_tip, peninsula_tip = (4.15, 6.0), (6.15, 15.0)
+
+    def reach(rule, tip):  # how close the outline comes to a tip, in cells
+        path = outline(grid, region_cells(grid, c.ccw_points, rule))
+        return np.hypot(*(grid.coords(path) - tip).T).min()
+
+    for rule in ("centres", "crossed"):  # both fill the inlet in
+        assert reach(rule, inlet_tip) > 4 and reach(rule, peninsula_tip) < 1
+    assert reach("thin", inlet_tip) < 1.5 and reach("thin", peninsula_tip) < 1.5
+    strips, channels = thin_features(grid, c.ccw_points)
+    assert channels[1:6, 5].all() and not channels[:, 6:].any()  # the inlet's column only
+    assert strips[11:15, 7].all() and not strips[:10].any()  # the peninsula's only
+
+
+def test_corners_are_not_thin_features():
+    # a square at 1/4-cell spacing: its sides meet at right angles, none faces another
+    grid = Grid(-1.0, -1.0, 0.5, 0.5, 8, 8)
+    q = np.vstack([_side((0, 0), (2, 0), 8), _side((2, 0), (2, 2), 8),
+                   _side((2, 2), (0, 2), 8), _side((0, 2), (0, 0), 8)])
+    strips, channels = thin_features(grid, q)
+    assert not strips.any() and not channels.any()
+
+
+@pytest.mark.parametrize("w", [0.3, 0.1])
+@pytest.mark.parametrize("h", [0.7, 0.35])
+def test_comb_is_traced_only_with_the_thin_rule(monkeypatch, w, h):
+    c = _comb(w)
+    monkeypatch.setattr(trace, "REGION_RULES", ("centres", "crossed"))
+    with pytest.raises(SelectionError):
+        select(c, h=h, methods=("trace",))
+    monkeypatch.undo()
+    sel = select(c, h=h, methods=("trace",))
+    mesh, _ = pipeline.run_triangulate(c, pipeline.run_deform(c, sel))
+    check_contract(mesh, c)
+
+
+def test_coast_india_is_traced_at_half_its_median_spacing():
+    # real data: the Mumbai harbour inlet and a peninsula near point 1140 are both
+    # under a cell wide here; the first two rules fail on every shift (measured)
+    from deformesh_cli.contour import load_contour
+
+    from .conftest import ROOT
+
+    c = load_contour(ROOT / "tests" / "data" / "corpus" / "coast_india.csv")
+    h = float(np.median(c.edge_lengths())) / 2
+    sel = select(c, h=h, methods=("trace",))
+    assert sel.path_rule == "traced"
+    assert np.isin(np.arange(len(c.points)), sel.path_source).all()
