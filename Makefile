@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 SAMPLE ?= samples/peanut.csv
 OUT    ?= out
 
-.PHONY: demo test bench install clean
+.PHONY: demo test bench bench-peers install clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -17,6 +17,10 @@ $(VENV)/.installed: pyproject.toml | $(BIN)/python
 
 $(VENV)/.installed-test: pyproject.toml $(VENV)/.installed
 	$(BIN)/python -m pip install --quiet -e '.[test]'
+	touch $@
+
+$(VENV)/.installed-bench: pyproject.toml $(VENV)/.installed
+	$(BIN)/python -m pip install --quiet -e '.[bench]'
 	touch $@
 
 install: $(VENV)/.installed
@@ -31,7 +35,12 @@ test: $(VENV)/.installed-test
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache .hypothesis
 
-bench: $(VENV)/.installed
+bench: $(VENV)/.installed-bench
 	$(BIN)/python benchmarks/run_issue2.py --repeat 3
 	$(BIN)/python benchmarks/run_batch.py --repeat 3
 	$(BIN)/python benchmarks/run_corpus.py
+	$(BIN)/python benchmarks/run_issue6.py --repeat 3
+
+# only the side-by-side comparison with Triangle and Gmsh (about 25 minutes)
+bench-peers: $(VENV)/.installed-bench
+	$(BIN)/python benchmarks/run_issue6.py --repeat 3
