@@ -135,6 +135,10 @@ solver_option = click.option(
     "--solver", type=click.Choice(SOLVERS), default="auto", show_default=True,
     help="Linear solver per step: sparse LU ('direct'), multigrid-preconditioned CG ('amg'), "
          "or 'auto' (direct up to 40,000 free nodes).")
+solve_option = click.option(
+    "--solve", type=click.Choice(pipeline.SOLVES), default="band", show_default=True,
+    help="Deform only a narrow band of cells around the path ('band': at least 8 cells, "
+         "3 times the farthest path node's travel) or the whole background grid ('full').")
 format_option = click.option(
     "--format", "fmt", type=click.Choice(sorted(io.FORMATS), case_sensitive=False),
     default=None, help="Mesh format. Default: from the output file's extension.")
@@ -190,10 +194,11 @@ def select_cmd(contour, output, h, box, margin, strict, max_nodes, decimal, tole
               help="Deformed state file to write ('-' for stdout).")
 @steps_option
 @solver_option
+@solve_option
 @_apply(size_options)
 @quiet_option
 @_handle_errors
-def deform_cmd(state_in, output, steps, solver, size_expr, size_field, quiet):
+def deform_cmd(state_in, output, steps, solver, solve, size_expr, size_field, quiet):
     """Move the selected nodes onto the contour without folding (stage 2)."""
     _check_binary_stdout(output)
     name = "<stdin>" if state_in == "-" else state_in
@@ -201,7 +206,7 @@ def deform_cmd(state_in, output, steps, solver, size_expr, size_field, quiet):
     size = _size.make(size_expr, size_field, st.contour)
     with _steps_bar(steps, quiet) as progress:
         d = pipeline.run_deform(st.contour, st.selection, steps, callback=progress,
-                                solver=solver, size=size)
+                                solver=solver, size=size, solve=solve)
     meta = {"steps": steps}
     if size is not None:
         meta.update(size=size_expr, size_field=size_field)
@@ -289,6 +294,7 @@ def summary_line(r: dict) -> str:
 @_apply(select_options)
 @steps_option
 @solver_option
+@solve_option
 @_apply(size_options)
 @format_option
 @msh_option
@@ -299,7 +305,7 @@ def summary_line(r: dict) -> str:
 @_handle_errors
 def all_cmd(contours, output, out_dir, jobs, scheduler, fail_fast, h, box, margin, strict,
             max_nodes, decimal, tolerance, element_id, resample, exterior, grid, steps, solver,
-            size_expr, size_field, fmt, msh_version, png, as_json, quiet):
+            solve, size_expr, size_field, fmt, msh_version, png, as_json, quiet):
     """Run select, deform and triangulate in one process, for one contour or a batch."""
     t0 = time.perf_counter()
     if out_dir is not None:
@@ -312,7 +318,7 @@ def all_cmd(contours, output, out_dir, jobs, scheduler, fail_fast, h, box, margi
                        decimal=decimal, tolerance=tolerance, element_id=element_id,
                        resample=resample,
                        exterior=exterior, grid=grid, steps=steps, solver=solver,
-                       msh_version=msh_version,
+                       solve=solve, msh_version=msh_version,
                        size=size_expr, size_field=size_field)
         _batch(list(contours), out_dir, fmt, options, jobs, scheduler, fail_fast, as_json, quiet,
                t0)
@@ -329,7 +335,8 @@ def all_cmd(contours, output, out_dir, jobs, scheduler, fail_fast, h, box, margi
     size = _size.make(size_expr, size_field, c)
     with _steps_bar(steps, quiet) as progress:
         res = pipeline.mesh_contour(c, h, box, margin, strict, max_nodes, steps, solver=solver,
-                                    exterior=exterior, callback=progress, size=size, grid=grid)
+                                    exterior=exterior, callback=progress, size=size, grid=grid,
+                                    solve=solve)
     _finish(c, res.mesh, res.report, output, fmt, as_json, quiet, t0, msh_version, png)
 
 

@@ -37,6 +37,7 @@ class DeformStats:
     halvings: int = 0
     solver: str = ""
     iterations: list[int] = field(default_factory=list)
+    moved_nodes: int = 0  # nodes the solves covered (the band, or every node)
 
 
 #: Solvers offered by ``--solver``; "auto" picks "direct" below this many free nodes.
@@ -137,6 +138,35 @@ def deform(*args, **kwargs) -> tuple[np.ndarray, DeformStats]:
         return deform_(*args, **kwargs)
 
 
+def deform_band(points: np.ndarray, tri: np.ndarray, path_nodes: np.ndarray,
+                targets: np.ndarray, fixed_nodes: np.ndarray, active: np.ndarray,
+                describe=None, **kwargs) -> tuple[np.ndarray, DeformStats]:
+    """:func:`deform` on the triangles whose three corners are all ``active`` (a band).
+
+    Only those triangles move.  An active node that also belongs to a
+    triangle outside the band is held (``U = 0``, like the box), so every
+    other triangle keeps its shape exactly and cannot fold.  The path nodes
+    must lie strictly inside the band.
+    """
+    inside = active[tri].all(axis=1)
+    sub_tri = tri[inside]
+    nodes = np.unique(sub_tri)
+    edge = np.zeros(len(points), dtype=bool)
+    edge[tri[~inside].ravel()] = True
+    edge[fixed_nodes] = True
+    held = nodes[edge[nodes]]
+    if edge[path_nodes].any():
+        raise ValueError("a path node lies on the band's edge: widen the band")
+    remap = np.full(len(points), -1, dtype=np.int64)
+    remap[nodes] = np.arange(len(nodes))
+    sub_describe = None if describe is None else (lambda t: describe(nodes[t]))
+    sub, st = deform(points[nodes], remap[sub_tri], remap[path_nodes], targets, remap[held],
+                     describe=sub_describe, **kwargs)
+    out = np.array(points, dtype=np.float64, copy=True)
+    out[nodes] = sub
+    return out, st
+
+
 def deform_(
     points: np.ndarray,
     tri: np.ndarray,
@@ -188,7 +218,7 @@ def deform_(
     dirichlet[fixed_nodes] = True
     dirichlet[path_nodes] = True
     asm = Assembler(tri, n, dirichlet)
-    stats = DeformStats(steps=steps, solver=solver)
+    stats = DeformStats(steps=steps, solver=solver, moved_nodes=n)
     remaining = float(steps)  # pseudo-time left, in units of 1/steps
     ud = np.zeros((n, 2))
     lin = LinearSolver(solver)

@@ -84,22 +84,64 @@ def run_select(contour: Contour, h=None, box=None, margin=None, strict=False,
     return next(candidate_selections(contour, h, box, margin, strict, max_nodes, exterior, grid))
 
 
+#: ``--solve`` choices: ``band`` deforms only the cells near the path
+#: (:func:`band_nodes`), ``full`` the whole background grid (the paper's form).
+SOLVES = ("band", "full")
+
+#: The narrow band reaches this many cells (grid steps, in i or j) past the
+#: nearest path node, and at least :data:`BAND_REACH` times the largest distance a
+#: path node travels.
+BAND_CELLS = 8
+BAND_REACH = 3.0
+
+
+def band_nodes(sel: Selection) -> np.ndarray | None:
+    """Boolean node mask of the narrow band, or None when it would not save much."""
+    from scipy import ndimage
+
+    g = sel.grid
+    h = min(g.hx, g.hy)
+    travel = np.hypot(*(sel.path_targets - g.coords(sel.path_nodes)).T).max(initial=0.0)
+    if sel.path_slide is not None:
+        travel = max(travel, float(np.abs(sel.path_slide[:, 1] - sel.path_slide[:, 0]).max()))
+    reach = max(BAND_CELLS, int(np.ceil(BAND_REACH * travel / h)))
+    on = np.zeros((g.ny + 1, g.nx + 1), dtype=bool)
+    i, j = g.node_ij(sel.path_nodes)
+    on[j, i] = True
+    band = ndimage.maximum_filter(on, size=2 * reach + 1, mode="constant").ravel()
+    return band if band.sum() < 0.5 * g.n_nodes else None
+
+
 def run_deform(contour: Contour, sel: Selection, steps: int = DEFAULT_STEPS,
-               callback=None, solver: str = "auto", size: SizeFunction | None = None) -> Deformed:
-    """Stage 2.  ``size`` (as given; normalised here over the grid's box) shapes the cells."""
+               callback=None, solver: str = "auto", size: SizeFunction | None = None,
+               solve: str = "band") -> Deformed:
+    """Stage 2.  ``size`` (as given; normalised here over the grid's box) shapes the cells.
+
+    ``solve="band"`` moves only the cells near the path (:func:`band_nodes`),
+    unless a size function is given (it shapes every cell) or the band would
+    cover half the grid; ``"full"`` solves on the whole grid.
+    """
+    if solve not in SOLVES:
+        raise OptionError(f"--solve must be one of {', '.join(SOLVES)}, got {solve!r}")
     grid = sel.grid
     pts0 = grid.coords()
     tri = sel.triangles()
     if size is not None:
         size.normalise(grid.box)
-    pos, st = _deform.deform(
-        pts0, tri, sel.path_nodes, sel.path_targets, grid.boundary_nodes(),
+    band = band_nodes(sel) if solve == "band" and size is None else None
+    kwargs = dict(
         steps=steps, callback=callback, describe=_describer(contour, sel), solver=solver,
         size=None if size is None else _size.SizePath(size.g1, grid.box),
         slide=None if sel.path_slide is None else _respace.Slide(
             contour, sel.path_ring, sel.path_slide[:, 0], sel.path_slide[:, 1],
             sel.path_targets),
     )
+    if band is None:
+        pos, st = _deform.deform(pts0, tri, sel.path_nodes, sel.path_targets,
+                                 grid.boundary_nodes(), **kwargs)
+    else:
+        pos, st = _deform.deform_band(pts0, tri, sel.path_nodes, sel.path_targets,
+                                      grid.boundary_nodes(), band, **kwargs)
     return Deformed(sel, pos, st)
 
 
@@ -139,7 +181,8 @@ MIN_ADAPTED_ANGLE = 1.0
 def mesh_contour(contour: Contour, h=None, box=None, margin=None, strict=False,
                  max_nodes=DEFAULT_MAX_NODES, steps=DEFAULT_STEPS, callback=None,
                  solver: str = "auto", exterior: bool = False,
-                 size: SizeFunction | None = None, grid: str = "auto") -> MeshResult:
+                 size: SizeFunction | None = None, grid: str = "auto",
+                 solve: str = "band") -> MeshResult:
     """Mesh the inside of ``contour`` (or the box minus it, ``exterior``).
 
     On an adapted grid, a rung whose deformation folds, or whose mesh has an
@@ -152,7 +195,7 @@ def mesh_contour(contour: Contour, h=None, box=None, margin=None, strict=False,
         for sel in candidate_selections(contour, h, box, margin, strict, max_nodes, exterior,
                                         grid):
             try:
-                d = run_deform(contour, sel, steps, callback, solver, size)
+                d = run_deform(contour, sel, steps, callback, solver, size, solve)
             except FoldError as exc:
                 fold = exc  # the last one: the uniform grid's, when every rung folded
                 continue
@@ -169,6 +212,8 @@ def mesh_contour(contour: Contour, h=None, box=None, margin=None, strict=False,
             raise
         sel, d, mesh, report = flat
     report.update(selection_report(sel))
+    if d.stats is not None:
+        report["moved_nodes"] = int(d.stats.moved_nodes)  # the band's nodes, or every node
     return MeshResult(mesh, sel, d.stats, report)
 
 
