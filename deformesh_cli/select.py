@@ -241,17 +241,26 @@ class Selection:
         return int(np.count_nonzero(self.path_source < 0))
 
     def triangles(self) -> np.ndarray:
-        return grid_triangles(self.grid, self.diagonals)
+        """The background grid's triangles (built once, then shared: do not modify)."""
+        tri = self.__dict__.get("_triangles")
+        if tri is None:
+            tri = self.__dict__["_triangles"] = grid_triangles(self.grid, self.diagonals)
+        return tri
 
 
-def grid_triangles(grid: Grid, diagonals: np.ndarray) -> np.ndarray:
-    """Counter-clockwise triangles of the grid, two per cell, split as ``diagonals`` says."""
-    nx, ny = grid.nx, grid.ny
-    ci, cj = np.meshgrid(np.arange(nx), np.arange(ny))
-    ci, cj = ci.ravel(), cj.ravel()
+def grid_triangles(grid: Grid, diagonals: np.ndarray, cells: np.ndarray | None = None
+                   ) -> np.ndarray:
+    """Counter-clockwise triangles of the grid, two per cell, split as ``diagonals`` says.
+
+    ``cells`` (cell ids ``j * nx + i``) restricts them to those cells, in that order.
+    """
+    nx = grid.nx
+    if cells is None:
+        cells = np.arange(nx * grid.ny)
+    ci, cj = cells % nx, cells // nx
     n00 = cj * (nx + 1) + ci
     n10, n01, n11 = n00 + 1, n00 + nx + 1, n00 + nx + 2
-    slash = diagonals == DIAG_SLASH
+    slash = diagonals[cells] == DIAG_SLASH
     t1 = np.where(slash[:, None], np.column_stack([n00, n10, n11]),
                   np.column_stack([n00, n10, n01]))
     t2 = np.where(slash[:, None], np.column_stack([n00, n11, n01]),
@@ -710,9 +719,7 @@ def _path_triangles(grid: Grid, diagonals: np.ndarray, nodes: np.ndarray) -> np.
     ci = np.clip(np.concatenate([i, i - 1, i, i - 1]), 0, grid.nx - 1)
     cj = np.clip(np.concatenate([j, j, j - 1, j - 1]), 0, grid.ny - 1)
     cells = np.unique(cj * grid.nx + ci)
-    sub = Grid(0, 0, 1, 1, grid.nx, grid.ny)
-    tri = grid_triangles(sub, diagonals)
-    tri = tri.reshape(-1, 2, 3)[cells].reshape(-1, 3)
+    tri = grid_triangles(grid, diagonals, cells)
     on_path = np.zeros(grid.n_nodes, dtype=bool)
     on_path[nodes] = True
     return tri[on_path[tri].all(axis=1)]
