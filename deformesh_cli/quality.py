@@ -31,31 +31,36 @@ def signed_areas(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
     )
 
 
+def _shape(points: np.ndarray, tri: np.ndarray):
+    """Angles (t, 3) in degrees (angle ``k`` at corner ``k``), signed areas and radius
+    ratios, from one set of edge vectors."""
+    p0, p1, p2 = points[tri[:, 0]], points[tri[:, 1]], points[tri[:, 2]]
+    e0, e1, e2 = p2 - p1, p0 - p2, p1 - p0  # edge k is opposite corner k
+    cross = e2[:, 0] * (-e1[:, 1]) - e2[:, 1] * (-e1[:, 0])  # (p1-p0) x (p2-p0)
+    area = 0.5 * cross
+    twice = np.abs(cross)
+    ang = np.empty(tri.shape)
+    for k, (u, v) in enumerate(((e2, e1), (e0, e2), (e1, e0))):
+        # corner k's two edges leave it along u and -v (corner 0: p1 - p0 = e2, p2 - p0 = -e1)
+        ang[:, k] = np.arctan2(twice, -(u[:, 0] * v[:, 0] + u[:, 1] * v[:, 1]))
+    np.degrees(ang, out=ang)
+    a = np.hypot(e0[:, 0], e0[:, 1])
+    b = np.hypot(e1[:, 0], e1[:, 1])
+    c = np.hypot(e2[:, 0], e2[:, 1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # 2 r_in / r_circ = 2 (A / s) / (a b c / 4 A) = 16 A^2 / (2 s a b c)
+        rr = np.nan_to_num(4.0 * twice * twice / ((a + b + c) * a * b * c))
+    return ang, area, rr
+
+
 def angles(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
     """Interior angles in degrees, (t, 3); angle ``k`` at corner ``k``."""
-    p = points[tri]
-    out = np.empty(tri.shape)
-    for k in range(3):
-        u = p[:, (k + 1) % 3] - p[:, k]
-        v = p[:, (k + 2) % 3] - p[:, k]
-        cross = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
-        dot = (u * v).sum(axis=1)
-        out[:, k] = np.degrees(np.arctan2(np.abs(cross), dot))
-    return out
+    return _shape(points, tri)[0]
 
 
 def radius_ratio(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
     """``2 r_in / r_circ``: 1 for an equilateral triangle, 0.83 for a right isosceles."""
-    p = points[tri]
-    a = np.linalg.norm(p[:, 1] - p[:, 2], axis=1)
-    b = np.linalg.norm(p[:, 2] - p[:, 0], axis=1)
-    c = np.linalg.norm(p[:, 0] - p[:, 1], axis=1)
-    s = 0.5 * (a + b + c)
-    area = np.abs(signed_areas(points, tri))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        r_in = area / s
-        r_circ = a * b * c / (4 * area)
-        return np.nan_to_num(2 * r_in / r_circ)
+    return _shape(points, tri)[2]
 
 
 #: The measures of :func:`report` that a meshing summary (``--json``) carries.
@@ -219,9 +224,7 @@ RR_BINS = np.linspace(0.0, 1.0, 11)
 
 def report(points: np.ndarray, tri: np.ndarray) -> dict:
     """What ``deformesh quality`` prints: angles, areas, radius ratios and their histogram."""
-    ang = angles(points, tri)
-    area = signed_areas(points, tri)
-    rr = radius_ratio(points, tri)
+    ang, area, rr = _shape(points, tri)
     counts, _ = np.histogram(rr, bins=RR_BINS)
     t = int(np.argmin(area))
     c = points[tri[t]].mean(axis=0)
