@@ -72,7 +72,8 @@ THIN_WIDTH = 2.0
 #: (nearer, they are one side turning a corner).
 THIN_ARC = 3.0
 
-#: Rounds of hole filling and pinch closing before a region is given up.
+#: Rounds of hole filling and pinch closing or opening before a region with
+#: channels is given up (without channels only cells are added, which always ends).
 MAX_CLOSE_ROUNDS = 50
 
 
