@@ -261,3 +261,18 @@ def test_msh22_is_byte_identical_to_meshios_writer(tmp_path, exterior):
     io.write_mesh(mesh, str(tmp_path / "ours.msh"))
     _meshio_gmsh22(mesh, str(tmp_path / "meshio.msh"))
     assert (tmp_path / "ours.msh").read_bytes() == (tmp_path / "meshio.msh").read_bytes()
+
+
+def test_edge_uses_counts_each_undirected_edge():
+    # against a plain dictionary count, on a soup with shared, repeated and lone edges
+    from collections import Counter
+
+    from deformesh_cli.quality import _edge_uses
+
+    rng = np.random.default_rng(3)
+    tri = rng.integers(0, 12, (200, 3))
+    tri = tri[(tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 0] != tri[:, 2])]
+    e, uses = _edge_uses(tri, 12)
+    count = Counter(frozenset(x) for x in e.tolist())
+    assert uses.tolist() == [count[frozenset(x)] for x in e.tolist()]
+    assert {1, 2}.issubset(set(uses.tolist())) and uses.max() > 2
