@@ -34,7 +34,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from results import write_section  # noqa: E402
-from run_issue2 import EXE, ROOT, SHARED, machine  # noqa: E402
+from run_issue2 import EXE, SHARED, machine, run_process  # noqa: E402
 
 PEERS = Path(__file__).resolve().parent / "peers"
 PY = sys.executable
@@ -92,16 +92,6 @@ def commands(tool: str, src: str, h: float, out: str) -> list[str]:
     return [PY, str(PEERS / f"{tool}_mesh.py"), src, repr(h), out]
 
 
-def run_once(cmd: list[str]) -> tuple[float, float, int, str]:
-    with tempfile.TemporaryFile("w+") as fe:
-        t = time.perf_counter()
-        p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=fe)
-        _, status, usage = os.wait4(p.pid, 0)
-        dt = time.perf_counter() - t
-        fe.seek(0)
-        return dt, usage.ru_maxrss / 1024, os.waitstatus_to_exitcode(status), fe.read().strip()
-
-
 def make(name: str, size: float, out: str) -> dict:
     import numpy as np
 
@@ -113,12 +103,11 @@ def make(name: str, size: float, out: str) -> dict:
 def quality(path: str) -> tuple[int, float, float]:
     import meshio
 
-    from deformesh_cli.quality import angles, radius_ratio
+    from deformesh_cli.quality import report
 
     m = meshio.read(path)
-    tri = m.cells_dict["triangle"]
-    pts = m.points[:, :2]
-    return len(tri), float(angles(pts, tri).min()), float(radius_ratio(pts, tri).mean())
+    r = report(m.points[:, :2], m.cells_dict["triangle"])
+    return r["triangles"], r["min_angle"], r["mean_radius_ratio"]
 
 
 def helper(*args) -> dict:
@@ -152,7 +141,7 @@ def main():
                 for _ in range(args.repeat):
                     for tool in tools:  # alternate: A B C A B C ...
                         out = os.path.join(d, f"{tool}.vtk")
-                        dt, rss, code, err = run_once(commands(tool, src, h, out))
+                        dt, rss, code, _, err = run_process(commands(tool, src, h, out))
                         r = res[tool]
                         r["times"].append(dt)
                         r["rss"] = max(r["rss"], rss)

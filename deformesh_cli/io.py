@@ -47,31 +47,47 @@ def _meshio_mesh(mesh: Mesh, dim3: bool = False):
 MSH_VERSIONS = {"2.2": "gmsh22", "4.1": "gmsh"}
 
 
+def _gmsh_blocks(mesh: Mesh) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray]]:
+    """Element blocks as ``(meshio type, physical tags, geometrical tags, connectivity)``:
+    the triangles (physical ``domain``, geometrical 1), then one block of lines per
+    boundary group (physical = geometrical = the group's tag)."""
+    nt = len(mesh.triangles)
+    line_tag = (mesh.line_group + 1).astype(np.int64)
+    blocks = [("triangle", np.full(nt, groups(mesh)["domain"][0]), np.ones(nt, np.int64),
+               mesh.triangles.astype(np.int64))]
+    for tag in np.unique(line_tag):
+        on = line_tag == tag
+        blocks.append(("line", line_tag[on], line_tag[on], mesh.lines[on].astype(np.int64)))
+    return blocks
+
+
 def _write_gmsh(mesh: Mesh, path: str, version: str = "2.2") -> None:
-    """Gmsh ASCII: triangles in ``domain``, one line block per boundary group."""
+    """Gmsh ASCII: triangles in ``domain``, one line block per boundary group.
+
+    Version 2.2 by :func:`_write_gmsh22` (meshio's output, faster); 4.1 by meshio.
+    """
     if version == "2.2":
         return _write_gmsh22(mesh, path)
+    _write_gmsh_meshio(mesh, path, version)
+
+
+def _write_gmsh_meshio(mesh: Mesh, path: str, version: str) -> None:
     import meshio
 
-    g = groups(mesh)
-    nt = len(mesh.triangles)
-    line_tag = (mesh.line_group + 1).astype(np.int32)
-    cells = [("triangle", mesh.triangles.astype(np.int64))]
-    phys = [np.full(nt, g["domain"][0], np.int32)]
-    for tag in np.unique(line_tag):
-        cells.append(("line", mesh.lines[line_tag == tag].astype(np.int64)))
-        phys.append(np.full(int((line_tag == tag).sum()), tag, np.int32))
-    geom = [np.ones_like(phys[0])] + phys[1:]
+    blocks = _gmsh_blocks(mesh)
     point_data = {}
     if version == "4.1":
         # 4.1 files place every node on a geometric entity: boundary nodes on
         # their boundary's curve (tag = group tag), the others on surface 1
+        line_tag = mesh.line_group + 1
         dim_tags = np.column_stack([np.full(mesh.n_nodes, 2), np.ones(mesh.n_nodes)])
         dim_tags[mesh.lines[:, 0]] = np.column_stack([np.ones(len(line_tag)), line_tag])
         point_data = {"gmsh:dim_tags": dim_tags.astype(np.int32)}
-    m = meshio.Mesh(mesh.points, cells, point_data=point_data,
-                    cell_data={"gmsh:physical": phys, "gmsh:geometrical": geom})
-    m.field_data = {name: np.array([tag, dim]) for name, (tag, dim) in g.items()}
+    m = meshio.Mesh(mesh.points, [(kind, conn) for kind, _, _, conn in blocks],
+                    point_data=point_data,
+                    cell_data={"gmsh:physical": [b[1].astype(np.int32) for b in blocks],
+                               "gmsh:geometrical": [b[2].astype(np.int32) for b in blocks]})
+    m.field_data = {name: np.array([tag, dim]) for name, (tag, dim) in groups(mesh).items()}
     meshio.write(path, m, file_format=MSH_VERSIONS[version], binary=False)
 
 
@@ -79,27 +95,23 @@ def _rows(fmt: str, table: np.ndarray) -> str:
     """``fmt`` (one row's %-format, ending in a newline) applied to every row of ``table``.
 
     One %-operation over the whole table: meshio's ASCII writer formats row by
-    row in Python (measured: 12 s for a million triangles, this 1 s).
+    row in Python (measured at a million triangles: 12.3 s for the file through
+    meshio, 2.1 s this way).
     """
     if len(table) == 0:
         return ""
     return (fmt * len(table)) % tuple(table.ravel().tolist())
 
 
-def _write_gmsh22(mesh: Mesh, path: str) -> None:
-    """Gmsh 2.2 ASCII, byte for byte what meshio writes for the same mesh, only faster.
+_GMSH_TYPE = {"triangle": 2, "line": 1}
 
-    Triangles (physical ``domain``, geometrical 1) come first, then one block
-    of lines per boundary group (physical = geometrical = the group's tag).
-    """
-    g = groups(mesh)
-    names = sorted((dim, tag, name) for name, (tag, dim) in g.items())
-    nt, n = len(mesh.triangles), mesh.n_nodes
-    line_tag = (mesh.line_group + 1).astype(np.int64)
-    blocks = [(2, np.full(nt, g["domain"][0]), np.ones(nt, np.int64), mesh.triangles)]
-    for tag in np.unique(line_tag):
-        on = line_tag == tag
-        blocks.append((1, line_tag[on], line_tag[on], mesh.lines[on]))
+
+def _write_gmsh22(mesh: Mesh, path: str) -> None:
+    """Gmsh 2.2 ASCII, byte for byte what meshio writes for the same blocks
+    (:func:`_write_gmsh_meshio`, tested), only faster."""
+    names = sorted((dim, tag, name) for name, (tag, dim) in groups(mesh).items())
+    blocks = _gmsh_blocks(mesh)
+    n = mesh.n_nodes
     parts = ["$MeshFormat\n2.2 0 8\n$EndMeshFormat\n"]
     if names:
         parts.append(f"$PhysicalNames\n{len(names)}\n")
@@ -110,15 +122,13 @@ def _write_gmsh22(mesh: Mesh, path: str) -> None:
     nodes[:, 1:3] = mesh.points
     nodes[:, 3] = 0.0
     parts += [f"$Nodes\n{n}\n", _rows("%d %.16e %.16e %.16e\n", nodes), "$EndNodes\n"]
-    total = sum(len(b[3]) for b in blocks)
-    parts.append(f"$Elements\n{total}\n")
+    parts.append(f"$Elements\n{sum(len(b[3]) for b in blocks)}\n")
     first = 1
-    for gmsh_type, phys, geom, conn in blocks:
+    for kind, phys, geom, conn in blocks:
         k = len(conn)
-        table = np.column_stack([np.arange(first, first + k), phys, geom,
-                                 conn.astype(np.int64) + 1])
-        width = conn.shape[1]
-        parts.append(_rows(f"%d {gmsh_type} 2" + " %d" * (2 + width) + "\n", table))
+        table = np.column_stack([np.arange(first, first + k), phys, geom, conn + 1])
+        parts.append(_rows(f"%d {_GMSH_TYPE[kind]} 2" + " %d" * (2 + conn.shape[1]) + "\n",
+                           table))
         first += k
     parts.append("$EndElements\n")
     with open(path, "w", encoding="ascii", newline="\n") as fh:

@@ -31,12 +31,15 @@ def signed_areas(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
     )
 
 
-def _shape(points: np.ndarray, tri: np.ndarray):
-    """Angles (t, 3) in degrees (angle ``k`` at corner ``k``), signed areas and radius
-    ratios, from one set of edge vectors."""
+def measures(points: np.ndarray, tri: np.ndarray):
+    """``(angles, signed areas, radius ratios)`` from one set of edge vectors.
+
+    Angles are (t, 3) in degrees, angle ``k`` at corner ``k``; callers that
+    need more than one measure should take them all from here.
+    """
     p0, p1, p2 = points[tri[:, 0]], points[tri[:, 1]], points[tri[:, 2]]
     e0, e1, e2 = p2 - p1, p0 - p2, p1 - p0  # edge k is opposite corner k
-    cross = e2[:, 0] * (-e1[:, 1]) - e2[:, 1] * (-e1[:, 0])  # (p1-p0) x (p2-p0)
+    cross = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]  # = (p1 - p0) x (p2 - p0)
     area = 0.5 * cross
     twice = np.abs(cross)
     ang = np.empty(tri.shape)
@@ -55,12 +58,12 @@ def _shape(points: np.ndarray, tri: np.ndarray):
 
 def angles(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
     """Interior angles in degrees, (t, 3); angle ``k`` at corner ``k``."""
-    return _shape(points, tri)[0]
+    return measures(points, tri)[0]
 
 
 def radius_ratio(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
     """``2 r_in / r_circ``: 1 for an equilateral triangle, 0.83 for a right isosceles."""
-    return _shape(points, tri)[2]
+    return measures(points, tri)[2]
 
 
 #: The measures of :func:`report` that a meshing summary (``--json``) carries.
@@ -224,7 +227,7 @@ RR_BINS = np.linspace(0.0, 1.0, 11)
 
 def report(points: np.ndarray, tri: np.ndarray) -> dict:
     """What ``deformesh quality`` prints: angles, areas, radius ratios and their histogram."""
-    ang, area, rr = _shape(points, tri)
+    ang, area, rr = measures(points, tri)
     counts, _ = np.histogram(rr, bins=RR_BINS)
     t = int(np.argmin(area))
     c = points[tri[t]].mean(axis=0)

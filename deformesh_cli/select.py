@@ -231,6 +231,8 @@ class Selection:
     #: (n_path, 2) arc lengths along the contour where each path node starts and
     #: ends when the grid was adapted (:mod:`.respace`); None for straight moves.
     path_slide: np.ndarray | None = None
+    #: :meth:`triangles`, built on first use (every stage after selection needs them)
+    _triangles: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self):
         if self.path_ring is None:
@@ -242,10 +244,9 @@ class Selection:
 
     def triangles(self) -> np.ndarray:
         """The background grid's triangles (built once, then shared: do not modify)."""
-        tri = self.__dict__.get("_triangles")
-        if tri is None:
-            tri = self.__dict__["_triangles"] = grid_triangles(self.grid, self.diagonals)
-        return tri
+        if self._triangles is None:
+            self._triangles = grid_triangles(self.grid, self.diagonals)
+        return self._triangles
 
 
 def grid_triangles(grid: Grid, diagonals: np.ndarray, cells: np.ndarray | None = None

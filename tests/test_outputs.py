@@ -234,23 +234,6 @@ def test_batch_xdmf_writes_each_sidecar_under_its_own_name(run, tmp_path):
     assert len(m.cells_dict["triangle"]) > 1000
 
 
-def _meshio_gmsh22(mesh, path):
-    """The reference: meshio's own Gmsh 2.2 ASCII writer on the same groups."""
-    from deformesh_cli.io import groups
-
-    g = groups(mesh)
-    line_tag = (mesh.line_group + 1).astype(np.int32)
-    cells = [("triangle", mesh.triangles.astype(np.int64))]
-    phys = [np.full(len(mesh.triangles), g["domain"][0], np.int32)]
-    for tag in np.unique(line_tag):
-        cells.append(("line", mesh.lines[line_tag == tag].astype(np.int64)))
-        phys.append(np.full(int((line_tag == tag).sum()), tag, np.int32))
-    m = meshio.Mesh(mesh.points, cells, cell_data={
-        "gmsh:physical": phys, "gmsh:geometrical": [np.ones_like(phys[0])] + phys[1:]})
-    m.field_data = {name: np.array([tag, dim]) for name, (tag, dim) in g.items()}
-    meshio.write(path, m, file_format="gmsh22", binary=False)
-
-
 @pytest.mark.parametrize("exterior", [False, True])
 def test_msh22_is_byte_identical_to_meshios_writer(tmp_path, exterior):
     # our writer formats the whole table at once (12 s -> 2 s at a million triangles)
@@ -259,7 +242,7 @@ def test_msh22_is_byte_identical_to_meshios_writer(tmp_path, exterior):
     mesh = pipeline.mesh_contour(load_contour(SAMPLES / "bracket.svg"), exterior=exterior).mesh
     assert len(set(mesh.line_group.tolist())) > 1  # several boundary groups
     io.write_mesh(mesh, str(tmp_path / "ours.msh"))
-    _meshio_gmsh22(mesh, str(tmp_path / "meshio.msh"))
+    io._write_gmsh_meshio(mesh, str(tmp_path / "meshio.msh"), "2.2")  # meshio's own writer
     assert (tmp_path / "ours.msh").read_bytes() == (tmp_path / "meshio.msh").read_bytes()
 
 
