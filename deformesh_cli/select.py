@@ -572,7 +572,13 @@ def _uturn_split(grid: Grid, cell: int, at: dict) -> int:
 
     slash = min(fullness(n00, n10, n11), fullness(n00, n11, n01))
     back = min(fullness(n00, n10, n01), fullness(n10, n11, n01))
-    return DIAG_SLASH if slash >= back else DIAG_BACKSLASH
+    # a tie (a symmetric U-turn) goes to '/' whatever the round-off: translating
+    # the contour by 0.25 once flipped it (hypothesis found the example)
+    return DIAG_SLASH if slash >= back - UTURN_TIE else DIAG_BACKSLASH
+
+
+#: Fullness (area / longest edge squared, dimensionless) differences below this are a tie.
+UTURN_TIE = 1e-9
 
 
 def _nearest_point(src: np.ndarray, t: int) -> int:
