@@ -133,8 +133,8 @@ steps_option = click.option("--steps", type=click.IntRange(min=1), default=DEFAU
                             show_default=True, help="Pseudo-time steps of the deformation.")
 solver_option = click.option(
     "--solver", type=click.Choice(SOLVERS), default="auto", show_default=True,
-    help="Linear solver per step: sparse LU ('direct'), multigrid-preconditioned CG ('amg'), "
-         "or 'auto' (direct up to 40,000 free nodes).")
+    help="Linear solver per step: sparse LDL^T ('direct'), multigrid-preconditioned CG ('amg'), "
+         "or 'auto' (direct on the band, and up to 60,000 free nodes on a whole grid).")
 solve_option = click.option(
     "--solve", type=click.Choice(pipeline.SOLVES), default="band", show_default=True,
     help="Deform only a narrow band of cells around the path ('band': at least 8 cells, "

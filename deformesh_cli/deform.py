@@ -20,7 +20,6 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
-import scipy.sparse.linalg as spla
 
 from .divcurl import Assembler
 from .errors import FoldError
@@ -40,16 +39,24 @@ class DeformStats:
     moved_nodes: int = 0  # nodes the solves covered (the band, or every node)
 
 
-#: Solvers offered by ``--solver``; "auto" picks "direct" below this many free nodes.
+#: Solvers offered by ``--solver``.  "auto" picks "direct" on a narrow band (its
+#: factor stays sparse: 104k band nodes took 3.6 s direct vs 4.1 s amg, whole
+#: deformation) and, on a whole grid, up to this many free nodes (measured on square
+#: grids, 10 steps: 66k nodes 3.6 s direct vs 3.8 s amg; 116k: 7.4 vs 5.1 s).
 SOLVERS = ("auto", "direct", "amg")
-AUTO_DIRECT_MAX = 40_000
+AUTO_DIRECT_MAX = 60_000
 
 
 class LinearSolver:
     """Solves the per-step scalar systems ``K X = rhs`` (two right-hand sides).
 
-    ``direct`` factorises with SuperLU (minimum-degree ordering on ``K + K^T``,
-    fastest for this matrix).  ``amg`` runs conjugate gradients preconditioned
+    ``direct`` factorises ``K = L D L^T`` with QDLDL (approximate minimum
+    degree ordering).  The ordering and the symbolic factorisation are done
+    once; later steps, whose matrices share the sparsity pattern (the mesh
+    moves, its connectivity does not), only refactor the numbers.  Measured on
+    a 43.6k-node band: first factorisation 0.10 s, each later one 0.008 s, a
+    solve 1.5 ms (SuperLU: 0.16-0.30 s per factorisation).  ``amg`` runs
+    conjugate gradients preconditioned
     by a smoothed-aggregation hierarchy (pyamg) built on the first step's
     matrix and reused while it keeps converging fast (the mesh changes little
     per step), warm-started from the previous step's displacement.
@@ -62,19 +69,36 @@ class LinearSolver:
         self.rtol = rtol
         self.rebuild_after = rebuild_after
         self._ml = None
+        self._ldl = None
+        self._pattern = None
         self.iterations: list[int] = []
         self.setups = 0
 
     def solve(self, K, rhs: np.ndarray, x0: np.ndarray | None = None) -> np.ndarray:
+        """``K`` is a :class:`~deformesh_cli.divcurl.SymmetricCSR`."""
         method = self.method
         if method == "auto":
             method = "direct" if K.shape[0] <= AUTO_DIRECT_MAX else "amg"
         if method == "direct":
-            lu = spla.splu(K.tocsc(), permc_spec="MMD_AT_PLUS_A")
-            return lu.solve(rhs)
+            return self._solve_ldl(K, rhs)
         return self._solve_amg(K, rhs, x0)
 
+    def _solve_ldl(self, K, rhs):
+        import qdldl
+
+        upper = K.upper()  # K is symmetric: its upper triangle says it all
+        if self._ldl is not None and upper.indices is self._pattern:
+            self._ldl.update(upper, upper=True)  # same pattern: new numbers only
+        else:
+            self._ldl = qdldl.Solver(upper, upper=True)
+            self._pattern = upper.indices
+            self.setups += 1
+        return np.column_stack([self._ldl.solve(rhs[:, k]) for k in range(rhs.shape[1])])
+
     def _solve_amg(self, K, rhs, x0):
+        import scipy.sparse.linalg as spla
+
+        K = K.tocsr()
         if self._ml is None:
             self._ml = _sa_hierarchy(K)
             self.setups += 1
@@ -160,6 +184,8 @@ def deform_band(points: np.ndarray, tri: np.ndarray, path_nodes: np.ndarray,
     remap = np.full(len(points), -1, dtype=np.int64)
     remap[nodes] = np.arange(len(nodes))
     sub_describe = None if describe is None else (lambda t: describe(nodes[t]))
+    if kwargs.get("solver", "auto") == "auto":
+        kwargs["solver"] = "direct"  # a band: see SOLVERS
     sub, st = deform(points[nodes], remap[sub_tri], remap[path_nodes], targets, remap[held],
                      describe=sub_describe, **kwargs)
     out = np.array(points, dtype=np.float64, copy=True)

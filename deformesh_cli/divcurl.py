@@ -17,8 +17,9 @@ slip boundaries, and used by the tests to show the split is exact).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
-import scipy.sparse as sp
 
 _LOCAL_R = np.repeat(np.arange(3), 3)
 _LOCAL_C = np.tile(np.arange(3), 3)
@@ -49,6 +50,8 @@ def assemble_coupled(points: np.ndarray, tri: np.ndarray, rhs: np.ndarray | None
     ``rhs`` is the divergence right-hand side per triangle (zero by default).
     Returns ``(A, b)`` with ``A`` a (2N, 2N) CSR matrix.
     """
+    import scipy.sparse as sp
+
     n = len(points)
     gx, gy, a2 = gradients(points, tri)
     area = 0.5 * a2
@@ -63,6 +66,48 @@ def assemble_coupled(points: np.ndarray, tri: np.ndarray, rhs: np.ndarray | None
     if rhs is not None:
         np.add.at(b, dofs.ravel(), (d * (area * rhs)[:, None]).ravel())
     return A, b
+
+
+@dataclass(frozen=True)
+class CSR:
+    """A sparse matrix as three CSR arrays (or CSC: the same arrays, transposed).
+
+    Enough for QDLDL, which reads these attributes, without loading
+    scipy.sparse (0.2-0.3 s to import) on the default path.
+    """
+
+    data: np.ndarray
+    indices: np.ndarray
+    indptr: np.ndarray
+    shape: tuple[int, int]
+
+    @property
+    def nnz(self) -> int:
+        return len(self.data)
+
+
+@dataclass(frozen=True)
+class SymmetricCSR(CSR):
+    """A symmetric matrix in CSR, and where its upper triangle's entries sit."""
+
+    upper_slots: np.ndarray = None  # positions in ``data`` of the entries with col <= row
+    upper_indices: np.ndarray = None
+    upper_indptr: np.ndarray = None
+
+    def upper(self) -> CSR:
+        """The upper triangle in CSC form (the lower triangle's CSR arrays, by symmetry).
+
+        Its ``indices`` and ``indptr`` are the same objects on every matrix one
+        :class:`Assembler` builds, so a solver can tell the pattern is unchanged.
+        """
+        return CSR(self.data[self.upper_slots], self.upper_indices, self.upper_indptr,
+                   self.shape)
+
+    def tocsr(self):
+        """As a scipy.sparse matrix (for conjugate gradients and multigrid)."""
+        import scipy.sparse as sp
+
+        return sp.csr_matrix((self.data, self.indices, self.indptr), shape=self.shape)
 
 
 class Assembler:
@@ -92,6 +137,10 @@ class Assembler:
         rows = ukeys // nf
         self._indptr = np.searchsorted(rows, np.arange(nf + 1)).astype(np.int32)
         self._nnz = len(ukeys)
+        low = self._indices <= rows
+        self._up = np.flatnonzero(low)
+        self._up_indices = self._indices[low]
+        self._up_indptr = np.searchsorted(rows[low], np.arange(nf + 1)).astype(np.int32)
         fd = (fr >= 0) & (fc < 0)
         self._fd = np.flatnonzero(fd)
         self._fd_row = fr[fd]
@@ -111,13 +160,15 @@ class Assembler:
         return out
 
     def system(self, points: np.ndarray, u_dirichlet: np.ndarray):
-        """``K_ff`` (CSR) and right-hand sides (n_free, 2) for given Dirichlet values.
+        """``K_ff`` (:class:`SymmetricCSR`) and right-hand sides (n_free, 2) for given
+        Dirichlet values.
 
         ``u_dirichlet`` is (N, 2); only its rows at Dirichlet nodes are read.
         """
         ke = stiffness_entries(points, self.tri).ravel()
         data = np.bincount(self._slot, weights=ke[self._ff], minlength=self._nnz)
-        K = sp.csr_matrix((data, self._indices, self._indptr), shape=(self.n_free,) * 2)
+        K = SymmetricCSR(data, self._indices, self._indptr, (self.n_free,) * 2,
+                         self._up, self._up_indices, self._up_indptr)
         w = ke[self._fd]
         rhs = np.empty((self.n_free, 2))
         for comp in range(2):

@@ -69,3 +69,16 @@ def test_band_keeps_the_contract_and_the_smallest_angle(path):
     assert band[0]["triangles"] == full[0]["triangles"]
     if path.name == "bean_1000.csv":  # big enough for the band to be a band
         assert band[1] < 0.2 * full[1]
+
+
+@pytest.mark.parametrize("reach", [0, 1, 3, 8, 40])
+def test_band_dilation_is_the_maximum_filter(reach):
+    # pipeline._dilate replaces scipy.ndimage.maximum_filter (slow to import): same mask
+    from scipy import ndimage
+
+    rng = np.random.default_rng(reach)
+    for shape, density in (((57, 83), 0.01), ((9, 200), 0.05), ((1, 1), 1.0)):
+        on = rng.random(shape) < density
+        want = ndimage.maximum_filter(on, size=2 * reach + 1, mode="constant")
+        got = pipeline._dilate(pipeline._dilate(on, reach, 0), reach, 1)
+        assert np.array_equal(got, want)
