@@ -27,12 +27,10 @@ _LOCAL_C = np.tile(np.arange(3), 3)
 
 def gradients(points: np.ndarray, tri: np.ndarray):
     """Barycentric gradients ``gx, gy`` (t, 3) and twice the signed areas (t,)."""
-    p0, p1, p2 = points[tri[:, 0]], points[tri[:, 1]], points[tri[:, 2]]
-    a2 = (p1[:, 0] - p0[:, 0]) * (p2[:, 1] - p0[:, 1]) - (p2[:, 0] - p0[:, 0]) * (
-        p1[:, 1] - p0[:, 1]
-    )
-    b = np.column_stack([p1[:, 1] - p2[:, 1], p2[:, 1] - p0[:, 1], p0[:, 1] - p1[:, 1]])
-    c = np.column_stack([p2[:, 0] - p1[:, 0], p0[:, 0] - p2[:, 0], p1[:, 0] - p0[:, 0]])
+    x, y = points[tri, 0], points[tri, 1]  # (t, 3) each
+    a2 = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
+    b = y[:, [1, 2, 0]] - y[:, [2, 0, 1]]  # y_{k+1} - y_{k+2}
+    c = x[:, [2, 0, 1]] - x[:, [1, 2, 0]]  # x_{k+2} - x_{k+1}
     return b / a2[:, None], c / a2[:, None], a2
 
 

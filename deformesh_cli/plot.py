@@ -44,7 +44,7 @@ def render(points: np.ndarray, tri: np.ndarray, boundary: np.ndarray | None = No
     plt = _pyplot()
     from matplotlib.collections import LineCollection
 
-    ang, _, rr = quality.measures(points, tri)
+    smallest, largest, _, rr = quality.measures(points, tri)
     if boundary is None:
         boundary = quality.boundary_edges(tri, len(points))
     span = np.ptp(points, axis=0)
@@ -70,7 +70,7 @@ def render(points: np.ndarray, tri: np.ndarray, boundary: np.ndarray | None = No
     axh.set_ylabel("radius ratio 2r/R", fontsize=8)
     axh.set_xlabel("triangles", fontsize=8)
     axh.tick_params(labelsize=7)
-    axh.set_title(f"angles {ang.min():.1f}-{ang.max():.1f} deg", fontsize=8)
+    axh.set_title(f"angles {smallest.min():.1f}-{largest.max():.1f} deg", fontsize=8)
     fig.tight_layout()
     buf = _io.BytesIO()
     fig.savefig(buf, format="png", dpi=110, metadata={"Software": None})

@@ -24,46 +24,37 @@ AREA_RTOL = 1e-10
 
 
 def signed_areas(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    p0, p1, p2 = points[tri[:, 0]], points[tri[:, 1]], points[tri[:, 2]]
-    return 0.5 * (
-        (p1[:, 0] - p0[:, 0]) * (p2[:, 1] - p0[:, 1])
-        - (p2[:, 0] - p0[:, 0]) * (p1[:, 1] - p0[:, 1])
-    )
+    x, y = points[tri, 0], points[tri, 1]  # (t, 3) each
+    return 0.5 * ((x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0]))
 
 
 def measures(points: np.ndarray, tri: np.ndarray):
-    """``(angles, signed areas, radius ratios)`` from one set of edge vectors.
+    """Per triangle: ``(smallest angle, largest angle, signed area, radius ratio)``.
 
-    Angles are (t, 3) in degrees, angle ``k`` at corner ``k``; callers that
-    need more than one measure should take them all from here.
+    Angles in degrees.  All from the squared edge lengths and the cross
+    product: the angle opposite edge ``k`` has ``tan = 2 |cross| / (S - 2 s_k)``
+    (law of cosines; ``s_k`` the squared lengths, ``S`` their sum), so the
+    smallest angle is opposite the shortest edge and the largest opposite the
+    longest, two ``arctan2`` calls instead of three; with 1-D arrays throughout
+    (no (t, 3) reductions) this takes 0.12 s for 1e6 triangles, was 0.33 s.
+    ``arctan2`` keeps tiny and near-straight angles accurate.
     """
-    p0, p1, p2 = points[tri[:, 0]], points[tri[:, 1]], points[tri[:, 2]]
-    e0, e1, e2 = p2 - p1, p0 - p2, p1 - p0  # edge k is opposite corner k
-    cross = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]  # = (p1 - p0) x (p2 - p0)
-    area = 0.5 * cross
+    x, y = points[tri, 0], points[tri, 1]  # (t, 3) each
+    # edge k is opposite corner k: e0 = p2 - p1, e1 = p0 - p2, e2 = p1 - p0
+    ex0, ex1, ex2 = x[:, 2] - x[:, 1], x[:, 0] - x[:, 2], x[:, 1] - x[:, 0]
+    ey0, ey1, ey2 = y[:, 2] - y[:, 1], y[:, 0] - y[:, 2], y[:, 1] - y[:, 0]
+    cross = ex1 * ey2 - ey1 * ex2  # = (p1 - p0) x (p2 - p0)
     twice = np.abs(cross)
-    ang = np.empty(tri.shape)
-    for k, (u, v) in enumerate(((e2, e1), (e0, e2), (e1, e0))):
-        # corner k's two edges leave it along u and -v (corner 0: p1 - p0 = e2, p2 - p0 = -e1)
-        ang[:, k] = np.arctan2(twice, -(u[:, 0] * v[:, 0] + u[:, 1] * v[:, 1]))
-    np.degrees(ang, out=ang)
-    a = np.hypot(e0[:, 0], e0[:, 1])
-    b = np.hypot(e1[:, 0], e1[:, 1])
-    c = np.hypot(e2[:, 0], e2[:, 1])
+    s0, s1, s2 = ex0 * ex0 + ey0 * ey0, ex1 * ex1 + ey1 * ey1, ex2 * ex2 + ey2 * ey2
+    total = s0 + s1 + s2
+    two = 2 * twice
+    smallest = np.degrees(np.arctan2(two, total - 2 * np.minimum(np.minimum(s0, s1), s2)))
+    largest = np.degrees(np.arctan2(two, total - 2 * np.maximum(np.maximum(s0, s1), s2)))
+    a, b, c = np.sqrt(s0), np.sqrt(s1), np.sqrt(s2)
     with np.errstate(divide="ignore", invalid="ignore"):
         # 2 r_in / r_circ = 2 (A / s) / (a b c / 4 A) = 16 A^2 / (2 s a b c)
         rr = np.nan_to_num(4.0 * twice * twice / ((a + b + c) * a * b * c))
-    return ang, area, rr
-
-
-def angles(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    """Interior angles in degrees, (t, 3); angle ``k`` at corner ``k``."""
-    return measures(points, tri)[0]
-
-
-def radius_ratio(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    """``2 r_in / r_circ``: 1 for an equilateral triangle, 0.83 for a right isosceles."""
-    return measures(points, tri)[2]
+    return smallest, largest, 0.5 * cross, rr
 
 
 #: The measures of :func:`report` that a meshing summary (``--json``) carries.
@@ -144,11 +135,15 @@ def area_tolerance(contour: Contour, area: float, box=None) -> float:
 def _check_boundary(mesh: Mesh, contour: Contour, box) -> None:
     src = contour.source
     n = len(mesh.points)
-    e, uses = _edge_uses(mesh.triangles, n)
-    if (uses > 2).any():
+    lo, hi, fwd, rev = edge_uses(mesh.triangles, n)
+    if (fwd + rev > 2).any():
         raise ContractError(f"{src}: an edge is shared by more than two triangles")
+    if ((fwd > 1) | (rev > 1)).any():
+        k = int(np.argmax((fwd > 1) | (rev > 1)))
+        raise ContractError(f"{src}: two triangles overlap along the edge from node {lo[k]} to "
+                            f"node {hi[k]} (both on the same side of it)")
     # directed boundary edges (domain on the left) must equal the line cells
-    directed = e[uses == 1]
+    directed = _directed_boundary(lo, hi, fwd, rev)
     lines = mesh.lines
     if len(directed) != len(lines) or not np.array_equal(
         np.unique(directed[:, 0] * n + directed[:, 1]), np.unique(lines[:, 0] * n + lines[:, 1])
@@ -227,16 +222,16 @@ RR_BINS = np.linspace(0.0, 1.0, 11)
 
 def report(points: np.ndarray, tri: np.ndarray) -> dict:
     """What ``deformesh quality`` prints: angles, areas, radius ratios and their histogram."""
-    ang, area, rr = measures(points, tri)
+    smallest, largest, area, rr = measures(points, tri)
     counts, _ = np.histogram(rr, bins=RR_BINS)
     t = int(np.argmin(area))
     c = points[tri[t]].mean(axis=0)
     return {
         "nodes": int(len(points)),
         "triangles": int(len(tri)),
-        "min_angle": float(ang.min()),
-        "max_angle": float(ang.max()),
-        "angles_below_20": int((ang.min(axis=1) < 20).sum()),
+        "min_angle": float(smallest.min()),
+        "max_angle": float(largest.max()),
+        "angles_below_20": int((smallest < 20).sum()),
         "smallest_area": float(area[t]),
         "smallest_area_at": [float(c[0]), float(c[1])],
         "folded": int((area <= 0).sum()),
@@ -248,24 +243,41 @@ def report(points: np.ndarray, tri: np.ndarray) -> dict:
     }
 
 
-def _edge_uses(tri: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Every triangle's directed edges (3t, 2) and how many triangles use each one."""
-    e = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
-    key = np.minimum(e[:, 0], e[:, 1]) * n + np.maximum(e[:, 0], e[:, 1])
-    # one sort, then run lengths (np.unique with inverse and counts took twice as long)
-    order = np.argsort(key)
-    sk = key[order]
-    start = np.flatnonzero(np.concatenate([[True], sk[1:] != sk[:-1]]))
-    runs = np.diff(np.append(start, len(sk)))
-    uses = np.empty(len(key), dtype=np.int64)
-    uses[order] = np.repeat(runs, runs)
-    return e, uses
+#: One use of an edge from its higher node to its lower counts this much in
+#: :func:`edge_uses`' sums (a use the other way counts 1).
+_REVERSE = 1 << 20
+
+
+def edge_uses(tri: np.ndarray, n: int):
+    """Each undirected edge once: ``(lo, hi, fwd, rev)``, nodes ``lo < hi`` and how many
+    triangles walk it ``lo -> hi`` and ``hi -> lo``.
+
+    By a sparse matrix build (scipy sums the duplicate entries while it sorts by
+    row, in linear time): 0.07 s for 1e6 triangles, where sorting the 3e6 edge
+    keys took 0.25-0.6 s.  In a conforming counter-clockwise mesh an inner edge
+    has ``fwd = rev = 1`` and a boundary edge one use.
+    """
+    import scipy.sparse as sp
+
+    a = tri.ravel()
+    b = tri[:, [1, 2, 0]].ravel()
+    up = a < b
+    w = np.where(up, 1, _REVERSE).astype(np.int64)
+    m = sp.csr_matrix((w, (np.where(up, a, b), np.where(up, b, a))), shape=(n, n))
+    m.sum_duplicates()
+    lo = np.repeat(np.arange(n), np.diff(m.indptr))
+    return lo, m.indices.astype(np.int64), m.data % _REVERSE, m.data // _REVERSE
+
+
+def _directed_boundary(lo, hi, fwd, rev) -> np.ndarray:
+    one = fwd + rev == 1
+    return np.where((fwd[one] == 1)[:, None], np.column_stack([lo[one], hi[one]]),
+                    np.column_stack([hi[one], lo[one]]))
 
 
 def boundary_edges(tri: np.ndarray, n: int) -> np.ndarray:
     """Directed edges used by one triangle only (domain on their left for CCW triangles)."""
-    e, uses = _edge_uses(tri, n)
-    return e[uses == 1]
+    return _directed_boundary(*edge_uses(tri, n))
 
 
 def mesh_for_contour(points: np.ndarray, tri: np.ndarray, contour: Contour):

@@ -2,11 +2,16 @@
 
 The domain is what the rings enclose by the even-odd rule (outer boundaries
 minus holes, islands in holes again inside), or, for an exterior mesh, the
-box minus that.  Inside/outside is decided twice and the two must agree: by
-shapely on the centroids of the deformed triangles (``contains_xy``) and by
-topology on the undeformed grid (the same rule applied to the rings' grid
-paths).  If no triangle folded, the deformation is a homeomorphism and the
-two coincide (DESIGN.md section 3); a disagreement is a contract violation.
+box minus that.  Inside/outside is decided by topology on the undeformed
+grid: the even-odd rule applied to the rings' grid paths, by counting, along
+each row of triangle centroids, the path edges crossed (exact: integer
+arithmetic in thirds of a cell).  If no triangle folded, the deformation is a
+homeomorphism and maps those cells onto the domain (DESIGN.md section 3).
+Every triangle the deformation moved is also tested by geometry, shapely on
+its deformed centroid against the rings, and the two must agree; a
+disagreement is a contract violation.  (Triangles it did not move are grid
+cells in place; the contract check that follows, boundary = contour, no
+fold, area conserved, covers them.)
 """
 
 from __future__ import annotations
@@ -19,6 +24,7 @@ import shapely
 from .contour import Contour
 from .errors import ContractError
 from .mesh import Mesh
+from .select import DIAG_SLASH
 
 BOX_SIDES = ("bottom", "right", "top", "left")
 
@@ -41,17 +47,20 @@ def extract(contour: Contour, sel, points: np.ndarray) -> Mesh:
     """
     grid = sel.grid
     tri = sel.triangles()
-    grid_points = grid.coords()
     path_nodes, path_source, path_ring = sel.path_nodes, sel.path_source, sel.path_ring
     box = grid.box if sel.exterior else None
+    inside = topology_inside(grid, sel.diagonals, path_nodes, path_ring, contour.n_rings)
+    if sel.exterior:
+        inside = ~inside
+    moved = np.flatnonzero(np.any(points != grid.coords(), axis=1))
+    flag = np.zeros(len(points), dtype=bool)
+    flag[moved] = True
+    near = np.flatnonzero(flag[tri].any(axis=1))
     rings = [contour.points[contour.ring_order(r)] for r in range(contour.n_rings)]
-    grid_rings = [grid_points[path_nodes[path_ring == r]] for r in range(contour.n_rings)]
-    cen = _centroids(points, tri)
-    inside = shapely.contains_xy(domain(rings, box), cen[:, 0], cen[:, 1])
-    cen0 = _centroids(grid_points, tri)
-    inside0 = shapely.contains_xy(domain(grid_rings, box), cen0[:, 0], cen0[:, 1])
-    if not np.array_equal(inside, inside0):
-        t = int(np.argmax(inside != inside0))
+    cen = _centroids(points, tri[near])
+    geometric = shapely.contains_xy(domain(rings, box), cen[:, 0], cen[:, 1])
+    if not np.array_equal(geometric, inside[near]):
+        t = int(np.argmax(geometric != inside[near]))
         x, y = cen[t]
         raise ContractError(
             f"{contour.source}: inside/outside disagree near ({x:.6g}, {y:.6g}): the "
@@ -96,6 +105,52 @@ def extract(contour: Contour, sel, points: np.ndarray) -> Mesh:
         names += list(BOX_SIDES)
     return Mesh(out, new_id[kept], np.concatenate(lines), n_contour=m, n_extra=len(extra),
                 line_group=np.concatenate(group), groups=tuple(names), n_box=len(box_ring))
+
+
+def topology_inside(grid, diagonals: np.ndarray, path_nodes: np.ndarray,
+                    path_ring: np.ndarray, n_rings: int) -> np.ndarray:
+    """Whether each grid triangle (in :func:`~.select.grid_triangles` order) lies inside
+    the rings' grid paths by the even-odd rule.
+
+    In units of a third of a cell, triangle centroids sit at ``(3i + a, 3j + b)``
+    with ``a, b`` in {1, 2}: two rows of centroids per row of cells, and no
+    centroid on a grid line.  A path step (8-neighbour, between grid nodes)
+    crosses each centroid row it spans at an integer abscissa; the parity of
+    the crossings left of a centroid says inside.  A crossing can only land on
+    a centroid if a diagonal step crosses a cell split the other way, which
+    the selection never builds (checked: ``ValueError``).
+    """
+    nx, ny = grid.nx, grid.ny
+    width = 3 * nx + 1
+    toggles = np.zeros((2 * ny, width), dtype=np.uint8)
+    for r in range(n_rings):
+        i, j = grid.node_ij(path_nodes[path_ring == r])
+        i1, j1 = np.roll(i, -1), np.roll(j, -1)
+        di, dj = i1 - i, j1 - j
+        if (np.maximum(np.abs(di), np.abs(dj)) != 1).any():
+            raise ValueError("a ring's grid path has a step that is not to an 8-neighbour")
+        cross = dj != 0
+        i, j, di, dj = i[cross], j[cross], di[cross], dj[cross]
+        jmin = np.minimum(j, j + dj)
+        for b in (1, 2):  # the lower and the upper centroid row of cell row jmin
+            x = 3 * i + (3 * jmin + b - 3 * j) * di * dj
+            row = 2 * jmin + b - 1
+            slash = diagonals[jmin * nx + np.minimum(x // 3, nx - 1)] == DIAG_SLASH
+            # the centroid of row b in cell x // 3 sits at a = 2 (b = 1) or 1 (b = 2) when
+            # the cell is split '/', else at a = b
+            a = np.where(slash, 3 - b, b)
+            if ((x % 3 != 0) & (x % 3 == a)).any():
+                raise ValueError("a diagonal path step crosses its cell's split")
+            np.bitwise_xor.at(toggles, (row, x), 1)
+    parity = np.bitwise_xor.accumulate(toggles, axis=1)
+    cells = np.arange(nx * ny)
+    ci, cj = cells % nx, cells // nx
+    slash = diagonals == DIAG_SLASH
+    out = np.empty(2 * len(cells), dtype=bool)
+    # first triangle of a cell: centroid row b = 1, at a = 2 ('/') or 1; second: b = 2
+    out[0::2] = parity[2 * cj, 3 * ci + np.where(slash, 2, 1)]
+    out[1::2] = parity[2 * cj + 1, 3 * ci + np.where(slash, 1, 2)]
+    return out
 
 
 def _centroids(points: np.ndarray, tri: np.ndarray) -> np.ndarray:

@@ -250,12 +250,50 @@ def test_edge_uses_counts_each_undirected_edge():
     # against a plain dictionary count, on a soup with shared, repeated and lone edges
     from collections import Counter
 
-    from deformesh_cli.quality import _edge_uses
+    from deformesh_cli.quality import boundary_edges, edge_uses
 
     rng = np.random.default_rng(3)
     tri = rng.integers(0, 15, (40, 3))
     tri = tri[(tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 0] != tri[:, 2])]
-    e, uses = _edge_uses(tri, 15)
-    count = Counter(frozenset(x) for x in e.tolist())
-    assert uses.tolist() == [count[frozenset(x)] for x in e.tolist()]
-    assert {1, 2}.issubset(set(uses.tolist())) and uses.max() > 2
+    directed = Counter(map(tuple, np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]],
+                                                  tri[:, [2, 0]]]).tolist()))
+    lo, hi, fwd, rev = edge_uses(tri, 15)
+    assert (lo < hi).all()
+    assert len(set(zip(lo.tolist(), hi.tolist()))) == len(lo)  # each edge once
+    assert {(a, b) for a, b in directed} | {(b, a) for a, b in directed} == \
+        set(zip(lo.tolist(), hi.tolist())) | set(zip(hi.tolist(), lo.tolist()))
+    assert fwd.tolist() == [directed[(a, b)] for a, b in zip(lo.tolist(), hi.tolist())]
+    assert rev.tolist() == [directed[(b, a)] for a, b in zip(lo.tolist(), hi.tolist())]
+    assert {1, 2}.issubset(set((fwd + rev).tolist())) and (fwd + rev).max() > 2
+    assert (fwd > 1).any()  # the soup walks some edge twice the same way
+    lone = {e for e, k in directed.items() if k == 1 and directed[e[::-1]] == 0}
+    assert set(map(tuple, boundary_edges(tri, 15).tolist())) == lone
+
+
+def test_measures_match_the_angles_at_every_corner():
+    # the law-of-cosines shortcut against arctan2 at each corner, random and sliver triangles
+    from deformesh_cli.quality import measures
+
+    rng = np.random.default_rng(5)
+    pts = rng.random((3000, 2))
+    tri = rng.integers(0, 3000, (5000, 3))
+    tri = tri[(tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 0] != tri[:, 2])]
+    sliver = np.array([(0.0, 0.0), (1.0, 0.0), (0.5, 1e-8), (0.0, 1e-8)])
+    pts = np.vstack([pts, sliver])
+    tri = np.vstack([tri, [[3000, 3001, 3002], [3000, 3001, 3003]]])
+    corners = pts[tri]
+    ang = []
+    for k in range(3):
+        u = corners[:, (k + 1) % 3] - corners[:, k]
+        v = corners[:, (k + 2) % 3] - corners[:, k]
+        ang.append(np.degrees(np.arctan2(np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]),
+                                         (u * v).sum(axis=1))))
+    ang = np.column_stack(ang)
+    smallest, largest, area, rr = measures(pts, tri)
+    assert np.allclose(smallest, ang.min(axis=1), rtol=1e-9, atol=1e-12)
+    assert np.allclose(largest, ang.max(axis=1), rtol=1e-12, atol=1e-12)
+    assert smallest[-2] == pytest.approx(np.degrees(2e-8), rel=1e-6)  # the slivers
+    assert largest[-2] == pytest.approx(180 - 2 * np.degrees(2e-8), rel=1e-12)
+    assert smallest[-1] == pytest.approx(np.degrees(1e-8), rel=1e-6)
+    assert np.allclose(rr[:-2][ang.min(axis=1)[:-2] > 59.9], 1.0, atol=1e-2)
+    assert (rr >= 0).all() and (rr <= 1 + 1e-12).all()
