@@ -25,7 +25,8 @@ AREA_RTOL = 1e-10
 
 def signed_areas(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
     x, y = points[tri, 0], points[tri, 1]  # (t, 3) each
-    return 0.5 * ((x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0]))
+    return 0.5 * ((x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0])
+                  - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0]))
 
 
 def measures(points: np.ndarray, tri: np.ndarray):

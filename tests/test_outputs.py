@@ -289,7 +289,7 @@ def test_measures_match_the_angles_at_every_corner():
         ang.append(np.degrees(np.arctan2(np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]),
                                          (u * v).sum(axis=1))))
     ang = np.column_stack(ang)
-    smallest, largest, area, rr = measures(pts, tri)
+    smallest, largest, _, rr = measures(pts, tri)
     assert np.allclose(smallest, ang.min(axis=1), rtol=1e-9, atol=1e-12)
     assert np.allclose(largest, ang.max(axis=1), rtol=1e-12, atol=1e-12)
     assert smallest[-2] == pytest.approx(np.degrees(2e-8), rel=1e-6)  # the slivers
