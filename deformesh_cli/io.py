@@ -144,6 +144,38 @@ def _write_meshio(fmt: str, dim3: bool = False) -> Callable[[Mesh, str], None]:
     return write
 
 
+#: The second line of our .vtk files (a free-text title in the legacy format).
+VTK_TITLE = "deformesh mesh: point k < number of contour points is contour point k"
+
+
+def _write_vtk(mesh: Mesh, path: str) -> None:
+    """VTK legacy 5.1, binary (big-endian): what meshio writes for the same mesh
+    (triangles, then the boundary lines; point data ``contour_point``), bytes for
+    bytes but the title line (tested), without importing meshio (0.15 s)."""
+    n, tri, lines = mesh.n_nodes, mesh.triangles, mesh.lines
+    nt, nl = len(tri), len(lines)
+    pts = np.zeros((n, 3), dtype=">f8")
+    pts[:, :2] = mesh.points
+    offsets = np.concatenate([np.arange(0, 3 * nt + 1, 3),
+                              3 * nt + np.arange(2, 2 * nl + 1, 2)]).astype(">i8")
+    conn = np.concatenate([tri.ravel(), lines.ravel()]).astype(">i8")
+    types = np.repeat(np.array([5, 3], dtype=">i4"), [nt, nl])  # VTK_TRIANGLE, VTK_LINE
+    contour_point = np.where(np.arange(n) < mesh.n_contour, np.arange(n), -1).astype(">i4")
+    with open(path, "wb") as f:
+        f.write(f"# vtk DataFile Version 5.1\n{VTK_TITLE}\nBINARY\n"
+                f"DATASET UNSTRUCTURED_GRID\nPOINTS {n} double\n".encode())
+        for head, data in ((b"", pts),
+                           (f"CELLS {nt + nl + 1} {3 * nt + 2 * nl}\n"
+                            "OFFSETS vtktypeint64\n".encode(), offsets),
+                           (b"CONNECTIVITY vtktypeint64\n", conn),
+                           (f"CELL_TYPES {nt + nl}\n".encode(), types),
+                           (f"POINT_DATA {n}\nFIELD FieldData 1\n"
+                            f"contour_point 1 {n} vtktypeint32\n".encode(), contour_point)):
+            f.write(head)
+            f.write(data.tobytes())
+            f.write(b"\n")
+
+
 def _write_obj(mesh: Mesh, path: str) -> None:
     """Wavefront OBJ with z = 0, faces and the boundary as ``l`` lines (1-based)."""
     with open(path, "w", encoding="ascii", newline="\n") as f:
@@ -232,7 +264,7 @@ SIDECARS = {"xdmf": ".h5"}
 
 #: extension -> (description, writer)
 FORMATS: dict[str, tuple[str, Callable[[Mesh, str], None]]] = {
-    "vtk": ("VTK legacy", _write_meshio("vtk", dim3=True)),
+    "vtk": ("VTK legacy 5.1, binary", _write_vtk),
     "vtu": ("VTK XML unstructured grid", _write_meshio("vtu", dim3=True)),
     "msh": ("Gmsh 2.2 ASCII with named physical groups", _write_gmsh),
     "obj": ("Wavefront OBJ (z = 0)", _write_obj),

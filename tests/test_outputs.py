@@ -246,6 +246,24 @@ def test_msh22_is_byte_identical_to_meshios_writer(tmp_path, exterior):
     assert (tmp_path / "ours.msh").read_bytes() == (tmp_path / "meshio.msh").read_bytes()
 
 
+@pytest.mark.parametrize("exterior", [False, True])
+def test_vtk_is_meshios_file_but_the_title(tmp_path, exterior):
+    # our writer skips meshio's import (0.15 s); the bytes are meshio's, title line aside
+    from deformesh_cli import io, pipeline
+
+    mesh = pipeline.mesh_contour(load_contour(SAMPLES / "bracket.svg"), exterior=exterior).mesh
+    io.write_mesh(mesh, str(tmp_path / "ours.vtk"))
+    io._write_meshio("vtk", dim3=True)(mesh, str(tmp_path / "meshio.vtk"))
+    ours = (tmp_path / "ours.vtk").read_bytes().split(b"\n", 2)
+    theirs = (tmp_path / "meshio.vtk").read_bytes().split(b"\n", 2)
+    assert ours[1] == io.VTK_TITLE.encode() and theirs[1].startswith(b"written by meshio")
+    assert ours[0] == theirs[0] and ours[2] == theirs[2]
+    back = meshio.read(tmp_path / "ours.vtk")
+    assert np.array_equal(back.points[:, :2], mesh.points)
+    assert np.array_equal(back.cells_dict["triangle"], mesh.triangles)
+    assert np.array_equal(back.cells_dict["line"], mesh.lines)
+
+
 def test_edge_uses_counts_each_undirected_edge():
     # against a plain dictionary count, on a soup with shared, repeated and lone edges
     from collections import Counter
