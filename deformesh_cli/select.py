@@ -256,19 +256,21 @@ def grid_triangles(grid: Grid, diagonals: np.ndarray, cells: np.ndarray | None =
     ``cells`` (cell ids ``j * nx + i``) restricts them to those cells, in that order.
     """
     nx = grid.nx
-    if cells is None:
-        cells = np.arange(nx * grid.ny)
-    ci, cj = cells % nx, cells // nx
-    n00 = cj * (nx + 1) + ci
-    n10, n01, n11 = n00 + 1, n00 + nx + 1, n00 + nx + 2
-    slash = diagonals[cells] == DIAG_SLASH
-    t1 = np.where(slash[:, None], np.column_stack([n00, n10, n11]),
-                  np.column_stack([n00, n10, n01]))
-    t2 = np.where(slash[:, None], np.column_stack([n00, n11, n01]),
-                  np.column_stack([n10, n11, n01]))
-    tri = np.empty((2 * len(n00), 3), dtype=np.int64)
-    tri[0::2], tri[1::2] = t1, t2
-    return tri
+    if cells is None:  # every cell: corner ids without a division per cell
+        n00 = (np.arange(grid.ny)[:, None] * (nx + 1) + np.arange(nx)).ravel()
+        slash = diagonals == DIAG_SLASH
+    else:
+        n00 = cells // nx * (nx + 1) + cells % nx
+        slash = diagonals[cells] == DIAG_SLASH
+    # '/': (n00, n10, n11), (n00, n11, n01); '\\': (n00, n10, n01), (n10, n11, n01)
+    tri = np.empty((len(n00), 2, 3), dtype=np.int64)
+    tri[:, 0, 0] = n00
+    tri[:, 0, 1] = n00 + 1
+    tri[:, 0, 2] = n00 + nx + 1 + slash
+    tri[:, 1, 0] = n00 + ~slash
+    tri[:, 1, 1] = n00 + nx + 2
+    tri[:, 1, 2] = n00 + nx + 1
+    return tri.reshape(-1, 3)
 
 
 class _Visibility:

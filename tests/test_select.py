@@ -162,3 +162,26 @@ def test_touching_path_with_given_h_fails_clearly():
         assert "give a smaller --h" in str(e.value)
     # a grid as fine as the slot follows it
     assert select(c, h=0.1).path_rule == "appendix-a"
+
+
+def test_grid_triangles_cover_each_cell_by_its_split():
+    # against a per-cell construction: two counter-clockwise triangles per cell, meeting
+    # on the cell's diagonal, for the whole grid and for a subset of cells in given order
+    g = Grid(0, 0, 1, 1, 5, 4)
+    rng = np.random.default_rng(2)
+    diag = rng.integers(0, 2, g.nx * g.ny).astype(np.uint8)
+    want = []
+    for c in range(g.nx * g.ny):
+        i, j = c % g.nx, c // g.nx
+        ids = g.node_id([i, i + 1, i, i + 1], [j, j, j + 1, j + 1])
+        n00, n10, n01, n11 = (int(x) for x in ids)
+        if diag[c] == DIAG_SLASH:
+            want += [(n00, n10, n11), (n00, n11, n01)]
+        else:
+            want += [(n00, n10, n01), (n10, n11, n01)]
+    want = np.array(want)
+    assert np.array_equal(grid_triangles(g, diag), want)
+    cells = np.array([7, 0, 19, 3])
+    assert np.array_equal(grid_triangles(g, diag, cells),
+                          want.reshape(-1, 2, 3)[cells].reshape(-1, 3))
+    assert (signed_areas(g.coords(), want) > 0).all()
