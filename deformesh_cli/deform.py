@@ -172,11 +172,16 @@ def deform_band(points: np.ndarray, tri: np.ndarray, path_nodes: np.ndarray,
     other triangle keeps its shape exactly and cannot fold.  The path nodes
     must lie strictly inside the band.
     """
-    inside = active[tri].all(axis=1)
+    # (t, 3) reductions and np.unique are slow on a whole grid's triangles: per-corner
+    # masks and scatters instead (0.17 -> 0.05 s for 1.3e6 triangles)
+    corner = [active[tri[:, k]] for k in range(3)]
+    inside = corner[0] & corner[1] & corner[2]
     sub_tri = tri[inside]
-    nodes = np.unique(sub_tri)
+    used = np.zeros(len(points), dtype=bool)
+    used[sub_tri.ravel()] = True
+    nodes = np.flatnonzero(used)
     edge = np.zeros(len(points), dtype=bool)
-    edge[tri[~inside].ravel()] = True
+    edge[tri[~inside & (corner[0] | corner[1] | corner[2])].ravel()] = True  # touch the band
     edge[fixed_nodes] = True
     held = nodes[edge[nodes]]
     if edge[path_nodes].any():

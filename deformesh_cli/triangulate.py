@@ -52,10 +52,9 @@ def extract(contour: Contour, sel, points: np.ndarray) -> Mesh:
     inside = topology_inside(grid, sel.diagonals, path_nodes, path_ring, contour.n_rings)
     if sel.exterior:
         inside = ~inside
-    moved = np.flatnonzero(np.any(points != grid.coords(), axis=1))
-    flag = np.zeros(len(points), dtype=bool)
-    flag[moved] = True
-    near = np.flatnonzero(flag[tri].any(axis=1))
+    g = grid.coords()
+    moved = (points[:, 0] != g[:, 0]) | (points[:, 1] != g[:, 1])
+    near = np.flatnonzero(moved[tri[:, 0]] | moved[tri[:, 1]] | moved[tri[:, 2]])
     rings = [contour.points[contour.ring_order(r)] for r in range(contour.n_rings)]
     cen = _centroids(points, tri[near])
     geometric = shapely.contains_xy(domain(rings, box), cen[:, 0], cen[:, 1])
