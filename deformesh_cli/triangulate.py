@@ -16,6 +16,7 @@ fold, area conserved, covers them.)
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import reduce
 
 import numpy as np
@@ -38,6 +39,23 @@ def domain(rings: list[np.ndarray], box=None):
     return shapely.box(*box).difference(inside)
 
 
+@dataclass
+class Cut:
+    """What stage 3 decides before knowing where the nodes went: which grid triangles
+    are kept and how the nodes are renumbered (the mesh's triangles and lines)."""
+
+    inside: np.ndarray  # (grid triangles,) bool
+    order: np.ndarray  # mesh node k is grid node order[k]
+    triangles: np.ndarray  # (t, 3) in mesh node ids
+    lines: np.ndarray
+    line_group: np.ndarray
+    groups: tuple[str, ...]
+    n_contour: int
+    n_extra: int
+    n_box: int
+    edges: tuple | None = None  # quality.edge_uses(triangles, nodes), when computed
+
+
 def extract(contour: Contour, sel, points: np.ndarray) -> Mesh:
     """Cut the mesh of the domain out of the deformed background mesh.
 
@@ -45,29 +63,22 @@ def extract(contour: Contour, sel, points: np.ndarray) -> Mesh:
     ring paths), ``points`` the deformed coordinates of every grid node.
     Node ``k`` of the result is contour point ``k``.
     """
+    return place(contour, sel, cut(contour, sel), points)
+
+
+def cut(contour: Contour, sel, edges: bool = False) -> Cut:
+    """The topological half of :func:`extract`: it needs only the selection, so it can
+    run while the deformation does.  ``edges``: also count the edge uses of the kept
+    triangles (:func:`~.quality.edge_uses`, what the contract check needs most)."""
     grid = sel.grid
     tri = sel.triangles()
     path_nodes, path_source, path_ring = sel.path_nodes, sel.path_source, sel.path_ring
-    box = grid.box if sel.exterior else None
     inside = topology_inside(grid, sel.diagonals, path_nodes, path_ring, contour.n_rings)
     if sel.exterior:
         inside = ~inside
-    g = grid.coords()
-    moved = (points[:, 0] != g[:, 0]) | (points[:, 1] != g[:, 1])
-    near = np.flatnonzero(moved[tri[:, 0]] | moved[tri[:, 1]] | moved[tri[:, 2]])
-    rings = [contour.points[contour.ring_order(r)] for r in range(contour.n_rings)]
-    cen = _centroids(points, tri[near])
-    geometric = shapely.contains_xy(domain(rings, box), cen[:, 0], cen[:, 1])
-    if not np.array_equal(geometric, inside[near]):
-        t = int(np.argmax(geometric != inside[near]))
-        x, y = cen[t]
-        raise ContractError(
-            f"{contour.source}: inside/outside disagree near ({x:.6g}, {y:.6g}): the "
-            "deformed mesh is not a faithful image of the grid there"
-        )
     kept = tri[inside]
     m = contour.n
-    new_id = np.full(len(points), -1, dtype=np.int64)
+    new_id = np.full(grid.n_nodes, -1, dtype=np.int64)
     on = path_source >= 0
     new_id[path_nodes[on]] = path_source[on]
     extra = path_nodes[~on]
@@ -78,7 +89,7 @@ def extract(contour: Contour, sel, points: np.ndarray) -> Mesh:
         box_ring = _box_ring(grid)
         new_id[box_ring] = nxt + np.arange(len(box_ring))
         nxt += len(box_ring)
-    used = np.zeros(len(points), dtype=bool)
+    used = np.zeros(grid.n_nodes, dtype=bool)
     used[kept.ravel()] = True
     used[new_id >= 0] = False
     interior = np.flatnonzero(used)
@@ -86,7 +97,6 @@ def extract(contour: Contour, sel, points: np.ndarray) -> Mesh:
     n_total = nxt + len(interior)
     order = np.empty(n_total, dtype=np.int64)
     order[new_id[new_id >= 0]] = np.flatnonzero(new_id >= 0)
-    out = points[order]
     lines, group = [], []
     names = [contour.ring_name(r) for r in range(contour.n_rings)]
     for r in range(contour.n_rings):
@@ -102,8 +112,40 @@ def extract(contour: Contour, sel, points: np.ndarray) -> Mesh:
         lines.append(np.column_stack([ring, np.roll(ring, -1)]))
         group.append(contour.n_rings + side)
         names += list(BOX_SIDES)
-    return Mesh(out, new_id[kept], np.concatenate(lines), n_contour=m, n_extra=len(extra),
-                line_group=np.concatenate(group), groups=tuple(names), n_box=len(box_ring))
+    triangles = new_id[kept]
+    out = Cut(inside, order, triangles, np.concatenate(lines), np.concatenate(group),
+              tuple(names), m, len(extra), len(box_ring))
+    if edges:
+        from .quality import edge_uses
+
+        out.edges = edge_uses(triangles, n_total)
+    return out
+
+
+def place(contour: Contour, sel, c: Cut, points: np.ndarray) -> Mesh:
+    """The mesh of cut ``c`` at the deformed ``points`` (every grid node).
+
+    Every triangle the deformation moved is tested by geometry (shapely, its
+    deformed centroid against the rings); a disagreement with the topology is a
+    :class:`ContractError`.
+    """
+    grid, tri = sel.grid, sel.triangles()
+    g = grid.coords()
+    moved = (points[:, 0] != g[:, 0]) | (points[:, 1] != g[:, 1])
+    near = np.flatnonzero(moved[tri[:, 0]] | moved[tri[:, 1]] | moved[tri[:, 2]])
+    rings = [contour.points[contour.ring_order(r)] for r in range(contour.n_rings)]
+    cen = _centroids(points, tri[near])
+    box = grid.box if sel.exterior else None
+    geometric = shapely.contains_xy(domain(rings, box), cen[:, 0], cen[:, 1])
+    if not np.array_equal(geometric, c.inside[near]):
+        t = int(np.argmax(geometric != c.inside[near]))
+        x, y = cen[t]
+        raise ContractError(
+            f"{contour.source}: inside/outside disagree near ({x:.6g}, {y:.6g}): the "
+            "deformed mesh is not a faithful image of the grid there"
+        )
+    return Mesh(points[c.order], c.triangles, c.lines, n_contour=c.n_contour,
+                n_extra=c.n_extra, line_group=c.line_group, groups=c.groups, n_box=c.n_box)
 
 
 def topology_inside(grid, diagonals: np.ndarray, path_nodes: np.ndarray,
