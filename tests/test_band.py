@@ -71,6 +71,24 @@ def test_band_keeps_the_contract_and_the_smallest_angle(path):
         assert band[1] < 0.2 * full[1]
 
 
+@pytest.mark.parametrize("path", CASES, ids=lambda p: p.name)
+def test_direct_and_multigrid_solves_give_the_same_mesh(path):
+    # the speed work moved the solves from CG + multigrid to a direct LDL^T: the nodes
+    # may differ only at the iterative solver's tolerance (rtol 1e-8 per step)
+    c = load_contour(path)
+    sel = pipeline.run_select(c)
+    out = {}
+    for solver in ("direct", "amg"):
+        d = pipeline.run_deform(c, sel, solver=solver)
+        mesh, report = pipeline.run_triangulate(c, d)
+        check_contract(mesh, c)
+        out[solver] = (d.points, report)
+    (p_direct, r_direct), (p_amg, r_amg) = out["direct"], out["amg"]
+    assert np.abs(p_direct - p_amg).max() < 1e-5 * sel.h
+    assert r_direct["min_angle"] == pytest.approx(r_amg["min_angle"], abs=1e-4)
+    assert r_direct["triangles"] == r_amg["triangles"]
+
+
 @pytest.mark.parametrize("reach", [0, 1, 3, 8, 40])
 def test_band_dilation_is_the_maximum_filter(reach):
     # pipeline._dilate replaces scipy.ndimage.maximum_filter (slow to import): same mask
