@@ -107,7 +107,8 @@ def run_task(task: Task) -> tuple[dict, list[tuple[str, bytes]]]:
                            o.get("max_nodes", DEFAULT_MAX_NODES), o.get("steps", DEFAULT_STEPS),
                            solver=o.get("solver", "auto"), exterior=o.get("exterior", False),
                            size=size_make(o.get("size"), o.get("size_field"), c),
-                           grid=o.get("grid", "auto"), solve=o.get("solve", "band"))
+                           grid=o.get("grid", "auto"), solve=o.get("solve", "band"),
+                           improve=o.get("improve", True))
         files = io.mesh_files(res.mesh, Path(task.output).name, o["fmt"],
                               o.get("msh_version", "2.2"))
         r = res.report

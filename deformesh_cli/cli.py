@@ -139,6 +139,10 @@ solve_option = click.option(
     "--solve", type=click.Choice(pipeline.SOLVES), default="band", show_default=True,
     help="Deform only a narrow band of cells around the path ('band': at least 8 cells, "
          "3 times the farthest path node's travel) or the whole background grid ('full').")
+improve_option = click.option(
+    "--improve/--no-improve", default=True, show_default=True,
+    help="Better triangles next to the contour: flip edges and move free nodes within 3 rings "
+         "of the boundary while the smallest angle grows (boundary nodes never move).")
 format_option = click.option(
     "--format", "fmt", type=click.Choice(sorted(io.FORMATS), case_sensitive=False),
     default=None, help="Mesh format. Default: from the output file's extension.")
@@ -220,13 +224,14 @@ def deform_cmd(state_in, output, steps, solver, solve, size_expr, size_field, qu
 @click.argument("state_in", metavar="STATE", type=click.Path(dir_okay=False, allow_dash=True))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, allow_dash=True),
               help="Mesh file to write; the format follows the extension.")
+@improve_option
 @format_option
 @msh_option
 @png_option
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
 @quiet_option
 @_handle_errors
-def triangulate_cmd(state_in, output, fmt, msh_version, png, as_json, quiet):
+def triangulate_cmd(state_in, output, improve, fmt, msh_version, png, as_json, quiet):
     """Keep the triangles inside the contour and write the mesh (stage 3)."""
     t0 = time.perf_counter()
     fmt = _check_mesh_output(output, fmt, as_json)
@@ -235,7 +240,7 @@ def triangulate_cmd(state_in, output, fmt, msh_version, png, as_json, quiet):
     size = _size.make(st.meta.get("size"), st.meta.get("size_field"), st.contour) \
         if st.meta else None
     mesh, report = pipeline.run_triangulate(st.contour, pipeline.Deformed(st.selection, st.points),
-                                            size)
+                                            size, improve=improve)
     report.update(pipeline.selection_report(st.selection))
     _finish(st.contour, mesh, report, output, fmt, as_json, quiet, t0, msh_version, png)
 
@@ -296,6 +301,7 @@ def summary_line(r: dict) -> str:
 @solver_option
 @solve_option
 @_apply(size_options)
+@improve_option
 @format_option
 @msh_option
 @png_option
@@ -305,7 +311,7 @@ def summary_line(r: dict) -> str:
 @_handle_errors
 def all_cmd(contours, output, out_dir, jobs, scheduler, fail_fast, h, box, margin, strict,
             max_nodes, decimal, tolerance, element_id, resample, exterior, grid, steps, solver,
-            solve, size_expr, size_field, fmt, msh_version, png, as_json, quiet):
+            solve, size_expr, size_field, improve, fmt, msh_version, png, as_json, quiet):
     """Run select, deform and triangulate in one process, for one contour or a batch."""
     t0 = time.perf_counter()
     if out_dir is not None:
@@ -319,7 +325,7 @@ def all_cmd(contours, output, out_dir, jobs, scheduler, fail_fast, h, box, margi
                        resample=resample,
                        exterior=exterior, grid=grid, steps=steps, solver=solver,
                        solve=solve, msh_version=msh_version,
-                       size=size_expr, size_field=size_field)
+                       size=size_expr, size_field=size_field, improve=improve)
         _batch(list(contours), out_dir, fmt, options, jobs, scheduler, fail_fast, as_json, quiet,
                t0)
         return
@@ -336,7 +342,7 @@ def all_cmd(contours, output, out_dir, jobs, scheduler, fail_fast, h, box, margi
     with _steps_bar(steps, quiet) as progress:
         res = pipeline.mesh_contour(c, h, box, margin, strict, max_nodes, steps, solver=solver,
                                     exterior=exterior, callback=progress, size=size, grid=grid,
-                                    solve=solve)
+                                    solve=solve, improve=improve)
     _finish(c, res.mesh, res.report, output, fmt, as_json, quiet, t0, msh_version, png)
 
 

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import deform as _deform
+from . import improve as _improve
 from . import quality, triangulate
 from . import respace as _respace
 from . import size as _size
@@ -171,12 +172,20 @@ def _describer(contour: Contour, sel: Selection):
 
 
 def run_triangulate(contour: Contour, d: Deformed, size: SizeFunction | None = None,
-                    cut: triangulate.Cut | None = None) -> tuple[Mesh, dict]:
-    """Stage 3.  ``cut``: :func:`.triangulate.cut` of this selection, if already made."""
+                    cut: triangulate.Cut | None = None,
+                    improve: bool = True) -> tuple[Mesh, dict]:
+    """Stage 3.  ``cut``: :func:`.triangulate.cut` of this selection, if already made.
+    ``improve``: run the quality stage (:mod:`.improve`) on the mesh."""
     sel = d.selection
     if cut is None:
         cut = triangulate.cut(contour, sel)
     mesh = triangulate.place(contour, sel, cut, d.points)
+    edges = cut.edges
+    better = None
+    if improve:
+        mesh, better = _improve.improve(mesh)
+        if better.flips:
+            edges = None  # other triangles now: the contract counts their edges afresh
     # the contract check and the summary read the mesh independently; numpy and
     # scipy release the GIL in their loops, so on two cores the pair takes about as
     # long as the longer one (1e6 triangles, whole process: 2.02 s with the two in
@@ -184,9 +193,12 @@ def run_triangulate(contour: Contour, d: Deformed, size: SizeFunction | None = N
     with ThreadPoolExecutor(max_workers=2) as pool:
         summary = pool.submit(quality.stats, mesh)
         quality.check_contract(mesh, contour, sel.grid.box if sel.exterior else None,
-                               cut.edges)
+                               edges)
         report = summary.result()
     report["contract"] = "ok"
+    report["improve"] = None if better is None else {
+        "min_angle_before": better.min_angle_before, "flips": better.flips,
+        "node_moves": better.moves, "rounds": better.rounds}
     if size is not None:
         report["size"] = size.label
         rho = _size.spearman(mesh.points, mesh.triangles, size, exclude=mesh.lines.ravel())
@@ -204,7 +216,7 @@ def mesh_contour(contour: Contour, h=None, box=None, margin=None, strict=False,
                  max_nodes=DEFAULT_MAX_NODES, steps=DEFAULT_STEPS, callback=None,
                  solver: str = "auto", exterior: bool = False,
                  size: SizeFunction | None = None, grid: str = "auto",
-                 solve: str = "band") -> MeshResult:
+                 solve: str = "band", improve: bool = True) -> MeshResult:
     """Mesh the inside of ``contour`` (or the box minus it, ``exterior``).
 
     On an adapted grid, a rung whose deformation folds, or whose mesh has an
@@ -228,7 +240,7 @@ def mesh_contour(contour: Contour, h=None, box=None, margin=None, strict=False,
                 except FoldError as exc:
                     fold = exc  # the last one: the uniform grid's, when every rung folded
                     continue
-                mesh, report = run_triangulate(contour, d, size, cut.result())
+                mesh, report = run_triangulate(contour, d, size, cut.result(), improve)
             if sel.h_rule != "typical-spacing" or report["min_angle"] >= MIN_ADAPTED_ANGLE:
                 break
             flat = flat or (sel, d, mesh, report)  # nearly flat: try the next rung first

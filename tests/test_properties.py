@@ -84,13 +84,15 @@ UTURN_TIE_EXAMPLE = np.array([
 @given(star_polygons(), st.integers(-4, 4), st.integers(-50, 50), st.integers(-50, 50))
 @example(UTURN_TIE_EXAMPLE, 0, 0, -1)
 def test_translation_and_power_of_two_scaling_commute(pts, k, dx, dy):
+    # selection, deformation and cutting; the quality stage (tests/test_improve.py)
+    # takes decisions on floating-point near-ties, which a translation can tip
     base = make_contour(pts, source="a")
     moved = make_contour(pts * 2.0**k + np.array([dx, dy]) * 0.25, source="b")
     try:
-        a = mesh_contour(base, max_nodes=MAX_NODES)
+        a = mesh_contour(base, max_nodes=MAX_NODES, improve=False)
     except REFUSALS:
         return
-    b = mesh_contour(moved, max_nodes=MAX_NODES)
+    b = mesh_contour(moved, max_nodes=MAX_NODES, improve=False)
     assert np.array_equal(a.mesh.triangles, b.mesh.triangles)
     assert np.allclose(a.mesh.points * 2.0**k + np.array([dx, dy]) * 0.25, b.mesh.points,
                        atol=1e-9 * 2.0**k * (1 + abs(dx) + abs(dy)))

@@ -102,7 +102,9 @@ def test_size_field_matches_the_expression(run, tmp_path):
     outs = []
     for opt in (["--size-field", csv], ["--size-field", npy], ["--size", "1 + x**2"]):
         out = tmp_path / f"m{len(outs)}.vtk"
-        r = run("all", SAMPLES / "circle.csv", "-o", out, "--json", *opt)
+        # the deformation is compared: the quality stage's discrete choices would turn
+        # the interpolation's small differences into different moves
+        r = run("all", SAMPLES / "circle.csv", "-o", out, "--json", "--no-improve", *opt)
         assert r.exit_code == 0, r.stderr
         outs.append(meshio.read(out).points)
     np.testing.assert_array_equal(outs[0], outs[1])

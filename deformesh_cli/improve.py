@@ -1,0 +1,326 @@
+"""Stage 3b: better triangles next to the contour (issue 7).
+
+A deformed Cartesian mesh is right-isosceles inside (45 degrees); its weak
+triangles sit between the contour and the first grid rows.  This stage works
+on the free nodes within :data:`ROWS` rings of the boundary and on the edges
+between their triangles, and takes only moves that make things better:
+
+- **flips**: an inner edge whose two triangles have a larger smallest angle
+  the other way round is flipped (Lawson's rule for the max-min angle; the
+  quadrilateral's area, and so the mesh's, is unchanged);
+- **smoothing**: each free node goes where the smallest angle of its
+  triangles is largest (a pattern search over eight directions, halving the
+  step, plus the mean of the apexes that would make each of its triangles
+  equilateral), one independent set of nodes at a time; a move is taken only
+  if that smallest angle grows and no triangle folds.
+
+Boundary nodes never move, so the contract is untouched (it is checked
+afterwards as always), and the interior beyond :data:`ROWS` rings keeps its
+grid.  Nothing here prints or exits.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .mesh import Mesh
+
+#: Free nodes within this many rings (edge hops) of the boundary move.
+ROWS = 3
+#: Rounds of (flips, smoothing) at most; a round that changes nothing ends it.
+ROUNDS = 8
+#: Triangles whose smallest angle is under this (degrees) are worked on, with their
+#: neighbours; the others are left as they are.
+TARGET = 35.0
+#: Pattern-search steps per smoothing sweep (the step halves when nothing improves).
+SEARCH_STEPS = 8
+#: A change counts only if it raises the smallest angle by more than this (degrees).
+GAIN = 0.01
+
+_DIRS = np.array([(np.cos(a), np.sin(a)) for a in np.arange(8) * np.pi / 4])
+_SQRT3_2 = np.sqrt(3.0) / 2.0
+
+
+@dataclass
+class ImproveStats:
+    flips: int = 0
+    moves: int = 0
+    rounds: int = 0
+    zone_nodes: int = 0
+    min_angle_before: float = 0.0
+    min_angle_after: float = 0.0
+
+
+def tan_min_angle(ax, ay, bx, by, cx, cy):
+    """Tangent of the smallest angle of triangles ``abc`` (coordinates as separate
+    arrays that broadcast), ``-inf`` where the triangle is not counter-clockwise.
+
+    The smallest angle (opposite the shortest edge, at most 60 degrees) has
+    ``tan = 2 cross / (S - 2 s_min)`` by the law of cosines (``s`` the squared
+    edge lengths, ``S`` their sum; the denominator is positive), and the
+    tangent orders angles as the angles do: no ``arctan2`` in the search.
+    """
+    e0x, e0y, e1x, e1y, e2x, e2y = cx - bx, cy - by, ax - cx, ay - cy, bx - ax, by - ay
+    cross = e1x * e2y - e1y * e2x
+    s0, s1, s2 = e0x * e0x + e0y * e0y, e1x * e1x + e1y * e1y, e2x * e2x + e2y * e2y
+    shortest = np.minimum(np.minimum(s0, s1), s2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = 2 * cross / (s0 + s1 + s2 - 2 * shortest)
+    return np.where(cross > 0, t, -np.inf)
+
+
+def min_angles(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Smallest angle (degrees) of triangles with corners ``a, b, c`` (..., 2);
+    ``-inf`` where the triangle is not counter-clockwise."""
+    t = tan_min_angle(a[..., 0], a[..., 1], b[..., 0], b[..., 1], c[..., 0], c[..., 1])
+    return np.where(np.isfinite(t), np.degrees(np.arctan(t)), -np.inf)
+
+
+def improve(mesh: Mesh, rows: int = ROWS, rounds: int = ROUNDS) -> tuple[Mesh, ImproveStats]:
+    """A copy of ``mesh`` with better triangles near its boundary, and what was done."""
+    pts = np.array(mesh.points, dtype=np.float64, copy=True)
+    tri = np.array(mesh.triangles, copy=True)
+    n = len(pts)
+    boundary = np.zeros(n, dtype=bool)
+    boundary[mesh.lines.ravel()] = True
+    zone = _rings(tri, n, boundary, rows) & ~boundary
+    stats = ImproveStats(zone_nodes=int(zone.sum()))
+    # the triangles that may change: those of the zone's nodes and of the boundary's
+    # (a triangle of three boundary nodes can still be flipped with a neighbour)
+    work = np.flatnonzero(_touches(zone | boundary, tri))
+    rest = np.ones(len(tri), dtype=bool)
+    rest[work] = False
+    fixed_min = float(_tri_min_angles(pts, tri[rest]).min()) if rest.any() else np.inf
+    stats.min_angle_before = min(fixed_min, float(_tri_min_angles(pts, tri[work]).min()))
+    if not zone.any():
+        stats.min_angle_after = stats.min_angle_before
+        return mesh, stats
+    sub = tri[work]
+    target = np.tan(np.radians(TARGET))
+    for _ in range(rounds):
+        bad = _tan_min(pts, sub) < target
+        if not bad.any():
+            break
+        stats.rounds += 1
+        # work where it is needed: the triangles within two rings of a bad one
+        near = np.zeros(n, dtype=bool)
+        near[sub[bad].ravel()] = True
+        near[sub[_touches(near, sub)].ravel()] = True
+        inside = _touches(near, sub)
+        local = np.flatnonzero(inside)
+        part = sub[local]
+        # a node may move only if all its triangles are in ``part`` (its quality is
+        # judged on them)
+        edge = np.zeros(n, dtype=bool)
+        edge[sub[~inside].ravel()] = True
+        flips = _flip_all(pts, part, target)
+        bad = _tan_min(pts, part) < target
+        # the free nodes of the triangles still under the target, and their neighbours
+        # (all of whose triangles are in ``part``)
+        act = np.zeros(n, dtype=bool)
+        act[part[bad].ravel()] = True
+        act[part[_touches(act, part)].ravel()] = True
+        moves = _smooth(pts, part, act & zone & ~edge)
+        sub[local] = part
+        stats.flips += flips
+        stats.moves += moves
+        if flips == 0 and moves == 0:
+            break
+    tri[work] = sub
+    stats.min_angle_after = min(fixed_min, float(_tri_min_angles(pts, sub).min()))
+    out = Mesh(pts, tri, mesh.lines, n_contour=mesh.n_contour, n_extra=mesh.n_extra,
+               line_group=mesh.line_group, groups=mesh.groups, n_box=mesh.n_box)
+    return out, stats
+
+
+def _tan_min(pts, tri):
+    return tan_min_angle(pts[tri[:, 0], 0], pts[tri[:, 0], 1], pts[tri[:, 1], 0],
+                         pts[tri[:, 1], 1], pts[tri[:, 2], 0], pts[tri[:, 2], 1])
+
+
+def _tri_min_angles(pts, tri):
+    return min_angles(pts[tri[:, 0]], pts[tri[:, 1]], pts[tri[:, 2]])
+
+
+def _rings(tri: np.ndarray, n: int, seed: np.ndarray, rows: int) -> np.ndarray:
+    """Nodes within ``rows`` edge hops of a ``seed`` node."""
+    reach = seed.copy()
+    for _ in range(rows):
+        reach[tri[_touches(reach, tri)].ravel()] = True
+    return reach
+
+
+def _touches(mask: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Triangles with a corner in ``mask`` (column by column: ``mask[tri].any(axis=1)``
+    is several times slower on a million triangles)."""
+    return mask[tri[:, 0]] | mask[tri[:, 1]] | mask[tri[:, 2]]
+
+
+# --- flips
+
+
+def _flip_all(pts: np.ndarray, tri: np.ndarray, target: float, max_passes: int = 50) -> int:
+    """Flip inner edges of ``tri`` (in place) while a flip raises the smallest angle of a
+    pair that is under ``target`` (a tangent)."""
+    total = 0
+    for _ in range(max_passes):
+        t1, k1, t2, k2 = _edge_pairs(tri)
+        if len(t1) == 0:
+            break
+        u, w, x = tri[t1, k1], tri[t1, (k1 + 1) % 3], tri[t1, (k1 + 2) % 3]
+        y = tri[t2, (k2 + 2) % 3]
+        tan = _tan_min(pts, tri)
+        before = np.minimum(tan[t1], tan[t2])
+        after = np.minimum(_tan_min(pts, np.column_stack([u, y, x])),
+                           _tan_min(pts, np.column_stack([y, w, x])))
+        ok = (before < target) & (after > _raised(before))
+        gain = after - before
+        if not ok.any():
+            break
+        cand = np.flatnonzero(ok)
+        cand = cand[np.argsort(-gain[cand], kind="stable")]
+        # one flip per triangle per pass: the best gains first
+        taken = np.zeros(len(tri), dtype=bool)
+        chosen = []
+        for c in cand.tolist():
+            a, b = t1[c], t2[c]
+            if taken[a] or taken[b]:
+                continue
+            taken[a] = taken[b] = True
+            chosen.append(c)
+        chosen = np.array(chosen)
+        tri[t1[chosen]] = np.column_stack([u[chosen], y[chosen], x[chosen]])
+        tri[t2[chosen]] = np.column_stack([y[chosen], w[chosen], x[chosen]])
+        total += len(chosen)
+    return total
+
+
+def _edge_pairs(tri: np.ndarray):
+    """Inner edges as (t1, k1, t2, k2): edge k1 of t1 (from corner k1 to k1 + 1) is
+    edge k2 of t2, walked the other way."""
+    t = np.repeat(np.arange(len(tri)), 3)
+    k = np.tile(np.arange(3), len(tri))
+    a = tri[t, k]
+    b = tri[t, (k + 1) % 3]
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    order = np.lexsort((hi, lo))
+    lo, hi, t, k, fwd = lo[order], hi[order], t[order], k[order], (a < b)[order]
+    same = (lo[1:] == lo[:-1]) & (hi[1:] == hi[:-1]) & (fwd[1:] != fwd[:-1])
+    i = np.flatnonzero(same)
+    return t[i], k[i], t[i + 1], k[i + 1]
+
+
+# --- smoothing
+
+
+def _smooth(pts: np.ndarray, tri: np.ndarray, movable: np.ndarray) -> int:
+    """One sweep over the movable nodes of ``tri``, an independent set at a time."""
+    nodes = np.unique(tri[movable[tri]])
+    if len(nodes) == 0:
+        return 0
+    inc, slot = _incidence(tri, nodes)
+    moves = 0
+    for group in _independent_sets(tri, nodes):
+        moves += _move(pts, tri, nodes[group], inc[group], slot[group])
+    return moves
+
+
+def _incidence(tri: np.ndarray, nodes: np.ndarray):
+    """For each node, its triangles (padded with -1) and its corner in each."""
+    idx = np.full(int(tri.max()) + 1, -1, dtype=np.int64)
+    idx[nodes] = np.arange(len(nodes))
+    t = np.repeat(np.arange(len(tri)), 3)
+    k = np.tile(np.arange(3), len(tri))
+    v = idx[tri.ravel()]
+    keep = v >= 0
+    v, t, k = v[keep], t[keep], k[keep]
+    order = np.argsort(v, kind="stable")
+    v, t, k = v[order], t[order], k[order]
+    counts = np.bincount(v, minlength=len(nodes))
+    start = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    col = np.arange(len(v)) - start[v]
+    width = int(counts.max())
+    inc = np.full((len(nodes), width), -1, dtype=np.int64)
+    slot = np.zeros((len(nodes), width), dtype=np.int64)
+    inc[v, col] = t
+    slot[v, col] = k
+    return inc, slot
+
+
+def _independent_sets(tri: np.ndarray, nodes: np.ndarray) -> list[np.ndarray]:
+    """Split ``nodes`` (positions into it) into sets of which no two share a triangle.
+
+    Jones-Plassmann colouring: in each round, every node whose priority beats all
+    its neighbours' still left joins the round's set.  Priorities are a fixed
+    hash of the node id (deterministic, and scattered, so that a round takes
+    many nodes: ids in grid order would let only a few win per row).
+    """
+    idx = np.full(int(tri.max()) + 1, -1, dtype=np.int64)
+    idx[nodes] = np.arange(len(nodes))
+    e = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    e = idx[e]
+    e = e[(e[:, 0] >= 0) & (e[:, 1] >= 0)]
+    e = np.concatenate([e, e[:, ::-1]])
+    prio = (nodes.astype(np.uint64) * np.uint64(2654435761)) % np.uint64(2**32)
+    prio = prio.astype(np.int64) * len(nodes) + np.arange(len(nodes))  # no ties
+    sets = []
+    left = np.ones(len(nodes), dtype=bool)
+    while left.any():
+        both = left[e[:, 0]] & left[e[:, 1]]
+        pick = left.copy()
+        pick[e[both & (prio[e[:, 1]] > prio[e[:, 0]]), 0]] = False
+        chosen = np.flatnonzero(pick)
+        sets.append(chosen)
+        left[chosen] = False
+    return sets
+
+
+def _move(pts, tri, nodes, inc, slot) -> int:
+    """Move each of ``nodes`` (no two share a triangle) to raise its worst angle."""
+    valid = inc >= 0
+    t = np.where(valid, inc, 0)
+    a = tri[t, (slot + 1) % 3]  # the two other corners, counter-clockwise after the node
+    b = tri[t, (slot + 2) % 3]
+    ax, ay, bx, by = pts[a, 0], pts[a, 1], pts[b, 0], pts[b, 1]  # (n, d)
+    pad = ~valid
+
+    def quality(px, py):  # (n, c) candidate positions -> (n, c) tan of the smallest angle
+        q = tan_min_angle(px[:, :, None], py[:, :, None], ax[:, None, :], ay[:, None, :],
+                          bx[:, None, :], by[:, None, :])
+        q[np.broadcast_to(pad[:, None, :], q.shape)] = np.inf
+        return q.min(axis=2)
+
+    px, py = pts[nodes, 0].copy(), pts[nodes, 1].copy()
+    best = quality(px[:, None], py[:, None])[:, 0]
+    start = best.copy()
+    # the mean of the apexes that make each triangle equilateral (left of a -> b)
+    count = valid.sum(axis=1)
+    ex = np.where(valid, 0.5 * (ax + bx) - _SQRT3_2 * (by - ay), 0.0).sum(axis=1) / count
+    ey = np.where(valid, 0.5 * (ay + by) + _SQRT3_2 * (bx - ax), 0.0).sum(axis=1) / count
+    q = quality(ex[:, None], ey[:, None])[:, 0]
+    take = q > _raised(best)
+    px[take], py[take], best[take] = ex[take], ey[take], q[take]
+    length = np.where(valid, np.hypot(ax - px[:, None], ay - py[:, None]), 0.0)
+    step = 0.2 * length.sum(axis=1) / count
+    rows = np.arange(len(nodes))
+    for _ in range(SEARCH_STEPS):
+        cx = px[:, None] + step[:, None] * _DIRS[None, :, 0]
+        cy = py[:, None] + step[:, None] * _DIRS[None, :, 1]
+        q = quality(cx, cy)
+        k = np.argmax(q, axis=1)
+        qk = q[rows, k]
+        take = qk > _raised(best)
+        px[take], py[take], best[take] = cx[take, k[take]], cy[take, k[take]], qk[take]
+        step = np.where(take, step, 0.5 * step)
+    moved = best > _raised(start)
+    pts[nodes[moved], 0] = px[moved]
+    pts[nodes[moved], 1] = py[moved]
+    return int(moved.sum())
+
+
+def _raised(tan_angle: np.ndarray) -> np.ndarray:
+    """The tangent of an angle :data:`GAIN` degrees larger (a move must beat it)."""
+    with np.errstate(invalid="ignore"):
+        return np.tan(np.minimum(np.arctan(tan_angle) + np.radians(GAIN), np.pi / 2 - 1e-12))
