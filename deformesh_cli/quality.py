@@ -294,6 +294,34 @@ def edge_uses(tri: np.ndarray, n: int):
     return lo, m.indices.astype(np.int64), m.data % _REVERSE, m.data // _REVERSE
 
 
+def patch_edge_uses(edges, n: int, removed: np.ndarray, added: np.ndarray):
+    """:func:`edge_uses` after replacing triangles ``removed`` by ``added``, from the
+    table ``edges`` of the mesh before: the same table a recount would give (tested),
+    at the cost of the changed triangles only."""
+    lo, hi, fwd, rev = edges
+    key = lo * n + hi  # sorted: scipy's CSR rows, then sorted columns
+    r_lo, r_hi, r_f, r_r = edge_uses(removed, n)
+    a_lo, a_hi, a_f, a_r = edge_uses(added, n)
+    dkey = np.concatenate([r_lo * n + r_hi, a_lo * n + a_hi])
+    df = np.concatenate([-r_f, a_f])
+    dr = np.concatenate([-r_r, a_r])
+    ukey, inv = np.unique(dkey, return_inverse=True)
+    df = np.bincount(inv, weights=df, minlength=len(ukey)).astype(np.int64)
+    dr = np.bincount(inv, weights=dr, minlength=len(ukey)).astype(np.int64)
+    pos = np.searchsorted(key, ukey)
+    found = (pos < len(key)) & (key[np.minimum(pos, len(key) - 1)] == ukey)
+    fwd, rev = fwd.astype(np.int64), rev.astype(np.int64)  # copies
+    fwd[pos[found]] += df[found]
+    rev[pos[found]] += dr[found]
+    new = ~found
+    key = np.insert(key, pos[new], ukey[new])
+    fwd = np.insert(fwd, pos[new], df[new])
+    rev = np.insert(rev, pos[new], dr[new])
+    keep = (fwd != 0) | (rev != 0)
+    key, fwd, rev = key[keep], fwd[keep], rev[keep]
+    return key // n, key % n, fwd, rev
+
+
 def _directed_boundary(lo, hi, fwd, rev) -> np.ndarray:
     one = fwd + rev == 1
     return np.where((fwd[one] == 1)[:, None], np.column_stack([lo[one], hi[one]]),

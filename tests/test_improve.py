@@ -104,3 +104,33 @@ def test_never_worse_and_the_contract_holds(pts):
     check_contract(better.mesh, c)
     assert better.report["min_angle"] >= plain.report["min_angle"] - 1e-9
     assert np.array_equal(better.mesh.points[:c.n], c.points)
+
+
+def test_patched_edge_uses_equal_a_recount():
+    from deformesh_cli.quality import edge_uses, patch_edge_uses
+
+    c = load_contour(shared("bean_1000.csv"))
+    plain = pipeline.mesh_contour(c, improve=False).mesh
+    better, stats = improve.improve(plain)
+    assert stats.flips > 0 and len(stats.changed) > 0
+    n = len(plain.points)
+    patched = patch_edge_uses(edge_uses(plain.triangles, n), n,
+                              plain.triangles[stats.changed], better.triangles[stats.changed])
+    recount = edge_uses(better.triangles, n)
+    for got, want in zip(patched, recount):
+        assert np.array_equal(got, want)
+    # and on a random soup, where edges appear, vanish and change direction
+    rng = np.random.default_rng(4)
+    soup = rng.integers(0, 12, (30, 3))
+    distinct = (soup[:, 0] != soup[:, 1]) & (soup[:, 1] != soup[:, 2])
+    soup = soup[distinct & (soup[:, 0] != soup[:, 2])]
+    new = soup.copy()
+    pick = rng.choice(len(soup), 8, replace=False)
+    new[pick] = new[pick][:, ::-1]
+    new[pick[:3], 0] = (new[pick[:3], 0] + 5) % 12
+    ok = (new[:, 0] != new[:, 1]) & (new[:, 1] != new[:, 2]) & (new[:, 0] != new[:, 2])
+    soup, new = soup[ok], new[ok]
+    changed = np.flatnonzero(np.any(soup != new, axis=1))
+    patched = patch_edge_uses(edge_uses(soup, 12), 12, soup[changed], new[changed])
+    for got, want in zip(patched, edge_uses(new, 12)):
+        assert np.array_equal(got, want)
