@@ -141,8 +141,8 @@ solve_option = click.option(
          "3 times the farthest path node's travel) or the whole background grid ('full').")
 improve_option = click.option(
     "--improve/--no-improve", default=True, show_default=True,
-    help="Better triangles next to the contour: flip edges and move free nodes within 3 rings "
-         "of the boundary while the smallest angle grows (boundary nodes never move).")
+    help="Better triangles: around every triangle under 35 degrees, flip edges and move "
+         "free nodes while the smallest angle grows (boundary nodes never move).")
 format_option = click.option(
     "--format", "fmt", type=click.Choice(sorted(io.FORMATS), case_sensitive=False),
     default=None, help="Mesh format. Default: from the output file's extension.")

@@ -1,22 +1,24 @@
 """Stage 3b: better triangles next to the contour (issue 7).
 
 A deformed Cartesian mesh is right-isosceles inside (45 degrees); its weak
-triangles sit between the contour and the first grid rows.  This stage works
-on the free nodes within :data:`ROWS` rings of the boundary and on the edges
-between their triangles, and takes only moves that make things better:
+triangles sit between the contour and the first grid rows (and, on an adapted
+grid, where a thin part squeezes the cells).  This stage works where a
+triangle's smallest angle is under :data:`TARGET`, on the triangles within two
+rings of it, and takes only changes that make things better:
 
 - **flips**: an inner edge whose two triangles have a larger smallest angle
   the other way round is flipped (Lawson's rule for the max-min angle; the
   quadrilateral's area, and so the mesh's, is unchanged);
-- **smoothing**: each free node goes where the smallest angle of its
-  triangles is largest (a pattern search over eight directions, halving the
-  step, plus the mean of the apexes that would make each of its triangles
-  equilateral), one independent set of nodes at a time; a move is taken only
-  if that smallest angle grows and no triangle folds.
+- **smoothing**: a free node of those triangles (or a neighbour) goes where the
+  smallest angle of its triangles is largest (the mean of the apexes that would
+  make each of its triangles equilateral, then a pattern search over eight
+  directions, halving the step), one independent set of nodes at a time; a
+  move is taken only if that smallest angle grows, so nothing folds.
 
 Boundary nodes never move, so the contract is untouched (it is checked
-afterwards as always), and the interior beyond :data:`ROWS` rings keeps its
-grid.  Nothing here prints or exits.
+afterwards as always); triangles at 35 degrees or more and away from bad ones,
+the grid's interior, are left as they are, and the mesh's smallest angle can
+only grow.  Nothing here prints or exits.
 """
 
 from __future__ import annotations
@@ -27,8 +29,6 @@ import numpy as np
 
 from .mesh import Mesh
 
-#: Free nodes within this many rings (edge hops) of the boundary move.
-ROWS = 3
 #: Rounds of (flips, smoothing) at most; a round that changes nothing ends it.
 ROUNDS = 8
 #: Triangles whose smallest angle is under this (degrees) are worked on, with their
@@ -39,7 +39,7 @@ SEARCH_STEPS = 8
 #: A change counts only if it raises the smallest angle by more than this (degrees).
 GAIN = 0.01
 
-#: Triangles measured at a time outside the zone.
+#: Triangles measured at a time (bounds the temporaries on big meshes).
 CHUNK = 1 << 17
 
 _DIRS = np.array([(np.cos(a), np.sin(a)) for a in np.arange(8) * np.pi / 4])
@@ -52,7 +52,7 @@ class ImproveStats:
     flips: int = 0
     moves: int = 0
     rounds: int = 0
-    zone_nodes: int = 0
+    moved_nodes: int = 0  # nodes that ended somewhere else
     min_angle_before: float = 0.0
     min_angle_after: float = 0.0
 
@@ -82,67 +82,56 @@ def min_angles(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(t), np.degrees(np.arctan(t)), -np.inf)
 
 
-def improve(mesh: Mesh, rows: int = ROWS, rounds: int = ROUNDS) -> tuple[Mesh, ImproveStats]:
-    """A copy of ``mesh`` with better triangles near its boundary, and what was done."""
+def improve(mesh: Mesh, rounds: int = ROUNDS) -> tuple[Mesh, ImproveStats]:
+    """A copy of ``mesh`` with better triangles where they were under :data:`TARGET`,
+    and what was done."""
     pts = np.array(mesh.points, dtype=np.float64, copy=True)
     tri = np.array(mesh.triangles, copy=True)
     n = len(pts)
-    boundary = np.zeros(n, dtype=bool)
-    boundary[mesh.lines.ravel()] = True
-    zone = _rings(tri, n, boundary, rows) & ~boundary
-    stats = ImproveStats(zone_nodes=int(zone.sum()))
-    # the triangles that may change: those of the zone's nodes and of the boundary's
-    # (a triangle of three boundary nodes can still be flipped with a neighbour)
-    work = np.flatnonzero(_touches(zone | boundary, tri))
-    rest = np.ones(len(tri), dtype=bool)
-    rest[work] = False
-    rest = np.flatnonzero(rest)
-    fixed_min = np.inf  # the triangles left alone, in chunks (a million: 0.02 s, 3 MB)
-    for start in range(0, len(rest), CHUNK):
-        fixed_min = min(fixed_min, float(_tan_min(pts, tri[rest[start:start + CHUNK]]).min()))
-    fixed_min = float(np.degrees(np.arctan(fixed_min))) if np.isfinite(fixed_min) else fixed_min
-    stats.min_angle_before = min(fixed_min, float(_tri_min_angles(pts, tri[work]).min()))
-    if not zone.any():
-        stats.min_angle_after = stats.min_angle_before
-        return mesh, stats
-    sub = tri[work]
+    free = np.ones(n, dtype=bool)
+    free[mesh.lines.ravel()] = False
+    tan = np.concatenate([_tan_min(pts, tri[k:k + CHUNK]) for k in range(0, len(tri), CHUNK)])
+    stats = ImproveStats(min_angle_before=_degrees(tan.min()))
     target = np.tan(np.radians(TARGET))
+    touched = np.zeros(len(tri), dtype=bool)
     for _ in range(rounds):
-        bad = _tan_min(pts, sub) < target
+        bad = tan < target
         if not bad.any():
             break
         stats.rounds += 1
         # work where it is needed: the triangles within two rings of a bad one
         near = np.zeros(n, dtype=bool)
-        near[sub[bad].ravel()] = True
-        near[sub[_touches(near, sub)].ravel()] = True
-        inside = _touches(near, sub)
-        local = np.flatnonzero(inside)
-        part = sub[local]
-        # a node may move only if all its triangles are in ``part`` (its quality is
-        # judged on them)
-        edge = np.zeros(n, dtype=bool)
-        edge[sub[~inside].ravel()] = True
+        near[tri[bad].ravel()] = True
+        near[tri[_touches(near, tri)].ravel()] = True
+        local = np.flatnonzero(_touches(near, tri))
+        part = tri[local]
         flips = _flip_all(pts, part, target)
-        bad = _tan_min(pts, part) < target
-        # the free nodes of the triangles still under the target, and their neighbours
-        # (all of whose triangles are in ``part``)
+        part_tan = _tan_min(pts, part)
+        # the free nodes of the triangles still under the target, and their neighbours;
+        # only nodes of ``near`` (all of whose triangles are in ``part``, where a move
+        # is judged)
         act = np.zeros(n, dtype=bool)
-        act[part[bad].ravel()] = True
+        act[part[part_tan < target].ravel()] = True
         act[part[_touches(act, part)].ravel()] = True
-        moves = _smooth(pts, part, act & zone & ~edge)
-        sub[local] = part
+        moves = _smooth(pts, part, act & free & near)
+        changed = np.any(part != tri[local], axis=1)
+        touched[local[changed]] = True
+        tri[local] = part
+        tan[local] = _tan_min(pts, part)
         stats.flips += flips
         stats.moves += moves
         if flips == 0 and moves == 0:
             break
-    differ = np.any(sub != tri[work], axis=1)
-    stats.changed = work[differ]
-    tri[work] = sub
-    stats.min_angle_after = min(fixed_min, float(_tri_min_angles(pts, sub).min()))
+    stats.changed = np.flatnonzero(touched & np.any(tri != mesh.triangles, axis=1))
+    stats.min_angle_after = _degrees(tan.min())
+    stats.moved_nodes = int(np.count_nonzero(np.any(pts != mesh.points, axis=1)))
     out = Mesh(pts, tri, mesh.lines, n_contour=mesh.n_contour, n_extra=mesh.n_extra,
                line_group=mesh.line_group, groups=mesh.groups, n_box=mesh.n_box)
     return out, stats
+
+
+def _degrees(tan_angle: float) -> float:
+    return float(np.degrees(np.arctan(tan_angle))) if np.isfinite(tan_angle) else -np.inf
 
 
 def _tan_min(pts, tri):
@@ -152,14 +141,6 @@ def _tan_min(pts, tri):
 
 def _tri_min_angles(pts, tri):
     return min_angles(pts[tri[:, 0]], pts[tri[:, 1]], pts[tri[:, 2]])
-
-
-def _rings(tri: np.ndarray, n: int, seed: np.ndarray, rows: int) -> np.ndarray:
-    """Nodes within ``rows`` edge hops of a ``seed`` node."""
-    reach = seed.copy()
-    for _ in range(rows):
-        reach[tri[_touches(reach, tri)].ravel()] = True
-    return reach
 
 
 def _touches(mask: np.ndarray, tri: np.ndarray) -> np.ndarray:
