@@ -114,7 +114,8 @@ def improve(mesh: Mesh, rounds: int = ROUNDS) -> tuple[Mesh, ImproveStats]:
         act[part[part_tan < target].ravel()] = True
         act[part[_touches(act, part)].ravel()] = True
         moves = _smooth(pts, part, act & free & near)
-        changed = np.any(part != tri[local], axis=1)
+        old = tri[local]
+        changed = (part[:, 0] != old[:, 0]) | (part[:, 1] != old[:, 1]) | (part[:, 2] != old[:, 2])
         touched[local[changed]] = True
         tri[local] = part
         tan[local] = _tan_min(pts, part)
@@ -122,9 +123,11 @@ def improve(mesh: Mesh, rounds: int = ROUNDS) -> tuple[Mesh, ImproveStats]:
         stats.moves += moves
         if flips == 0 and moves == 0:
             break
-    stats.changed = np.flatnonzero(touched & np.any(tri != mesh.triangles, axis=1))
+    idx = np.flatnonzero(touched)  # flipped at some point; maybe flipped back
+    stats.changed = idx[np.any(tri[idx] != mesh.triangles[idx], axis=1)]
     stats.min_angle_after = _degrees(tan.min())
-    stats.moved_nodes = int(np.count_nonzero(np.any(pts != mesh.points, axis=1)))
+    stats.moved_nodes = int(np.count_nonzero((pts[:, 0] != mesh.points[:, 0])
+                                             | (pts[:, 1] != mesh.points[:, 1])))
     out = Mesh(pts, tri, mesh.lines, n_contour=mesh.n_contour, n_extra=mesh.n_extra,
                line_group=mesh.line_group, groups=mesh.groups, n_box=mesh.n_box)
     return out, stats
