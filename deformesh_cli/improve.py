@@ -75,13 +75,6 @@ def tan_min_angle(ax, ay, bx, by, cx, cy):
     return np.where(cross > 0, t, -np.inf)
 
 
-def min_angles(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """Smallest angle (degrees) of triangles with corners ``a, b, c`` (..., 2);
-    ``-inf`` where the triangle is not counter-clockwise."""
-    t = tan_min_angle(a[..., 0], a[..., 1], b[..., 0], b[..., 1], c[..., 0], c[..., 1])
-    return np.where(np.isfinite(t), np.degrees(np.arctan(t)), -np.inf)
-
-
 def improve(mesh: Mesh, rounds: int = ROUNDS) -> tuple[Mesh, ImproveStats]:
     """A copy of ``mesh`` with better triangles where they were under :data:`TARGET`,
     and what was done."""
@@ -140,10 +133,6 @@ def _degrees(tan_angle: float) -> float:
 def _tan_min(pts, tri):
     return tan_min_angle(pts[tri[:, 0], 0], pts[tri[:, 0], 1], pts[tri[:, 1], 0],
                          pts[tri[:, 1], 1], pts[tri[:, 2], 0], pts[tri[:, 2], 1])
-
-
-def _tri_min_angles(pts, tri):
-    return min_angles(pts[tri[:, 0]], pts[tri[:, 1]], pts[tri[:, 2]])
 
 
 def _touches(mask: np.ndarray, tri: np.ndarray) -> np.ndarray:
