@@ -137,7 +137,7 @@ solver_option = click.option(
          "or 'auto' (direct on the band, and up to 60,000 free nodes on a whole grid).")
 solve_option = click.option(
     "--solve", type=click.Choice(pipeline.SOLVES), default="band", show_default=True,
-    help="Deform only a narrow band of cells around the path ('band': at least 8 cells, "
+    help="Deform only a narrow band of cells around the path ('band': at least 4 cells, "
          "3 times the farthest path node's travel) or the whole background grid ('full').")
 improve_option = click.option(
     "--improve/--no-improve", default=True, show_default=True,

@@ -92,8 +92,12 @@ SOLVES = ("band", "full")
 
 #: The narrow band reaches this many cells (grid steps, in i or j) past the
 #: nearest path node, and at least :data:`BAND_REACH` times the largest distance a
-#: path node travels.
-BAND_CELLS = 8
+#: path node travels.  4, not 8, since the quality stage: the band's smallest angle
+#: before the stage is at most 0.23 degrees below the whole grid's (circle_1000
+#: 14.19 vs 14.42), after it the two agree within 0.01, and the deformation costs
+#: about half (1e6 triangles, whole process: 0.88 / 0.83 of Triangle's time with 4,
+#: 1.04-1.06 with 8).
+BAND_CELLS = 4
 BAND_REACH = 3.0
 
 

@@ -11,10 +11,13 @@ from deformesh_cli.select import Grid, grid_triangles
 
 from .conftest import SAMPLES, shared
 
-#: How far the band's smallest angle may fall below the full solve's, in degrees.
-#: Measured: circle_1000 14.42 -> 14.33, bean_1000 15.90 -> 15.85, star_1000 15.23 ->
-#: 15.21, circle of 2,500 points 15.45 -> 15.44; equal wherever the band is the grid.
+#: How far the band's smallest angle may fall below the full solve's, in degrees, before
+#: the quality stage.  Measured with the band at 4 cells: circle_1000 14.42 -> 14.19,
+#: bean_1000 15.90 -> 15.72, star_1000 15.23 -> 15.14, peanut 20.287 -> 20.295; equal
+#: wherever the band is the grid.  After the quality stage (the default) the two agree
+#: within 0.01 degrees (circle_1000 35.017 / 35.012): :data:`STAGE_SLACK`.
 ANGLE_SLACK = 0.25
+STAGE_SLACK = 0.05
 
 
 def test_only_the_band_moves():
@@ -60,13 +63,16 @@ def test_band_keeps_the_contract_and_the_smallest_angle(path):
     out = {}
     for solve in pipeline.SOLVES:
         d = pipeline.run_deform(c, sel, solve=solve)
-        mesh, report = pipeline.run_triangulate(c, d)
+        mesh, report = pipeline.run_triangulate(c, d, improve=False)
         check_contract(mesh, c)
-        out[solve] = (report, d.stats.moved_nodes)
+        final = pipeline.run_triangulate(c, d)[1]  # with the quality stage
+        out[solve] = (report, d.stats.moved_nodes, final)
     band, full = out["band"], out["full"]
     assert full[1] == sel.grid.n_nodes
     assert band[0]["min_angle"] >= full[0]["min_angle"] - ANGLE_SLACK
     assert band[0]["triangles"] == full[0]["triangles"]
+    assert band[2]["min_angle"] >= full[2]["min_angle"] - STAGE_SLACK
+    assert band[2]["mean_radius_ratio"] >= full[2]["mean_radius_ratio"] - 1e-3
     if path.name == "bean_1000.csv":  # big enough for the band to be a band
         assert band[1] < 0.2 * full[1]
 
