@@ -15,7 +15,8 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from run_issue2 import EXE, ROOT, SHARED, machine  # noqa: E402
+from results import heading  # noqa: E402
+from run_issue2 import EXE, ROOT, SHARED  # noqa: E402
 
 CONTOURS = [SHARED / n for n in ("circle_100.csv", "bean_100.csv", "star_100.csv",
                                  "channel_100.csv", "square_hole_100.csv")] + \
@@ -55,12 +56,11 @@ def main():
                 times[k].append(fn())
                 print(f"{k}: {times[k][-1]:.2f} s", file=sys.stderr)
     base = statistics.median(times["one process per contour"])
-    lines = [
-        "# Batch benchmark", "",
-        f"Machine: {machine()}.  Date: {time.strftime('%Y-%m-%d')}.", "",
+    lines = heading(
+        "# Batch benchmark",
         f"{len(files)} contours ({args.copies} copies each of "
         f"{', '.join(c.name for c in CONTOURS)}), meshed to .msh. Median of {args.repeat} "
-        "interleaved rounds (written by `make bench`).", "",
+        "interleaved rounds (written by `make bench`).") + [
         "| way | seconds | vs one process per contour |", "| --- | ---: | ---: |",
     ]
     for k in ways:

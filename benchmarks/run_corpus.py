@@ -17,8 +17,8 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from results import write_section  # noqa: E402
-from run_issue2 import EXE, ROOT, machine  # noqa: E402
+from results import heading, write_section  # noqa: E402
+from run_issue2 import EXE, ROOT  # noqa: E402
 
 CORPUS = ROOT / "tests" / "data" / "corpus"
 
@@ -50,12 +50,11 @@ def main():
     for r in recs:
         by[kind(Path(r["input"]).name)].append(r)
     opts = " ".join(extra) or "default options"
-    lines = [
-        f"## Corpus: real contours, {opts} (issue 5)", "",
-        f"Machine: {machine()}.  Date: {time.strftime('%Y-%m-%d')}.", "",
+    lines = heading(
+        f"## Corpus: real contours, {opts} (issue 5)",
         f"`deformesh all tests/data/corpus --out-dir ... --jobs {args.jobs}` ({opts}); "
         f"{len(recs)} contours in {wall:.0f} s wall. Seconds are per contour, inside the "
-        "batch (no start-up).", "",
+        "batch (no start-up).") + [
         "| kind | contours | meshed (contract ok) | refused | median s (meshed) | "
         "max s (meshed) | max s (refused) |",
         "| --- | ---: | ---: | ---: | ---: | ---: | ---: |",

@@ -7,13 +7,15 @@ Whole processes, median of N runs, peak RSS from the child's rusage.
 import argparse
 import json
 import os
-import platform
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from results import heading, write_section  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 SHARED = ROOT.parent / "shared" / "contours"
@@ -55,13 +57,6 @@ def run_once(path, opts, out):
     return dt, rss, code, (json.loads(out_text) if code == 0 else {"error": err})
 
 
-def machine() -> str:
-    cpu = next((ln.split(":", 1)[1].strip() for ln in open("/proc/cpuinfo")
-                if ln.startswith("model name")), platform.processor())
-    mem = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30
-    return f"{platform.node()}: {cpu}, {os.cpu_count()} cores, {mem:.0f} GiB, Python {platform.python_version()}"
-
-
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=3)
@@ -77,12 +72,11 @@ def main():
                 rss = max(rss, rss_i)
             rows.append((name, " ".join(opts), statistics.median(times), rss, code, rec))
             print(f"{name}: {statistics.median(times):.2f} s exit {code}", file=sys.stderr)
-    lines = [
+    lines = heading(
         "## Issue 2: `deformesh all` per contour (whole process, median of "
-        f"{args.repeat}, written by `make bench`)", "",
-        f"Machine: {machine()}.  Date: {time.strftime('%Y-%m-%d')}.", "",
+        f"{args.repeat}, written by `make bench`)",
         "Peak RSS of each process from wait4. A refusal's time is the whole process "
-        "(Python start-up and imports included).", "",
+        "(Python start-up and imports included).") + [
         "| contour | options | seconds | peak RSS MB | exit | grid nodes | moved nodes | "
         "triangles | min angle | extra boundary nodes |",
         "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
@@ -95,8 +89,6 @@ def main():
         else:
             msg = rec["error"].split(": error: ", 1)[-1][:90]
             lines.append(f"| {name} | {opts} | {t:.2f} | {rss:.0f} | {code} | refused: {msg}... | | | | |")
-    from results import write_section
-
     write_section("issue2", "\n".join(lines))
     print("wrote benchmarks/RESULTS.md (issue 2 section)", file=sys.stderr)
 

@@ -29,12 +29,11 @@ import statistics
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from results import write_section  # noqa: E402
-from run_issue2 import EXE, SHARED, machine, run_process  # noqa: E402
+from results import heading, write_section  # noqa: E402
+from run_issue2 import EXE, SHARED, run_process  # noqa: E402
 
 PEERS = Path(__file__).resolve().parent / "peers"
 PY = sys.executable
@@ -154,14 +153,13 @@ def main():
                     t = statistics.median(r["times"])
                     rows.append((name, npts, h, tool, t, r, base))
                     print(f"{name} {size:.0e} {tool}: {t:.2f} s, exit {r['code']}", file=sys.stderr)
-    lines = [
+    lines = heading(
         f"## Issue 6: deformesh against Triangle and Gmsh (whole processes writing .vtk, "
-        f"median of {args.repeat}, alternating)", "",
-        f"Machine: {machine()}.  Date: {time.strftime('%Y-%m-%d')}.", "",
+        f"median of {args.repeat}, alternating)",
         "Each contour has evenly spaced points at spacing h; every tool gets that h "
         "(deformesh `--h h`, Triangle `pq30a<h^2/2>Y`, Gmsh size h at every point). "
         "Quality is measured on the written file, by one code for all tools. "
-        "Ratio = seconds / Triangle's seconds in the same run.", "",
+        "Ratio = seconds / Triangle's seconds in the same run.") + [
         "| shape | points | h | tool | triangles | seconds | triangles/s | peak RSS MB | "
         "min angle | mean radius ratio | time ratio to Triangle | RSS ratio to Triangle |",
         "| --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",

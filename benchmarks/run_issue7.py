@@ -16,12 +16,11 @@ import statistics
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from results import write_section  # noqa: E402
-from run_issue2 import EXE, ROOT, SHARED, machine, run_process  # noqa: E402
+from results import heading, write_section  # noqa: E402
+from run_issue2 import EXE, ROOT, SHARED, run_process  # noqa: E402
 from run_issue6 import PEERS, PY, helper  # noqa: E402
 
 CONTOURS = [SHARED / f"{s}_{n}.csv" for s in ("circle", "bean", "star") for n in (100, 1000)]
@@ -85,14 +84,13 @@ def main():
             med = {k: statistics.median(v) if v else float("nan") for k, v in times.items()}
             rows.append((path, report["on"], q, med))
             print(f"{path.name}: {q['off'][1]:.1f} -> {q['on'][1]:.1f} deg", file=sys.stderr)
-    lines = [
+    lines = heading(
         "## Issue 7: the quality stage, next to Triangle (whole processes writing .vtk, "
-        f"median of {args.repeat}, alternating)", "",
-        f"Machine: {machine()}.  Date: {time.strftime('%Y-%m-%d')}.", "",
+        f"median of {args.repeat}, alternating)",
         "deformesh with the stage (default) and with `--no-improve`; Triangle "
         "`pq30a<h^2/2>Y` with deformesh's h on the same points (CSV contours only). "
         "Quality measured on the written files by one code. Stage cost = seconds with "
-        "minus seconds without (whole processes, so noisy at small sizes).", "",
+        "minus seconds without (whole processes, so noisy at small sizes).") + [
         "| contour | triangles | min angle without | min angle with | Triangle min angle | "
         "mean radius ratio without | with | Triangle | seconds without | with | stage cost |",
         "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .mesh import Mesh
+from .mesh import Mesh, touching
 
 #: Rounds of (flips, smoothing) at most; a round that changes nothing ends it.
 ROUNDS = 8
@@ -54,7 +54,6 @@ class ImproveStats:
     rounds: int = 0
     moved_nodes: int = 0  # nodes that ended somewhere else
     min_angle_before: float = 0.0
-    min_angle_after: float = 0.0
 
 
 def tan_min_angle(ax, ay, bx, by, cx, cy):
@@ -95,9 +94,10 @@ def improve(mesh: Mesh, rounds: int = ROUNDS) -> tuple[Mesh, ImproveStats]:
         # work where it is needed: the triangles within two rings of a bad one
         near = np.zeros(n, dtype=bool)
         near[tri[bad].ravel()] = True
-        near[tri[_touches(near, tri)].ravel()] = True
-        local = np.flatnonzero(_touches(near, tri))
+        near[tri[touching(near, tri)].ravel()] = True
+        local = np.flatnonzero(touching(near, tri))
         part = tri[local]
+        old = part.copy()
         flips = _flip_all(pts, part, target)
         part_tan = _tan_min(pts, part)
         # the free nodes of the triangles still under the target, and their neighbours;
@@ -105,9 +105,8 @@ def improve(mesh: Mesh, rounds: int = ROUNDS) -> tuple[Mesh, ImproveStats]:
         # is judged)
         act = np.zeros(n, dtype=bool)
         act[part[part_tan < target].ravel()] = True
-        act[part[_touches(act, part)].ravel()] = True
+        act[part[touching(act, part)].ravel()] = True
         moves = _smooth(pts, part, act & free & near)
-        old = tri[local]
         changed = (part[:, 0] != old[:, 0]) | (part[:, 1] != old[:, 1]) | (part[:, 2] != old[:, 2])
         touched[local[changed]] = True
         tri[local] = part
@@ -118,7 +117,6 @@ def improve(mesh: Mesh, rounds: int = ROUNDS) -> tuple[Mesh, ImproveStats]:
             break
     idx = np.flatnonzero(touched)  # flipped at some point; maybe flipped back
     stats.changed = idx[np.any(tri[idx] != mesh.triangles[idx], axis=1)]
-    stats.min_angle_after = _degrees(tan.min())
     stats.moved_nodes = int(np.count_nonzero((pts[:, 0] != mesh.points[:, 0])
                                              | (pts[:, 1] != mesh.points[:, 1])))
     out = Mesh(pts, tri, mesh.lines, n_contour=mesh.n_contour, n_extra=mesh.n_extra,
@@ -133,12 +131,6 @@ def _degrees(tan_angle: float) -> float:
 def _tan_min(pts, tri):
     return tan_min_angle(pts[tri[:, 0], 0], pts[tri[:, 0], 1], pts[tri[:, 1], 0],
                          pts[tri[:, 1], 1], pts[tri[:, 2], 0], pts[tri[:, 2], 1])
-
-
-def _touches(mask: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    """Triangles with a corner in ``mask`` (column by column: ``mask[tri].any(axis=1)``
-    is several times slower on a million triangles)."""
-    return mask[tri[:, 0]] | mask[tri[:, 1]] | mask[tri[:, 2]]
 
 
 # --- flips
@@ -203,36 +195,38 @@ def _smooth(pts: np.ndarray, tri: np.ndarray, movable: np.ndarray) -> int:
     nodes = np.unique(tri[movable[tri]])
     if len(nodes) == 0:
         return 0
-    inc, slot = _incidence(tri, nodes)
+    local = np.full(int(tri.max()) + 1, -1, dtype=np.int64)  # node id -> position in nodes
+    local[nodes] = np.arange(len(nodes))
+    inc, slot = _incidence(tri, local, len(nodes))
     moves = 0
-    for group in _independent_sets(tri, nodes):
+    for group in _independent_sets(tri, nodes, local):
         moves += _move(pts, tri, nodes[group], inc[group], slot[group])
     return moves
 
 
-def _incidence(tri: np.ndarray, nodes: np.ndarray):
-    """For each node, its triangles (padded with -1) and its corner in each."""
-    idx = np.full(int(tri.max()) + 1, -1, dtype=np.int64)
-    idx[nodes] = np.arange(len(nodes))
+def _incidence(tri: np.ndarray, local: np.ndarray, count: int):
+    """For each of ``count`` nodes (``local`` maps node ids to 0..count-1, or -1), its
+    triangles (padded with -1) and its corner in each."""
     t = np.repeat(np.arange(len(tri)), 3)
     k = np.tile(np.arange(3), len(tri))
-    v = idx[tri.ravel()]
+    v = local[tri.ravel()]
     keep = v >= 0
     v, t, k = v[keep], t[keep], k[keep]
     order = np.argsort(v, kind="stable")
     v, t, k = v[order], t[order], k[order]
-    counts = np.bincount(v, minlength=len(nodes))
+    counts = np.bincount(v, minlength=count)
     start = np.concatenate([[0], np.cumsum(counts)[:-1]])
     col = np.arange(len(v)) - start[v]
     width = int(counts.max())
-    inc = np.full((len(nodes), width), -1, dtype=np.int64)
-    slot = np.zeros((len(nodes), width), dtype=np.int64)
+    inc = np.full((count, width), -1, dtype=np.int64)
+    slot = np.zeros((count, width), dtype=np.int64)
     inc[v, col] = t
     slot[v, col] = k
     return inc, slot
 
 
-def _independent_sets(tri: np.ndarray, nodes: np.ndarray) -> list[np.ndarray]:
+def _independent_sets(tri: np.ndarray, nodes: np.ndarray,
+                      local: np.ndarray) -> list[np.ndarray]:
     """Split ``nodes`` (positions into it) into sets of which no two share a triangle.
 
     Jones-Plassmann colouring: in each round, every node whose priority beats all
@@ -240,10 +234,7 @@ def _independent_sets(tri: np.ndarray, nodes: np.ndarray) -> list[np.ndarray]:
     hash of the node id (deterministic, and scattered, so that a round takes
     many nodes: ids in grid order would let only a few win per row).
     """
-    idx = np.full(int(tri.max()) + 1, -1, dtype=np.int64)
-    idx[nodes] = np.arange(len(nodes))
-    e = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
-    e = idx[e]
+    e = local[np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])]
     e = e[(e[:, 0] >= 0) & (e[:, 1] >= 0)]
     e = np.concatenate([e, e[:, ::-1]])
     prio = (nodes.astype(np.uint64) * np.uint64(2654435761)) % np.uint64(2**32)

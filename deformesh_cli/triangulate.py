@@ -24,7 +24,7 @@ import shapely
 
 from .contour import Contour
 from .errors import ContractError
-from .mesh import Mesh
+from .mesh import Mesh, touching
 from .select import DIAG_SLASH
 
 BOX_SIDES = ("bottom", "right", "top", "left")
@@ -132,7 +132,7 @@ def place(contour: Contour, sel, c: Cut, points: np.ndarray) -> Mesh:
     grid, tri = sel.grid, sel.triangles()
     g = grid.coords()
     moved = (points[:, 0] != g[:, 0]) | (points[:, 1] != g[:, 1])
-    near = np.flatnonzero(moved[tri[:, 0]] | moved[tri[:, 1]] | moved[tri[:, 2]])
+    near = np.flatnonzero(touching(moved, tri))
     rings = [contour.points[contour.ring_order(r)] for r in range(contour.n_rings)]
     cen = _centroids(points, tri[near])
     box = grid.box if sel.exterior else None

@@ -7,6 +7,7 @@ from hypothesis import HealthCheck, given, settings
 from deformesh_cli import improve, pipeline
 from deformesh_cli.contour import load_contour, make_contour
 from deformesh_cli.errors import FoldError, LimitError, SelectionError
+from deformesh_cli.mesh import touching
 from deformesh_cli.quality import check_contract, measures, signed_areas
 
 from .conftest import SAMPLES, shared
@@ -53,7 +54,7 @@ def test_smooth_contours_get_30_degrees_and_no_worse_radius_ratio(path):
 
 def _grow(mask, tri):
     out = mask.copy()
-    out[tri[improve._touches(mask, tri)].ravel()] = True
+    out[tri[touching(mask, tri)].ravel()] = True
     return out
 
 
