@@ -47,9 +47,8 @@ def test_smooth_contours_get_30_degrees_and_no_worse_radius_ratio(path):
     assert better.report["mean_radius_ratio"] >= plain.report["mean_radius_ratio"]
     assert better.report["improve"]["min_angle_before"] == pytest.approx(
         plain.report["min_angle"], abs=1e-9)
-    # the boundary nodes are where they were, and the interior far from it too
+    # the boundary nodes are where they were (the interior: the neighbourhood test below)
     assert np.array_equal(better.mesh.points[:c.n], plain.mesh.points[:c.n])
-    assert better.mesh.triangles.shape == plain.mesh.triangles.shape
 
 
 def _grow(mask, tri):
