@@ -29,7 +29,8 @@ CONTOURS += [SHARED / f for f in ("channel_100.csv", "square_hole_100.csv", "nac
 CONTOURS += [ROOT / "samples" / f for f in ("circle.csv", "peanut.csv", "half_disk.csv",
                                             "naca0012.csv", "paper_example.csv")]
 CORPUS = ROOT / "tests" / "data" / "corpus"
-CONTOURS += [CORPUS / f for f in ("airfoil_clarky.csv", "airfoil_e387.csv", "coast_cuba.csv",
+CONTOURS += [CORPUS / f for f in ("airfoil_clarky.csv", "airfoil_e387.csv", "airfoil_n0012.csv",
+                                  "airfoil_sd7037.csv", "airfoil_usa35b.csv", "coast_cuba.csv",
                                   "icon_bi_bell-fill.svg")]
 
 
@@ -90,17 +91,22 @@ def main():
         "deformesh with the stage (default) and with `--no-improve`; Triangle "
         "`pq30a<h^2/2>Y` with deformesh's h on the same points (CSV contours only). "
         "Quality measured on the written files by one code. Stage cost = seconds with "
-        "minus seconds without (whole processes, so noisy at small sizes).") + [
-        "| contour | triangles | min angle without | min angle with | Triangle min angle | "
+        "minus seconds without (whole processes, so noisy at small sizes). Forced = the "
+        "report's `forced_angle` where the mesh is under 30 degrees: no mesh with these "
+        "boundary nodes has a larger smallest angle (README, \"What the boundary forces\").") + [
+        "| contour | triangles | min angle without | min angle with | forced | Triangle min angle | "
         "mean radius ratio without | with | Triangle | seconds without | with | stage cost |",
-        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
     ]
     for path, rep, q, med in rows:
         tri = q["triangle"]
         t_ang = f"{tri[1]:.1f}" if tri else "-"
         t_rr = f"{tri[2]:.3f}" if tri else "-"
+        f = rep.get("forced_angle")
+        forced = "-" if f is None else f"{f:.1f}"
         lines.append(
-            f"| {path.name} | {q['on'][0]} | {q['off'][1]:.1f} | {q['on'][1]:.1f} | {t_ang} | "
+            f"| {path.name} | {q['on'][0]} | {q['off'][1]:.1f} | {q['on'][1]:.1f} | {forced} | "
+            f"{t_ang} | "
             f"{q['off'][2]:.3f} | {q['on'][2]:.3f} | {t_rr} | {med['off']:.2f} | "
             f"{med['on']:.2f} | {med['on'] - med['off']:+.2f} |")
     write_section("issue7", "\n".join(lines))

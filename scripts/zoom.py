@@ -19,7 +19,8 @@ def main(out, mesh_path, contour_path, *windows):
     m = meshio.read(mesh_path)
     tri = m.cells_dict["triangle"]
     c = load_contour(contour_path).points
-    fig, axes = plt.subplots(1, len(windows), figsize=(5 * len(windows), 5))
+    fig, axes = plt.subplots(1, len(windows), figsize=(5 * len(windows), 5), squeeze=False)
+    axes = axes[0]
     for ax, w in zip(axes, windows):
         cx, cy, half = (float(v) for v in w.split(","))
         ax.triplot(m.points[:, 0], m.points[:, 1], tri, lw=0.3, color="k")

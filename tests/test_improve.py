@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
-from deformesh_cli import improve, pipeline
+from deformesh_cli import forced, improve, pipeline
 from deformesh_cli.contour import load_contour, make_contour
 from deformesh_cli.errors import FoldError, LimitError, SelectionError
 from deformesh_cli.mesh import touching
@@ -167,3 +168,130 @@ def test_patched_edge_uses_equal_a_recount():
     patched = patch_edge_uses(edge_uses(soup, 12), 12, soup[changed], new[changed])
     for got, want in zip(patched, edge_uses(new, 12)):
         assert np.array_equal(got, want)
+
+
+# --- sharp corners and thin parts: what the boundary nodes force (Done-when 2)
+
+CORPUS = SAMPLES.parent / "tests" / "data" / "corpus"
+#: The 20 airfoils (sharp trailing edges of 3.6-19.6 degrees, blunt ones, graded
+#: spacing) and the sharp or thin samples.
+SHARP = sorted(CORPUS.glob("airfoil_*.csv")) + [
+    SAMPLES / "naca0012.csv", SAMPLES / "paper_example.csv", shared("naca0012_100.csv")]
+
+
+def bound_check(mesh):
+    """Per triangle under 30 degrees: (its smallest angle, the bound we state)."""
+    lines = mesh.lines
+    bound = forced.edge_bounds(mesh.points, lines)
+    ang = measures(mesh.points, mesh.triangles)[0]
+    low = np.flatnonzero(ang < 30)
+    near = forced.triangle_bound(mesh.points, mesh.triangles[low], lines, bound)
+    return ang[low], np.minimum(30.0, near) / 3
+
+
+@pytest.mark.parametrize("path", SHARP, ids=lambda p: p.name)
+def test_no_triangle_is_under_a_third_of_what_the_boundary_forces(path):
+    res = pipeline.mesh_contour(load_contour(path))
+    ang, bound = bound_check(res.mesh)
+    assert (ang >= bound).all(), (ang / (3 * bound)).min()
+    if len(ang):
+        assert res.report["forced_angle"] == pytest.approx(
+            forced.edge_bounds(res.mesh.points, res.mesh.lines).min())
+        assert res.report["min_angle"] <= res.report["forced_angle"] + 1e-6
+
+
+@st.composite
+def spiky_polygons(draw):
+    """Star-shaped polygons with radii from 0.1 to 1: corners down to a few degrees."""
+    n = draw(st.integers(3, 40))
+    gaps = np.array(draw(st.lists(st.floats(0.2, 1.0), min_size=n, max_size=n)))
+    theta = 2 * np.pi * np.cumsum(gaps) / gaps.sum()
+    r = np.array(draw(st.lists(st.floats(0.1, 1.0), min_size=n, max_size=n)))
+    return np.column_stack([r * np.cos(theta), r * np.sin(theta)])
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(spiky_polygons())
+def test_random_sharp_polygons_keep_the_bound(pts):
+    c = make_contour(pts, source="random")
+    try:
+        res = pipeline.mesh_contour(c, max_nodes=60_000)
+    except REFUSALS:
+        return
+    ang, bound = bound_check(res.mesh)
+    assert (ang >= bound).all(), (ang / (3 * bound)).min()
+
+
+@pytest.mark.parametrize("path", SHARP[:6] + SMOOTH[:4], ids=lambda p: p.name)
+@pytest.mark.parametrize("improve_", [False, True], ids=["plain", "improved"])
+def test_the_forced_angles_bound_every_mesh(path, improve_):
+    # the bounds are upper bounds for any mesh with these boundary nodes: ours too,
+    # with or without the stage
+    m = pipeline.mesh_contour(load_contour(path), improve=improve_).mesh
+    geom = forced.mesh_domain(m.points, m.lines)
+    ang = measures(m.points, m.triangles)[0]
+    f = forced.edge_angles(m.points, m.lines, geom)
+    # the triangle on each boundary edge
+    key = {(a, b): t for t, tri in enumerate(m.triangles.tolist())
+           for a, b in ((tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0]))}
+    on_edge = np.array([key[(a, b)] for a, b in m.lines.tolist()])
+    assert (ang[on_edge] <= f + 1e-6).all()
+    # the worst triangle at each boundary node
+    c = forced.node_angles(m.points, m.lines, geom)
+    worst = np.full(len(m.points), 90.0)
+    np.minimum.at(worst, m.triangles.ravel(), np.repeat(ang, 3))
+    assert (worst[m.lines[:, 0]] <= c + 1e-6).all()
+
+
+def test_forced_angles_by_hand():
+    # a 20 degree wedge with equal sides: its edges allow 20 degrees, the ear
+    # (the whole wedge) has 20 as its smallest angle
+    t = np.radians(20)
+    wedge = np.array([(0, 0), (np.cos(t / 2), -np.sin(t / 2)), (np.cos(t / 2), np.sin(t / 2))])
+    lines = np.array([(0, 1), (1, 2), (2, 0)])
+    geom = forced.mesh_domain(wedge, lines)
+    assert forced.edge_angles(wedge, lines, geom)[[0, 2]] == pytest.approx(20, abs=1e-5)
+    assert forced.node_angles(wedge, lines, geom)[0] == pytest.approx(20, abs=1e-9)
+    # a strip 0.1 wide of 1-long edges: the apex of a long edge's triangle is at most
+    # 0.1 above its middle, tan F = 0.1 / 0.5
+    strip = np.array([(0, 0), (1, 0), (1, 0.1), (0, 0.1)])
+    lines = np.array([(0, 1), (1, 2), (2, 3), (3, 0)])
+    geom = forced.mesh_domain(strip, lines)
+    f = forced.edge_angles(strip, lines, geom)
+    assert f[[0, 2]] == pytest.approx(np.degrees(np.arctan(0.2)), abs=1e-5)
+    assert (f[[1, 3]] == 60).all()  # the short ends: the equilateral apex fits
+    # its corners: the ear (a 1 x 0.1 right triangle) has 5.7 degrees, half the
+    # corner 45: C = 45
+    assert forced.node_angles(strip, lines, geom) == pytest.approx(45)
+
+
+def test_uniform_wedges_get_their_corner_angle():
+    # the best any mesh can do at a sharp corner: one triangle there (the ear), with
+    # the corner's angle as its smallest; the stage makes the ear and keeps the rest
+    # of the wedge at least as good
+    for degrees in (10, 20, 30):
+        t = np.radians(degrees)
+        s = np.linspace(0, 1, 21)
+        arc = np.linspace(-t / 2, t / 2, max(3, int(20 * t)) + 1)[1:-1]
+        pts = np.concatenate([np.column_stack([s, -s * np.tan(t / 2)]),
+                              np.column_stack([np.cos(arc), np.sin(arc)]) / np.cos(t / 2),
+                              np.column_stack([s, s * np.tan(t / 2)])[::-1][:-1]])
+        res = pipeline.mesh_contour(make_contour(pts, source="wedge"))
+        m = res.mesh
+        assert (m.triangles == 0).any(axis=1).sum() == 1
+        assert res.report["min_angle"] == pytest.approx(degrees, abs=1e-6)
+
+
+def test_nodes_are_added_where_only_boundary_nodes_bound_a_triangle():
+    # samples/naca0012.csv: its blunt trailing edge left a triangle of three boundary
+    # nodes at 10.7 degrees, which no move or flip could lift
+    c = load_contour(SAMPLES / "naca0012.csv")
+    plain = pipeline.mesh_contour(c, improve=False)
+    better = pipeline.mesh_contour(c)
+    added = better.report["improve"]["nodes_added"]
+    assert added > 0
+    assert len(better.mesh.points) == len(plain.mesh.points) + added
+    assert len(better.mesh.triangles) == len(plain.mesh.triangles) + 2 * added
+    assert np.array_equal(better.mesh.points[:c.n], c.points)
+    assert better.report["min_angle"] > 18  # measured 18.6
+    check_contract(better.mesh, c)

@@ -1,0 +1,142 @@
+"""What the contour itself forces on the smallest angle (issue 7).
+
+Every boundary edge of a mesh belongs to exactly one triangle, which lies in
+the domain.  If that triangle has all three angles at least ``phi``, it
+contains the isosceles triangle with the same base and base angles ``phi``
+(from the base's ends, a point of the small one is seen at most ``phi`` off the
+base, so within the big one's base angles), and so that isosceles triangle lies
+in the domain too.  Hence the **forced angle** of a boundary edge,
+
+    F(e) = the largest phi <= 60 degrees such that the isosceles triangle on e
+           with base angles phi, on the domain's side, lies in the domain,
+
+bounds the smallest angle of e's triangle in *every* mesh whose boundary
+nodes are exactly the contour's points, ours or anyone's.  A corner of angle
+``theta`` gives its two edges ``F <= theta``; a part thinner than ``w`` gives
+an edge of length ``L`` across from it about ``atan(2 w / L)``.  A thin strip
+between two such edges forces about half of that in tangent (the two
+triangles' apexes share the width), which is why the bound we test is
+``min(30, F) / 3`` (README, "Quality").
+
+Nothing here prints or exits.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import shapely
+
+#: Bisection steps on the angle: 60 / 2**24 degrees apart at the end.
+STEPS = 24
+
+
+def edge_angles(points: np.ndarray, lines: np.ndarray, geom) -> np.ndarray:
+    """F(e) in degrees for each directed boundary edge ``lines`` (domain on its left)
+    of the domain ``geom`` (a shapely geometry; edges on its boundary).
+
+    The upper end of the bisection is returned, so the value is never below
+    the true F (within 60 / 2**24 degrees above it).
+    """
+    a = np.asarray(points[lines[:, 0]], dtype=np.float64)
+    b = np.asarray(points[lines[:, 1]], dtype=np.float64)
+    d = b - a
+    half = 0.5 * np.hypot(d[:, 0], d[:, 1])
+    normal = np.column_stack([-d[:, 1], d[:, 0]]) / (2 * half)[:, None]
+    mid = 0.5 * (a + b)
+    shapely.prepare(geom)
+    lo = np.zeros(len(a))
+    hi = np.full(len(a), 60.0)
+    top = _fits(geom, a, b, mid + normal * (half * np.tan(np.radians(60.0)))[:, None])
+    lo[top] = 60.0
+    for _ in range(STEPS):
+        open_ = lo < hi
+        if not open_.any():
+            break
+        phi = 0.5 * (lo + hi)
+        apex = mid + normal * (half * np.tan(np.radians(phi)))[:, None]
+        ok = np.zeros(len(a), dtype=bool)
+        ok[open_] = _fits(geom, a[open_], b[open_], apex[open_])
+        lo = np.where(open_ & ok, phi, lo)
+        hi = np.where(open_ & ~ok, phi, hi)
+    return hi
+
+
+def mesh_domain(points: np.ndarray, lines: np.ndarray):
+    """The region the boundary ``lines`` enclose (ring by ring, in boundary order, as a
+    :class:`.Mesh` keeps them; even-odd), with the boundary nodes where the mesh has
+    them: extra boundary nodes, put on contour edges to the nearest double, are
+    vertices of it."""
+    from .triangulate import domain
+
+    rings, start = [], 0
+    first = lines[:, 0].tolist()
+    for k, end in enumerate(lines[:, 1].tolist()):  # a ring closes back on its start
+        if end == first[start]:
+            rings.append(points[lines[start:k + 1, 0]])
+            start = k + 1
+    return domain(rings)
+
+
+def corner_angles(pts: np.ndarray, lines: np.ndarray):
+    """For each node: its next and previous boundary node (-1 inside) and the angle
+    (degrees; 360 inside) between the two boundary edges on the domain's side."""
+    ends = np.full((len(pts), 2), -1, dtype=np.int64)
+    ends[lines[:, 0], 0] = lines[:, 1]
+    ends[lines[:, 1], 1] = lines[:, 0]
+    angle = np.full(len(pts), 360.0)
+    p = lines[:, 0]
+    a, b = pts[ends[p, 0]] - pts[p], pts[ends[p, 1]] - pts[p]
+    angle[p] = np.mod(np.degrees(np.arctan2(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0],
+                                            (a * b).sum(axis=1))), 360)
+    return ends, angle
+
+
+def node_angles(points: np.ndarray, lines: np.ndarray, geom) -> np.ndarray:
+    """C(p) in degrees for each boundary node ``lines[:, 0]``: the largest smallest
+    angle its triangles can have.  One triangle there is the *ear* (previous node,
+    it, next node), which must lie in the domain; with two or more, one of them
+    has at most half the corner's angle.  So C(p) = max(angle / 2, the ear's
+    smallest angle if the ear lies in the domain)."""
+    from .quality import measures
+
+    ends, angle = corner_angles(points, lines)
+    p = lines[:, 0]
+    half = angle[p] / 2
+    ears = np.column_stack([p, ends[p, 0], ends[p, 1]])
+    convex = angle[p] < 180
+    ear = np.zeros(len(p))
+    if convex.any():
+        e = ears[convex]
+        fits = _fits(geom, points[e[:, 0]], points[e[:, 1]], points[e[:, 2]])
+        ear[convex] = np.where(fits, measures(points, e)[0], 0.0)
+    return np.maximum(half, ear)
+
+
+def _fits(geom, a, b, apex) -> np.ndarray:
+    return shapely.covers(geom, shapely.polygons(np.stack([a, b, apex, a], axis=1)))
+
+
+def triangle_bound(points: np.ndarray, tri: np.ndarray, lines: np.ndarray,
+                   forced: np.ndarray, reach: float = 1.0) -> np.ndarray:
+    """For each triangle, the smallest forced angle of the boundary edges within
+    ``reach`` times its longest edge of it (60 where there is none)."""
+    p = points[tri]
+    longest = np.sqrt(np.max(((p - np.roll(p, 1, axis=1)) ** 2).sum(axis=2), axis=1))
+    polys = shapely.polygons(np.concatenate([p, p[:, :1]], axis=1))
+    segs = shapely.linestrings(np.stack([points[lines[:, 0]], points[lines[:, 1]]], axis=1))
+    t, e = shapely.STRtree(segs).query(polys, predicate="dwithin", distance=reach * longest)
+    out = np.full(len(tri), 60.0)
+    np.minimum.at(out, t, forced[e])
+    return out
+
+
+def edge_bounds(points: np.ndarray, lines: np.ndarray, geom=None) -> np.ndarray:
+    """For each boundary edge: min(F(e), C(its two ends)), in degrees: no triangle
+    at this edge or its ends can have a larger smallest angle in any mesh with
+    these boundary nodes.  ``geom``: the domain (default: :func:`mesh_domain`)."""
+    if geom is None:
+        geom = mesh_domain(points, lines)
+    c = np.full(len(points), 60.0)
+    c[lines[:, 0]] = node_angles(points, lines, geom)
+    return np.minimum(edge_angles(points, lines, geom),
+                      np.minimum(c[lines[:, 0]], c[lines[:, 1]]))
