@@ -63,6 +63,7 @@ class ImproveStats:
     rounds: int = 0
     moved_nodes: int = 0  # nodes that ended somewhere else
     min_angle_before: float = 0.0
+    weak: np.ndarray | None = None  # ids of the triangles under 30 degrees at the end
 
 
 def tan_min_angle(ax, ay, bx, by, cx, cy):
@@ -143,6 +144,7 @@ def improve(mesh: Mesh, rounds: int = ROUNDS) -> tuple[Mesh, ImproveStats]:
         stats.cavities += cavities
         if flips == 0 and moves == 0 and cavities == 0:
             break
+    stats.weak = np.flatnonzero(tan < np.tan(np.radians(30.0)))
     m = len(mesh.triangles)
     idx = np.flatnonzero(touched[:m])  # changed at some point; maybe flipped back
     stats.changed = idx[np.any(tri[idx] != mesh.triangles[idx], axis=1)]

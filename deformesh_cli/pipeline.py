@@ -208,10 +208,14 @@ def run_triangulate(contour: Contour, d: Deformed, size: SizeFunction | None = N
     report["improve"] = None if better is None else {
         "min_angle_before": better.min_angle_before, "flips": better.flips,
         "node_moves": better.moves, "nodes_added": better.added, "rounds": better.rounds}
-    # what the boundary nodes allow (README, "Quality"); only worth its cost (0.01-0.05 s
-    # on the corpus' contours) where the mesh is under 30 degrees
-    report["forced_angle"] = (float(forced.edge_bounds(mesh.points, mesh.lines).min())
-                              if report["min_angle"] < 30 else None)
+    # what the boundary nodes allow next to the triangles under 30 degrees (README, "What
+    # the boundary forces"), if any
+    report["forced_angle"] = None
+    if report["min_angle"] < 30:
+        weak = better.weak if better is not None else np.flatnonzero(
+            quality.measures(mesh.points, mesh.triangles)[0] < 30)
+        report["forced_angle"] = forced.weakest_bound(mesh.points, mesh.triangles, mesh.lines,
+                                                      weak)
     if size is not None:
         report["size"] = size.label
         rho = _size.spearman(mesh.points, mesh.triangles, size, exclude=mesh.lines.ravel())

@@ -174,9 +174,11 @@ def test_patched_edge_uses_equal_a_recount():
 
 CORPUS = SAMPLES.parent / "tests" / "data" / "corpus"
 #: The 20 airfoils (sharp trailing edges of 3.6-19.6 degrees, blunt ones, graded
-#: spacing) and the sharp or thin samples.
+#: spacing), the sharp or thin samples, and a few jagged coastlines and icons.
 SHARP = sorted(CORPUS.glob("airfoil_*.csv")) + [
     SAMPLES / "naca0012.csv", SAMPLES / "paper_example.csv", shared("naca0012_100.csv")]
+SHARP += [CORPUS / f for f in ("coast_ireland.csv", "coast_sri_lanka.csv", "icon_si_apple.svg",
+                               "icon_si_spotify.svg")]
 
 
 def bound_check(mesh):
@@ -194,10 +196,12 @@ def test_no_triangle_is_under_a_third_of_what_the_boundary_forces(path):
     res = pipeline.mesh_contour(load_contour(path))
     ang, bound = bound_check(res.mesh)
     assert (ang >= bound).all(), (ang / (3 * bound)).min()
-    if len(ang):
-        assert res.report["forced_angle"] == pytest.approx(
-            forced.edge_bounds(res.mesh.points, res.mesh.lines).min())
+    if len(ang):  # the report's bound: from the boundary next to the weak triangles
+        whole = forced.edge_bounds(res.mesh.points, res.mesh.lines).min()
+        assert whole - 1e-9 <= res.report["forced_angle"] <= 60
         assert res.report["min_angle"] <= res.report["forced_angle"] + 1e-6
+    else:
+        assert res.report["forced_angle"] is None
 
 
 @st.composite
