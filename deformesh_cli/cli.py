@@ -14,6 +14,7 @@ import sys
 import time
 
 import click
+import numpy as np
 
 from . import __version__, batch, io, pipeline, quality, state
 from . import size as _size
@@ -445,6 +446,112 @@ def batch_table(records: list[dict], seconds: float) -> str:
 
 def _title(name, mesh) -> str:
     return f"{name}: {mesh.n_nodes} nodes, {len(mesh.triangles)} triangles"
+
+
+@cli.command("move")
+@click.argument("mesh_path", metavar="MESH", type=click.Path(dir_okay=False))
+@click.argument("frames", metavar="FRAME...", nargs=-1, required=True,
+                type=click.Path(dir_okay=False))
+@click.option("--out-dir", required=True, type=click.Path(file_okay=False),
+              help="Write the frames here as NAME_0000.FORMAT, ... (created if missing), "
+                   "and NAME.pvd, the time series ParaView opens (.vtu only).")
+@click.option("--name", default=None, help="File name stem.  Default: MESH's.")
+@click.option("--dt", type=float, default=1.0, show_default=True, callback=_positive,
+              help="Time between frames: the .pvd's time step; velocity = displacement / dt.")
+@steps_option
+@solver_option
+@click.option("--solve", type=click.Choice(pipeline.SOLVES), default="full", show_default=True,
+              help="Solve on the whole mesh ('full', the paper's scheme) or, on an exterior "
+                   "mesh, on a band around the contour ('band': faster, but changes of shape "
+                   "pile up at the band's edge).")
+@click.option("--format", "fmt", type=click.Choice(sorted(io.FORMATS), case_sensitive=False),
+              default="vtu", show_default=True,
+              help="Frame format.  Velocity is written where the format has point data "
+                   "(vtu, vtk, xdmf).")
+@click.option("--decimal", type=click.Choice([".", ","]), default=".", show_default=True,
+              help="Decimal mark of the frames' CSV numbers.")
+@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
+@quiet_option
+@_handle_errors
+def move_cmd(mesh_path, frames, out_dir, name, dt, steps, solver, solve, fmt, decimal, as_json,
+             quiet):
+    """Carry a mesh along as its contour moves: one file per FRAME, same triangles.
+
+    MESH is a mesh deformesh wrote (its nodes 0..m-1 are the contour points in
+    order); each FRAME is a contour of the same m points, point k following
+    point k.  Each frame's mesh is the previous one deformed (the div-curl
+    scheme over pseudo-time, contour nodes to the frame's points, box nodes
+    held), checked for folds at every step.  Frame 0 is MESH itself.
+    """
+    from . import move
+    from .errors import FoldError
+
+    t0 = time.perf_counter()
+    fmt = fmt.lower()
+    stem = name or os.path.splitext(os.path.basename(mesh_path))[0]
+    points, tri = io.read_mesh(mesh_path)
+    contours = [_read_contour(f, decimal) for f in frames]  # every frame read first:
+    motion = move.prepare(points, tri, contours[0], mesh_path)
+    for c in contours[1:]:  # a bad one fails before any work
+        move.check_frame(motion, c)
+    try:
+        os.makedirs(out_dir, exist_ok=True)
+    except OSError as exc:
+        raise DeformeshError(f"{out_dir}: cannot create the output folder: {exc.strerror}") \
+            from None
+    width = max(4, len(str(len(frames))))
+    written: list[tuple[float, str]] = []
+    records = []
+
+    def write(k, pts, velocity, rec):
+        mesh = move.frame_mesh(motion, pts, {"velocity": velocity})
+        file = f"{stem}_{k:0{width}d}.{fmt}"
+        io.write_mesh(mesh, os.path.join(out_dir, file), fmt)
+        written.append((k * dt, file))
+        records.append({"frame": k, "input": rec.pop("input"), "output": file, **rec})
+
+    def finish():  # the time series of the frames written so far
+        if fmt == "vtu" and written:
+            io.write_bytes(io.pvd_bytes(written), os.path.join(out_dir, f"{stem}.pvd"))
+
+    zero = np.zeros((len(points), 3))
+    write(0, motion.mesh.points, zero, {"input": mesh_path, **quality.stats(motion.mesh)})
+    pts = motion.mesh.points
+    advice = ("the frame's points cannot be reached from the previous frame's without folding",
+              "use more --steps, or frames closer together")
+    try:
+        for k, c in enumerate(contours, start=1):
+            try:
+                step = move.advance(motion, pts, c, steps, solver, solve, advice=advice)
+            except FoldError as exc:
+                raise DeformeshError(
+                    f"{c.source}: frame {k} of {len(contours)} cannot be reached without "
+                    f"folding: {exc}; frames 0-{k - 1} are in {out_dir}") from None
+            velocity = np.column_stack([(step.points - pts) / dt, np.zeros(len(pts))])
+            write(k, step.points, velocity, {"input": c.source, **step.report})
+            pts = step.points
+            r = records[-1]
+            _say(quiet, f"frame {k}/{len(contours)} {c.source}: min angle "
+                        f"{r['min_angle']:.1f} deg, {r['solves']} solves, "
+                        f"{r['halvings']} step halvings")
+    finally:
+        finish()
+    first = records[0]["min_angle"]
+    worst = min(r["min_angle"] for r in records)
+    summary = {"mesh": mesh_path, "out_dir": out_dir, "format": fmt,
+               "pvd": f"{stem}.pvd" if fmt == "vtu" else None, "frames": len(records),
+               "nodes": records[0]["nodes"], "triangles": records[0]["triangles"],
+               "min_angle": worst, "min_angle_first": first,
+               "min_angle_frame": int(min(records, key=lambda r: r["min_angle"])["frame"]),
+               "seconds": round(time.perf_counter() - t0, 3), "per_frame": records}
+    if as_json:
+        click.echo(json.dumps(summary))
+    if fmt not in ("vtu", "vtk", "xdmf"):
+        _say(quiet, f"note: .{fmt} has no point data: the velocity is not written")
+    _say(quiet, f"{len(records)} frames -> {out_dir}"
+                f"{'/' + summary['pvd'] if summary['pvd'] else ''}: same {len(tri)} triangles "
+                f"in every frame, min angle {worst:.1f} deg over all frames (frame 0: "
+                f"{first:.1f}) ({summary['seconds']:.2f} s)")
 
 
 @cli.command("quality")

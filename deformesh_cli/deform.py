@@ -29,6 +29,12 @@ from .quality import signed_areas
 DEFAULT_STEPS = 10
 
 
+#: What a fold message advises: at the last step (the targets themselves cannot be
+#: reached), and before it.
+ADVICE = ("its corners cannot all reach their contour points; give a smaller --h",
+          "give a smaller --h or more --steps")
+
+
 @dataclass
 class DeformStats:
     steps: int
@@ -211,6 +217,7 @@ def deform_(
     solver: str = "auto",
     size=None,
     slide=None,
+    advice: tuple[str, str] = ADVICE,
 ) -> tuple[np.ndarray, DeformStats]:
     """Deform ``points`` so that ``points[path_nodes] == targets`` exactly, never folding.
 
@@ -238,6 +245,8 @@ def deform_(
         the contour (``slide.at(t)``; the first step closes the gap from the
         grid node to the contour) instead of straight lines; ``targets`` must
         equal ``slide.at(1)``.
+    advice : what a fold message tells the user to do (:data:`ADVICE`: at the
+        last step, and before it).
 
     Returns the new coordinates and :class:`DeformStats`.
     """
@@ -297,7 +306,8 @@ def deform_(
             if (area > 0).all():
                 break
             if stats.halvings >= max_halvings * steps or theta <= 2.0**-max_halvings:
-                raise FoldError(_fold_message(new, tri, area, steps, remaining, last, describe))
+                raise FoldError(_fold_message(new, tri, area, steps, remaining, last, describe,
+                                              advice))
             theta *= 0.5
             stats.halvings += 1
         pos = new
@@ -310,7 +320,7 @@ def deform_(
     return pos, stats
 
 
-def _fold_message(pos, tri, area, steps, remaining, last, describe) -> str:
+def _fold_message(pos, tri, area, steps, remaining, last, describe, advice=ADVICE) -> str:
     t = int(np.argmin(area))
     where = pos[tri[t]].mean(axis=0)
     time = 1.0 - remaining / steps
@@ -318,9 +328,9 @@ def _fold_message(pos, tri, area, steps, remaining, last, describe) -> str:
     if last:
         return (
             f"the final mesh would fold a triangle near ({where[0]:.6g}, {where[1]:.6g})"
-            f"{node}: its corners cannot all reach their contour points; give a smaller --h"
+            f"{node}: {advice[0]}"
         )
     return (
         f"the deformation folds a triangle near ({where[0]:.6g}, {where[1]:.6g}){node} at "
-        f"pseudo-time {time:.3f} even with the step refined; give a smaller --h or more --steps"
+        f"pseudo-time {time:.3f} even with the step refined; {advice[1]}"
     )

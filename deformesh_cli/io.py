@@ -35,7 +35,8 @@ def _meshio_mesh(mesh: Mesh, dim3: bool = False):
     if dim3:
         pts = np.column_stack([pts, np.zeros(len(pts))])
     point_data = {"contour_point": np.where(np.arange(mesh.n_nodes) < mesh.n_contour,
-                                            np.arange(mesh.n_nodes), -1).astype(np.int32)}
+                                            np.arange(mesh.n_nodes), -1).astype(np.int32),
+                  **mesh.point_data}
     return meshio.Mesh(
         pts,
         [("triangle", mesh.triangles.astype(np.int64)), ("line", mesh.lines.astype(np.int64))],
@@ -161,6 +162,11 @@ def _write_vtk(mesh: Mesh, path: str) -> None:
     conn = np.concatenate([tri.ravel(), lines.ravel()]).astype(">i8")
     types = np.repeat(np.array([5, 3], dtype=">i4"), [nt, nl])  # VTK_TRIANGLE, VTK_LINE
     contour_point = np.where(np.arange(n) < mesh.n_contour, np.arange(n), -1).astype(">i4")
+    fields = [(f"contour_point 1 {n} vtktypeint32\n".encode(), contour_point)]
+    for name, data in mesh.point_data.items():  # as meshio writes them: floats as double
+        data = np.asarray(data, dtype=">f8")
+        k = 1 if data.ndim == 1 else data.shape[1]
+        fields.append((f"{name} {k} {n} double\n".encode(), data))
     with open(path, "wb") as f:
         f.write(f"# vtk DataFile Version 5.1\n{VTK_TITLE}\nBINARY\n"
                 f"DATASET UNSTRUCTURED_GRID\nPOINTS {n} double\n".encode())
@@ -169,8 +175,8 @@ def _write_vtk(mesh: Mesh, path: str) -> None:
                             "OFFSETS vtktypeint64\n".encode(), offsets),
                            (b"CONNECTIVITY vtktypeint64\n", conn),
                            (f"CELL_TYPES {nt + nl}\n".encode(), types),
-                           (f"POINT_DATA {n}\nFIELD FieldData 1\n"
-                            f"contour_point 1 {n} vtktypeint32\n".encode(), contour_point)):
+                           (f"POINT_DATA {n}\nFIELD FieldData {len(fields)}\n".encode()
+                            + fields[0][0], contour_point), *fields[1:]):
             f.write(head)
             f.write(data.tobytes())
             f.write(b"\n")
@@ -252,7 +258,8 @@ def _write_xdmf(mesh: Mesh, path: str) -> None:
         pts,
         [("triangle", mesh.triangles.astype(np.int64)), ("line", mesh.lines.astype(np.int64))],
         point_data={"contour_point": np.where(np.arange(mesh.n_nodes) < mesh.n_contour,
-                                              np.arange(mesh.n_nodes), -1).astype(np.int32)},
+                                              np.arange(mesh.n_nodes), -1).astype(np.int32),
+                    **mesh.point_data},
         cell_data={"group": [np.full(len(mesh.triangles), g["domain"][0], np.int32),
                              (mesh.line_group + 1).astype(np.int32)]},
     )
@@ -343,6 +350,18 @@ def write_mesh(mesh: Mesh, path: str, fmt: str | None = None, msh_version: str =
         except Exception as exc:  # a writer's own error (meshio): one line, no traceback
             raise DeformeshError(f"{path}: cannot write {fmt}: {exc}") from None
     return fmt
+
+
+def pvd_bytes(entries: list[tuple[float, str]]) -> bytes:
+    """A ParaView collection (``.pvd``): a time series of ``(time, file name)``, the
+    names relative to the .pvd's folder."""
+    from xml.sax.saxutils import quoteattr
+
+    rows = "".join(f'    <DataSet timestep="{t!r}" group="" part="0" file={quoteattr(name)}/>\n'
+                   for t, name in entries)
+    return ('<?xml version="1.0"?>\n'
+            '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">\n'
+            f"  <Collection>\n{rows}  </Collection>\n</VTKFile>\n").encode()
 
 
 def mesh_files(mesh: Mesh, name: str, fmt: str,

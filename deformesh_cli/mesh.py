@@ -30,6 +30,9 @@ class Mesh:
     line_group: np.ndarray | None = None  # (l,) int64
     groups: tuple[str, ...] = field(default=("contour",))
     n_box: int = 0
+    #: extra per-node arrays to write with the mesh where the format has point data
+    #: (.vtk, .vtu, .xdmf): name -> (n,) or (n, k) array (``move``: ``velocity``)
+    point_data: dict = field(default_factory=dict)
 
     def __post_init__(self):
         if self.line_group is None:

@@ -1,0 +1,279 @@
+"""Moving boundaries (issue 8): one connectivity for every frame, never tangled.
+
+The paper's section 3.2: a mesh on a moving domain is carried along by the
+deformation.  Frame ``k``'s mesh is frame ``k - 1``'s deformed by the
+div-curl scheme of stage 2 over pseudo-time (:func:`.deform.deform`): the
+contour nodes go to frame ``k``'s points (Dirichlet), the extra boundary
+nodes stay at the same place along their contour edge, the box nodes of an
+exterior mesh stay put (``U = 0``), and every pseudo-time step is checked
+for folds and refined (halved) if one would fold.  The triangles never
+change: the same index arrays in every frame.  After each frame the mesh
+contract is checked against that frame's contour.
+
+Data flow::
+
+    mesh file (points, triangles) + first frame (how many points, which rings)
+      --prepare--> Motion (the Mesh with its boundary, who moves, who is held)
+    Motion, points of frame k-1, contour of frame k
+      --advance--> points of frame k (or FoldError), contract checked
+
+Nothing here prints or exits.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import quality
+from .contour import Contour, make_contour
+from .deform import DEFAULT_STEPS, DeformStats, deform, deform_band
+from .errors import ContractError, DeformeshError, FoldError, InputError
+from .mesh import Mesh
+
+
+@dataclass
+class Motion:
+    """A mesh ready to follow its contour: who moves and who is held."""
+
+    mesh: Mesh  # frame 0, with its boundary lines and groups
+    contour: Contour  # frame 0's contour: the mesh's own contour nodes
+    box: tuple | None  # the box of an exterior mesh (held), else None
+    moving: np.ndarray  # contour nodes 0..m-1, then the extra boundary nodes
+    held: np.ndarray  # box nodes
+    extra_from: np.ndarray  # per extra boundary node: the contour point before it,
+    extra_to: np.ndarray  # the one after it,
+    extra_at: np.ndarray  # and how far along that edge it sits (0..1)
+    weight: np.ndarray  # per node: how much of the contour's rigid motion it follows
+
+
+@dataclass
+class Step:
+    """One frame reached: its points, the deformation's statistics, its summary."""
+
+    points: np.ndarray
+    stats: DeformStats
+    report: dict
+
+
+def prepare(points: np.ndarray, tri: np.ndarray, first: Contour, source: str) -> Motion:
+    """The mesh read from ``source`` as a :class:`Motion`, given its first frame.
+
+    The mesh must be one deformesh wrote for a contour of as many points as
+    ``first``, ring by ring the same: its nodes ``0 .. m-1`` are the contour
+    points in order (the contract), and they must bound the mesh as they did
+    for its contour.  Raises :class:`DeformeshError` naming ``source`` if not.
+    """
+    m = first.n
+    if len(points) < m:
+        raise DeformeshError(f"{source}: the mesh has {len(points)} nodes, fewer than the "
+                             f"{m} points of {first.source}")
+    try:
+        own = make_contour(points[:m], source=source, ring_starts=first.starts[:-1],
+                           ring_labels=first.ring_labels or None)
+    except InputError as exc:
+        raise DeformeshError(f"{source}: its first {m} nodes are not a valid contour like "
+                             f"{first.source}'s ({exc}); was it written by deformesh from "
+                             f"{m} points?") from None
+    try:
+        mesh, box = quality.mesh_for_contour(points, tri, own)
+        quality.check_contract(mesh, own, box)
+    except ContractError as exc:
+        raise DeformeshError(f"not a deformesh mesh of {m} contour points in order: {exc}") \
+            from None
+    _same_rings(own, first, first.source)
+    # each extra boundary node's contour edge (the contour nodes before and after it
+    # on its ring) and how far along it sits
+    on_rings = mesh.line_group < own.n_rings
+    none = np.zeros(0, np.int64)
+    nodes, ext_from, ext_to, ext_at = [none], [none], [none], [np.zeros(0)]
+    for r in range(own.n_rings):
+        chain = mesh.lines[mesh.line_group == r, 0]
+        is_point = chain < m
+        if is_point.all():
+            continue
+        pos, idx = np.flatnonzero(is_point), np.flatnonzero(~is_point)
+        k = np.searchsorted(pos, idx)
+        before, after = chain[pos[k - 1]], chain[pos[k % len(pos)]]
+        a, b, x = points[before], points[after], points[chain[idx]]
+        ab = b - a
+        nodes.append(chain[idx])
+        ext_from.append(before)
+        ext_to.append(after)
+        ext_at.append(((x - a) * ab).sum(axis=1) / (ab * ab).sum(axis=1))
+    extra = np.concatenate(nodes)
+    held = np.unique(mesh.lines[~on_rings].ravel())  # the box
+    moving = np.concatenate([np.arange(m), extra])
+    return Motion(mesh, own, box, moving, held, np.concatenate(ext_from),
+                  np.concatenate(ext_to), np.concatenate(ext_at),
+                  rigid_weight(points, moving, held))
+
+
+def rigid_weight(points: np.ndarray, moving: np.ndarray, held: np.ndarray) -> np.ndarray:
+    """1 at the moving nodes, 0 at the held ones, smooth between: ``1 - s(u)``, ``u`` the
+    distance to the nearest moving node over that plus the distance to the nearest
+    held one, ``s(u) = 3u^2 - 2u^3``.  All 1 when nothing is held (an interior mesh:
+    its whole mesh follows the contour's rigid motion)."""
+    if len(held) == 0:
+        return np.ones(len(points))
+    from scipy.spatial import cKDTree
+
+    d_move = cKDTree(points[moving]).query(points)[0]
+    d_held = cKDTree(points[held]).query(points)[0]
+    u = d_move / np.maximum(d_move + d_held, np.finfo(float).tiny)
+    return 1.0 - u * u * (3.0 - 2.0 * u)
+
+
+def rigid_fit(p: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """The rigid motion closest to taking points ``p`` to ``q`` (least squares):
+    ``q ~ cq + R(theta) (p - cp)``, ``cp`` and ``cq`` the centroids.  Returns (cp, cq,
+    theta)."""
+    cp, cq = p.mean(axis=0), q.mean(axis=0)
+    a, b = p - cp, q - cq
+    theta = np.arctan2((a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]).sum(), (a * b).sum())
+    return cp, cq, float(theta)
+
+
+def carry(points: np.ndarray, weight: np.ndarray, cp, cq, theta: float) -> np.ndarray:
+    """Each node turned by ``weight * theta`` about ``cp`` and shifted by ``weight`` of
+    ``cq - cp``: the rigid motion where the weight is 1, nothing where it is 0."""
+    out = np.array(points, dtype=np.float64, copy=True)
+    on = weight > 0  # the others stay exactly where they are (the box: to the bit)
+    w = weight[on]
+    c, s = np.cos(w * theta), np.sin(w * theta)
+    d = points[on] - cp
+    out[on] = cp + np.column_stack([c * d[:, 0] - s * d[:, 1], s * d[:, 0] + c * d[:, 1]]) \
+        + w[:, None] * (cq - cp)
+    return out
+
+
+def _same_rings(own: Contour, frame: Contour, source: str) -> None:
+    """A frame must have the mesh's rings: as many points each, the same way round,
+    holes where holes were."""
+    if frame.n != own.n:
+        raise DeformeshError(f"{source}: has {frame.n} points, the mesh's contour has "
+                             f"{own.n} (point k of each frame follows contour point k)")
+    if frame.starts != own.starts:
+        raise DeformeshError(f"{source}: its rings start at points {list(frame.starts[:-1])}, "
+                             f"the mesh's at {list(own.starts[:-1])}")
+    for r in range(own.n_rings):
+        if frame.ring_clockwise[r] != own.ring_clockwise[r]:
+            raise DeformeshError(f"{source}: {frame.ring_labels[r]} runs the other way round "
+                                 "from the mesh's (a frame cannot turn a ring inside out)")
+        if frame.is_hole(r) != own.is_hole(r):
+            raise DeformeshError(f"{source}: {frame.ring_labels[r]} is "
+                                 f"{'a hole' if frame.is_hole(r) else 'not a hole'}, "
+                                 "unlike in the mesh")
+
+
+def check_frame(motion: Motion, frame: Contour) -> None:
+    """Raise :class:`DeformeshError` naming the frame's file if it cannot follow the mesh's
+    contour point by point."""
+    _same_rings(motion.contour, frame, frame.source)
+
+
+def targets(motion: Motion, frame: Contour) -> np.ndarray:
+    """Where the moving nodes go for ``frame``: its points, then each extra boundary node
+    as far along its contour edge as it was."""
+    p = frame.points
+    t = motion.extra_at[:, None]
+    extra = (1 - t) * p[motion.extra_from] + t * p[motion.extra_to]
+    return np.concatenate([p, extra])
+
+
+def advance(motion: Motion, points: np.ndarray, frame: Contour, steps: int = DEFAULT_STEPS,
+            solver: str = "auto", solve: str = "full", describe=None, advice=None) -> Step:
+    """Deform ``points`` (the previous frame's) so the contour nodes sit on ``frame``.
+
+    Raises :class:`.errors.FoldError` when no refinement of the pseudo-time steps
+    avoids a fold, :class:`.errors.ContractError` if the result breaks the contract.
+    """
+    mesh = motion.mesh
+    goal = targets(motion, frame)
+    start = points
+    # the contour's rigid motion first, carried by the weight (the twist a turning
+    # body needs, which curl U = 0 cannot give); a fraction of it if all would fold
+    cp, cq, theta = rigid_fit(points[motion.moving], goal)
+    share = 1.0
+    while share > 1.0 / 64:
+        start = carry(points, motion.weight, cp, cp + share * (cq - cp), share * theta)
+        if (quality.signed_areas(start, mesh.triangles) > 0).all():
+            break
+        share /= 2
+    else:
+        start, share = points, 0.0
+    kwargs = dict(steps=steps, solver=solver, describe=describe,
+                  **({} if advice is None else {"advice": advice}))
+    # then the rest by the div-curl scheme, on the whole mesh; or (``solve="band"``, an
+    # exterior mesh) on a band around the moving nodes, the rest held as the box is, and
+    # on the whole mesh if the band is too narrow.  (An interior mesh always whole: a
+    # band there holds the middle while the contour moves; a pulsating peanut fell to
+    # 1.7 degrees, 31.0 on the whole mesh.)  Nothing to solve when the rigid motion
+    # took the contour nodes there already (within :data:`AT_TARGET` of the contour's
+    # size: frames written with 10 digits): the div-curl system with zero data has the
+    # zero solution.
+    rest = float(np.max(np.abs(goal - start[motion.moving]), initial=0.0))
+    if rest <= AT_TARGET * float(np.abs(goal).max() + np.ptp(goal)):
+        new = start.copy()
+        new[motion.moving] = goal
+        stats = DeformStats(steps=0, solver="none", moved_nodes=0)
+        if not (quality.signed_areas(new, mesh.triangles) > 0).all():
+            raise FoldError(f"the rigid motion folds a triangle ({frame.source})")
+    else:
+        band = _band(start, motion, goal) if solve == "band" and len(motion.held) else None
+        new = None
+        if band is not None:
+            try:
+                new, stats = deform_band(start, mesh.triangles, motion.moving, goal,
+                                         motion.held, band, **kwargs)
+            except (FoldError, ValueError):  # folds in the band, or a moving node on its edge
+                new = None
+        if new is None:
+            new, stats = deform(start, mesh.triangles, motion.moving, goal, motion.held,
+                                **kwargs)
+    new[motion.moving[:frame.n]] = frame.points  # exactly (deform lands them; be sure)
+    out = frame_mesh(motion, new)
+    quality.check_contract(out, frame, motion.box)
+    report = quality.stats(out)
+    report.update(solves=stats.solves, halvings=stats.halvings, rigid_turn=float(
+                      np.degrees(share * theta)), rigid_share=share,
+                  max_displacement=float(np.max(np.hypot(*(new - points).T))))
+    return Step(new, stats, report)
+
+
+#: Contour nodes this close to their targets after the rigid motion (relative to the
+#: contour's size) are put there without a solve.
+AT_TARGET = 1e-9
+
+#: The band of the div-curl solve reaches this many mean boundary edge lengths from the
+#: moving nodes, or this many times their farthest travel if that is more.
+BAND_EDGES = 4
+BAND_TRAVEL = 3
+
+
+def _band(points: np.ndarray, motion: Motion, goal: np.ndarray) -> np.ndarray | None:
+    """Nodes within reach of the moving ones (a mask), or None if that is every node."""
+    from scipy.spatial import cKDTree
+
+    lines = motion.mesh.lines
+    edge = float(np.mean(np.hypot(*(points[lines[:, 1]] - points[lines[:, 0]]).T)))
+    # the farthest travel of a moving node: in this frame, or since frame 0 but for the
+    # rigid motion (a band sized by one frame's steps alone lets the changes of shape
+    # pile up at its edge, frame after frame)
+    origin = motion.mesh.points[motion.moving]
+    cp, cq, theta = rigid_fit(origin, goal)
+    since = carry(origin, np.ones(len(origin)), cp, cq, theta) - goal
+    travel = max(float(np.max(np.hypot(*(goal - points[motion.moving]).T), initial=0.0)),
+                 float(np.max(np.hypot(*since.T), initial=0.0)))
+    reach = max(BAND_EDGES * edge, BAND_TRAVEL * travel)
+    near = cKDTree(points[motion.moving]).query(points, distance_upper_bound=reach)[0] <= reach
+    return None if near.all() else near
+
+
+def frame_mesh(motion: Motion, points: np.ndarray, point_data: dict | None = None) -> Mesh:
+    """The motion's mesh at ``points`` (same triangles, lines and groups)."""
+    m = motion.mesh
+    return Mesh(points, m.triangles, m.lines, n_contour=m.n_contour, n_extra=m.n_extra,
+                line_group=m.line_group, groups=m.groups, n_box=m.n_box,
+                point_data=point_data or {})
