@@ -41,6 +41,7 @@ bench: $(VENV)/.installed-bench
 	$(BIN)/python benchmarks/run_corpus.py
 	$(BIN)/python benchmarks/run_issue6.py --repeat 3
 	$(BIN)/python benchmarks/run_issue7.py --repeat 3
+	$(BIN)/python benchmarks/run_issue8.py --repeat 3
 
 # only the side-by-side comparison with Triangle and Gmsh (about 25 minutes)
 bench-peers: $(VENV)/.installed-bench

@@ -80,8 +80,8 @@ def prepare(points: np.ndarray, tri: np.ndarray, first: Contour, source: str) ->
         mesh, box = quality.mesh_for_contour(points, tri, own)
         quality.check_contract(mesh, own, box)
     except ContractError as exc:
-        raise DeformeshError(f"not a deformesh mesh of {m} contour points in order: {exc}") \
-            from None
+        raise DeformeshError(f"{source}: not a deformesh mesh of {m} contour points in order "
+                             f"({str(exc).removeprefix(source + ': ')})") from None
     _same_rings(own, first, first.source)
     # each extra boundary node's contour edge (the contour nodes before and after it
     # on its ring) and how far along it sits

@@ -1,0 +1,109 @@
+"""Moving boundaries (issue 8): time and quality of ``deformesh move`` per case.
+
+Usage: python benchmarks/run_issue8.py [--repeat N]   (make bench)
+
+For each case: ``deformesh all`` makes the mesh once, then ``deformesh move``
+runs as a whole process N times (median): seconds, peak RSS, and from its
+--json the smallest angle over all frames next to frame 0's, the solves and
+step halvings.  Cases: the two README samples, the pitching airfoil of 160
+points in a larger box (more triangles), the same with --solve band, and a
+non-rigid motion of that airfoil (stretched and thickened) on the whole mesh
+and on a band.
+"""
+
+import argparse
+import json
+import statistics
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "scripts"))
+from make_samples import naca0012, pitching, pulsating  # noqa: E402
+from results import heading, write_section  # noqa: E402
+from run_issue2 import EXE, ROOT, run_process  # noqa: E402
+
+SAMPLES = ROOT / "samples"
+
+
+def frames_to(folder: Path, frames: list[np.ndarray]) -> list[str]:
+    folder.mkdir(parents=True, exist_ok=True)
+    out = []
+    for k, pts in enumerate(frames, start=1):
+        f = folder / f"frame_{k:02d}.csv"
+        np.savetxt(f, pts, delimiter=",", header="x,y", comments="", fmt="%.17g")
+        out.append(str(f))
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args()
+    rows = []
+    with tempfile.TemporaryDirectory() as d:
+        d = Path(d)
+        base160 = naca0012(160)
+        np.savetxt(d / "naca160.csv", base160, delimiter=",", header="x,y", comments="",
+                   fmt="%.17g")
+        box = ["--exterior", "--box=-2,-2,3,2"]
+        pulse = frames_to(d / "pulse160", pulsating(base160, amplitude=0.1))
+        cases = [
+            ("pitching sample (README)", SAMPLES / "pitching" / "naca0012_80.csv",
+             ["--exterior", "--box=-1.5,-1.5,2.5,1.5"],
+             sorted(str(p) for p in (SAMPLES / "pitching").glob("frame_*.csv")), []),
+            ("pulsating peanut (README)", SAMPLES / "peanut.csv", [],
+             sorted(str(p) for p in (SAMPLES / "pulsating").glob("frame_*.csv")), []),
+            ("pitching NACA 0012, 160 points, box -2..3", d / "naca160.csv", box,
+             frames_to(d / "pitch160", pitching(base160)), []),
+            ("pulsating NACA 0012 (amplitude 0.1), whole mesh", d / "naca160.csv", box, pulse,
+             []),
+            ("pulsating NACA 0012 (amplitude 0.1), --solve band", d / "naca160.csv", box, pulse,
+             ["--solve", "band"]),
+        ]
+        for name, contour, mesh_opts, frames, move_opts in cases:
+            mesh = d / "mesh.vtu"
+            _, _, code, _, err = run_process([EXE, "all", str(contour), "-o", str(mesh), "-q",
+                                              *mesh_opts])
+            if code:
+                raise SystemExit(f"{name}: {err}")
+            times, rss, rec = [], [], None
+            for _ in range(args.repeat):
+                dt, mb, code, text, err = run_process(
+                    [EXE, "move", str(mesh), *frames, "--out-dir", str(d / "out"), "--json",
+                     "-q", *move_opts])
+                if code:
+                    raise SystemExit(f"{name}: {err}")
+                times.append(dt)
+                rss.append(mb)
+                rec = json.loads(text)
+            per = rec["per_frame"][1:]
+            rows.append((name, rec, statistics.median(times), statistics.median(rss),
+                         sum(r["solves"] for r in per), sum(r["halvings"] for r in per)))
+            print(f"{name}: {statistics.median(times):.2f} s, min angle "
+                  f"{rec['min_angle']:.1f} (frame 0 {rec['min_angle_first']:.1f})",
+                  file=sys.stderr)
+    lines = heading(
+        f"## Issue 8: deformesh move (whole processes, median of {args.repeat})",
+        "`deformesh all` makes the mesh once; then `deformesh move MESH FRAME... --out-dir` "
+        "(20 frames, `.vtu` and `.pvd`) is timed as a whole process. Min angle over all "
+        "frames next to frame 0's; solves and step halvings summed over the frames (no "
+        "solve where the rigid motion alone reaches the frame).") + [
+        "| case | triangles | frames | seconds | s per frame | peak RSS MB | min angle frame 0 "
+        "| min angle all frames | worst frame | solves | halvings |",
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    for name, rec, sec, mb, solves, halvings in rows:
+        n = rec["frames"] - 1
+        lines.append(f"| {name} | {rec['triangles']} | {n} | {sec:.2f} | {sec / n:.3f} | "
+                     f"{mb:.0f} | {rec['min_angle_first']:.1f} | {rec['min_angle']:.1f} | "
+                     f"{rec['min_angle_frame']} | {solves} | {halvings} |")
+    write_section("issue8", "\n".join(lines))
+    print("wrote benchmarks/RESULTS.md (issue8 section)", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
