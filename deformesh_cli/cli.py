@@ -14,7 +14,6 @@ import sys
 import time
 
 import click
-import numpy as np
 
 from . import __version__, batch, io, pipeline, quality, state
 from . import size as _size
@@ -142,8 +141,10 @@ solve_option = click.option(
          "3 times the farthest path node's travel) or the whole background grid ('full').")
 improve_option = click.option(
     "--improve/--no-improve", default=True, show_default=True,
-    help="Better triangles: around every triangle under 35 degrees, flip edges and move "
-         "free nodes while the smallest angle grows (boundary nodes never move).")
+    help="Better triangles: around every triangle under 35 degrees, flip edges, move "
+         "free nodes and, where that cannot help (a thin part, a sharp corner), re-mesh a "
+         "few triangles around one node, while the smallest angle grows (boundary nodes "
+         "never move).")
 format_option = click.option(
     "--format", "fmt", type=click.Choice(sorted(io.FORMATS), case_sensitive=False),
     default=None, help="Mesh format. Default: from the output file's extension.")
@@ -483,6 +484,8 @@ def move_cmd(mesh_path, frames, out_dir, name, dt, steps, solver, solve, fmt, de
     scheme over pseudo-time, contour nodes to the frame's points, box nodes
     held), checked for folds at every step.  Frame 0 is MESH itself.
     """
+    import numpy as np
+
     from . import move
     from .errors import FoldError
 

@@ -167,9 +167,8 @@ def test_a_frame_that_would_fold_stops_with_the_frames_before_written(tmp_path):
     c = load_contour(SAMPLES / "peanut.csv")
     good = d / "f1.csv"
     np.savetxt(good, c.points * 1.02, delimiter=",", header="x,y", comments="")
-    # frame 2: one point pushed far inside, across the mesh (still a simple polygon?
-    # no: a point through the opposite side is refused as input; so pull one point
-    # deep inside, which the mesh cannot follow without folding at its neighbours)
+    # frame 2: one point pulled deep inside (still a simple polygon), which the mesh
+    # cannot follow without folding the triangles at its neighbours
     bad = c.points * 1.02
     k = 30
     bad[k] = bad[k] * 0.05
@@ -234,7 +233,7 @@ def test_random_motions_keep_the_contract_or_say_which_frame_folds(case, exterio
     try:
         res = pipeline.mesh_contour(c, max_nodes=40_000, exterior=exterior,
                                     box=(-3, -3, 3, 3) if exterior else None)
-    except (DeformeshError,):
+    except DeformeshError:  # refused, as meshing says why
         return
     m = res.mesh
     motion = move.prepare(m.points, m.triangles, c, "mesh")
