@@ -13,10 +13,12 @@ in the domain too.  Hence the **forced angle** of a boundary edge,
 bounds the smallest angle of e's triangle in *every* mesh whose boundary
 nodes are exactly the contour's points, ours or anyone's.  A corner of angle
 ``theta`` gives its two edges ``F <= theta``; a part thinner than ``w`` gives
-an edge of length ``L`` across from it about ``atan(2 w / L)``.  A thin strip
-between two such edges forces about half of that in tangent (the two
-triangles' apexes share the width), which is why the bound we test is
-``min(30, F) / 3`` (README, "Quality").
+an edge of length ``L`` across from it about ``atan(2 w / L)``.  At a boundary
+node, :func:`node_angles` bounds the worst of its triangles.  A thin strip
+between two facing edges forces about half of F in tangent (the two triangles'
+apexes share the width), which is why the bound we test is ``min(30, B) / 3``,
+``B`` the smallest of these near a triangle (README, "What the boundary forces,
+and the bound we test"; ``tests/test_improve.py``).
 
 Nothing here prints or exits.
 """
@@ -93,8 +95,9 @@ def corner_angles(pts: np.ndarray, lines: np.ndarray):
 
 def node_angles(points: np.ndarray, lines: np.ndarray, geom, nodes=None) -> np.ndarray:
     """C(p) in degrees for each boundary node ``nodes`` (default ``lines[:, 0]``; the
-    boundary is ``lines``, domain on their left): the largest smallest
-    angle its triangles can have.  One triangle there is the *ear* (previous node,
+    boundary is ``lines``, domain on their left): in any mesh with these boundary
+    nodes, the worst of p's triangles has no larger smallest angle.  One triangle
+    there is the *ear* (previous node,
     it, next node), which must lie in the domain; with two or more, one of them
     has at most half the corner's angle.  So C(p) = max(angle / 2, the ear's
     smallest angle if the ear lies in the domain)."""
@@ -119,8 +122,8 @@ def _fits(geom, a, b, apex) -> np.ndarray:
 
 def triangle_bound(points: np.ndarray, tri: np.ndarray, lines: np.ndarray,
                    forced: np.ndarray, reach: float = 1.0) -> np.ndarray:
-    """For each triangle, the smallest forced angle of the boundary edges within
-    ``reach`` times its longest edge of it (60 where there is none)."""
+    """For each triangle, the smallest ``forced`` (one per boundary edge) of the edges
+    within ``reach`` times the triangle's longest edge of it (60 where there is none)."""
     p = points[tri]
     longest = np.sqrt(np.max(((p - np.roll(p, 1, axis=1)) ** 2).sum(axis=2), axis=1))
     polys = shapely.polygons(np.concatenate([p, p[:, :1]], axis=1))
@@ -153,9 +156,10 @@ def weakest_bound(points: np.ndarray, tri: np.ndarray, lines: np.ndarray,
 
 
 def edge_bounds(points: np.ndarray, lines: np.ndarray, geom=None) -> np.ndarray:
-    """For each boundary edge: min(F(e), C(its two ends)), in degrees: no triangle
-    at this edge or its ends can have a larger smallest angle in any mesh with
-    these boundary nodes.  ``geom``: the domain (default: :func:`mesh_domain`)."""
+    """For each boundary edge: min(F(e), C(its two ends)), in degrees: in any mesh with
+    these boundary nodes, the edge's triangle or the worst triangle at one of its
+    ends has no larger smallest angle.  ``geom``: the domain (default:
+    :func:`mesh_domain`)."""
     if geom is None:
         geom = mesh_domain(points, lines)
     c = np.full(len(points), 60.0)
