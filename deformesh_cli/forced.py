@@ -97,10 +97,10 @@ def node_angles(points: np.ndarray, lines: np.ndarray, geom, nodes=None) -> np.n
     """C(p) in degrees for each boundary node ``nodes`` (default ``lines[:, 0]``; the
     boundary is ``lines``, domain on their left): in any mesh with these boundary
     nodes, the worst of p's triangles has no larger smallest angle.  One triangle
-    there is the *ear* (previous node,
-    it, next node), which must lie in the domain; with two or more, one of them
-    has at most half the corner's angle.  So C(p) = max(angle / 2, the ear's
-    smallest angle if the ear lies in the domain)."""
+    there is the *ear* (previous node, it, next node), which must lie in the
+    domain; with two or more, one of them has at most half the corner's angle.
+    So C(p) = max(angle / 2, the ear's smallest angle if the ear lies in the
+    domain)."""
     from .quality import measures
 
     ends, angle = corner_angles(points, lines)
