@@ -45,7 +45,8 @@ class Motion:
     extra_from: np.ndarray  # per extra boundary node: the contour point before it,
     extra_to: np.ndarray  # the one after it,
     extra_at: np.ndarray  # and how far along that edge it sits (0..1)
-    weight: np.ndarray  # per node: how much of the contour's rigid motion it follows
+    rings: list[np.ndarray]  # per ring: positions in ``moving`` of its nodes
+    weights: list[np.ndarray]  # per ring, per node: how much of its rigid motion it follows
 
 
 @dataclass
@@ -105,23 +106,36 @@ def prepare(points: np.ndarray, tri: np.ndarray, first: Contour, source: str) ->
     extra = np.concatenate(nodes)
     held = np.unique(mesh.lines[~on_rings].ravel())  # the box
     moving = np.concatenate([np.arange(m), extra])
+    # each ring's nodes (its points, then its extra nodes), as positions in ``moving``
+    ring_of = np.concatenate([own.ring, _extra_rings(mesh, own, extra)])
+    rings = [np.flatnonzero(ring_of == r) for r in range(own.n_rings)]
+    weights = [rigid_weight(points, moving[r], np.concatenate(
+        [moving[np.flatnonzero(ring_of != k)], held])) for k, r in enumerate(rings)]
     return Motion(mesh, own, box, moving, held, np.concatenate(ext_from),
-                  np.concatenate(ext_to), np.concatenate(ext_at),
-                  rigid_weight(points, moving, held))
+                  np.concatenate(ext_to), np.concatenate(ext_at), rings, weights)
 
 
-def rigid_weight(points: np.ndarray, moving: np.ndarray, held: np.ndarray) -> np.ndarray:
-    """1 at the moving nodes, 0 at the held ones, smooth between: ``1 - s(u)``, ``u`` the
-    distance to the nearest moving node over that plus the distance to the nearest
-    held one, ``s(u) = 3u^2 - 2u^3``.  All 1 when nothing is held (an interior mesh:
-    its whole mesh follows the contour's rigid motion)."""
-    if len(held) == 0:
+def _extra_rings(mesh: Mesh, own: Contour, extra: np.ndarray) -> np.ndarray:
+    """The ring of each extra boundary node."""
+    ring = np.full(mesh.n_nodes, -1, dtype=np.int64)
+    on = mesh.line_group < own.n_rings
+    ring[mesh.lines[on, 0]] = mesh.line_group[on]
+    return ring[extra]
+
+
+def rigid_weight(points: np.ndarray, own: np.ndarray, others: np.ndarray) -> np.ndarray:
+    """1 at the nodes ``own`` (a ring), 0 at ``others`` (the other rings and the box),
+    smooth between: ``1 - s(u)``, ``u`` the distance to the nearest own node over that
+    plus the distance to the nearest other one, ``s(u) = 3u^2 - 2u^3``.  All 1 when
+    there is no other (an interior mesh of one ring: the whole mesh follows its
+    rigid motion)."""
+    if len(others) == 0:
         return np.ones(len(points))
     from scipy.spatial import cKDTree
 
-    d_move = cKDTree(points[moving]).query(points)[0]
-    d_held = cKDTree(points[held]).query(points)[0]
-    u = d_move / np.maximum(d_move + d_held, np.finfo(float).tiny)
+    d_own = cKDTree(points[own]).query(points)[0]
+    d_other = cKDTree(points[others]).query(points)[0]
+    u = d_own / np.maximum(d_own + d_other, np.finfo(float).tiny)
     return 1.0 - u * u * (3.0 - 2.0 * u)
 
 
@@ -192,12 +206,15 @@ def advance(motion: Motion, points: np.ndarray, frame: Contour, steps: int = DEF
     mesh = motion.mesh
     goal = targets(motion, frame)
     start = points
-    # the contour's rigid motion first, carried by the weight (the twist a turning
+    # each ring's rigid motion first, carried by its weight (the twist a turning
     # body needs, which curl U = 0 cannot give); a fraction of it if all would fold
-    cp, cq, theta = rigid_fit(points[motion.moving], goal)
+    fits = [rigid_fit(points[motion.moving[r]], goal[r]) for r in motion.rings]
     share = 1.0
     while share > 1.0 / 64:
-        start = carry(points, motion.weight, cp, cp + share * (cq - cp), share * theta)
+        start = points
+        for w, (cp, cq, theta) in zip(motion.weights, fits):
+            if theta != 0 or (cq != cp).any():  # (a ring at rest: not a bit moves)
+                start = carry(start, w, cp, cp + share * (cq - cp), share * theta)
         if (quality.signed_areas(start, mesh.triangles) > 0).all():
             break
         share /= 2
@@ -236,8 +253,9 @@ def advance(motion: Motion, points: np.ndarray, frame: Contour, steps: int = DEF
     out = frame_mesh(motion, new)
     quality.check_contract(out, frame, motion.box)
     report = quality.stats(out)
-    report.update(solves=stats.solves, halvings=stats.halvings, rigid_turn=float(
-                      np.degrees(share * theta)), rigid_share=share,
+    report.update(solves=stats.solves, halvings=stats.halvings,
+                  rigid_turn=[float(np.degrees(share * f[2])) for f in fits],
+                  rigid_share=share,
                   max_displacement=float(np.max(np.hypot(*(new - points).T))))
     return Step(new, stats, report)
 

@@ -146,6 +146,36 @@ def test_extra_boundary_nodes_stay_on_their_edges(tmp_path):
     check_contract(move.frame_mesh(motion, p), frame, motion.box)
 
 
+def test_each_ring_follows_its_own_rigid_motion():
+    # a hole turning 10 degrees inside a square that stays put: the hole's turn is
+    # carried from the hole (weight 1) to the square (weight 0)
+    c = load_contour(shared("square_hole_100.csv"))
+    m = pipeline.mesh_contour(c).mesh
+    motion = move.prepare(m.points, m.triangles, c, "mesh")
+    assert len(motion.rings) == 2
+    for k, r in enumerate(motion.rings):  # 1 on its ring, 0 on the other, to the bit
+        assert (motion.weights[k][motion.moving[r]] == 1).all()
+        other = motion.moving[motion.rings[1 - k]]
+        assert (motion.weights[k][other] == 0).all()
+    hole = np.arange(c.starts[1], c.starts[2])
+    first = measures(m.points, m.triangles)[0].min()
+    pts = m.points
+    for deg in (5, 10):
+        a = np.radians(deg)
+        rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+        p = c.points.copy()
+        centre = c.points[hole].mean(axis=0)
+        p[hole] = (c.points[hole] - centre) @ rot.T + centre
+        frame = make_contour(p, source=f"turned {deg}", ring_starts=c.starts[:-1])
+        step = move.advance(motion, pts, frame)
+        assert step.report["rigid_turn"][1] == pytest.approx(5)  # the hole, this frame
+        assert step.report["rigid_turn"][0] == 0  # the square stays
+        pts = step.points
+        check_contract(move.frame_mesh(motion, pts), frame, motion.box)
+    assert np.array_equal(pts[:c.starts[1]], c.points[:c.starts[1]])
+    assert measures(pts, m.triangles)[0].min() >= first - 5  # measured 35.4 -> 32.3
+
+
 def test_rigid_fit_and_carry():
     rng = np.random.default_rng(1)
     p = rng.normal(size=(30, 2))
