@@ -3,7 +3,6 @@
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
 
 from deformesh_cli import forced, improve, pipeline
 from deformesh_cli.contour import load_contour, make_contour
@@ -204,18 +203,8 @@ def test_no_triangle_is_under_a_third_of_what_the_boundary_forces(path):
         assert res.report["forced_angle"] is None
 
 
-@st.composite
-def spiky_polygons(draw):
-    """Star-shaped polygons with radii from 0.1 to 1: corners down to a few degrees."""
-    n = draw(st.integers(3, 40))
-    gaps = np.array(draw(st.lists(st.floats(0.2, 1.0), min_size=n, max_size=n)))
-    theta = 2 * np.pi * np.cumsum(gaps) / gaps.sum()
-    r = np.array(draw(st.lists(st.floats(0.1, 1.0), min_size=n, max_size=n)))
-    return np.column_stack([r * np.cos(theta), r * np.sin(theta)])
-
-
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(spiky_polygons())
+@given(star_polygons(r_min=0.1))
 def test_random_sharp_polygons_keep_the_bound(pts):
     c = make_contour(pts, source="random")
     try:
