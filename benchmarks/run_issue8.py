@@ -6,9 +6,9 @@ For each case: ``deformesh all`` makes the mesh once, then ``deformesh move``
 runs as a whole process N times (median): seconds, peak RSS, and from its
 --json the smallest angle over all frames next to frame 0's, the solves and
 step halvings.  Cases: the two README samples, the pitching airfoil of 160
-points in a larger box (more triangles), the same with --solve band, and a
-non-rigid motion of that airfoil (stretched and thickened) on the whole mesh
-and on a band.
+points in a larger box (more triangles), a non-rigid motion of that airfoil
+(stretched and thickened) on the whole mesh and on a band, and a hole turning
+inside a square that stays put (each ring its own rigid motion).
 """
 
 import argparse
@@ -24,19 +24,41 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "scripts"))
 from make_samples import naca0012, pitching, pulsating  # noqa: E402
 from results import heading, write_section  # noqa: E402
-from run_issue2 import EXE, ROOT, run_process  # noqa: E402
+from run_issue2 import EXE, ROOT, SHARED, run_process  # noqa: E402
 
 SAMPLES = ROOT / "samples"
 
 
-def frames_to(folder: Path, frames: list[np.ndarray]) -> list[str]:
+def frames_to(folder: Path, frames: list[np.ndarray], ring=None) -> list[str]:
+    """Write frames as CSV files (with a ``ring`` column if given); their paths."""
     folder.mkdir(parents=True, exist_ok=True)
     out = []
     for k, pts in enumerate(frames, start=1):
         f = folder / f"frame_{k:02d}.csv"
-        np.savetxt(f, pts, delimiter=",", header="x,y", comments="", fmt="%.17g")
+        if ring is None:
+            np.savetxt(f, pts, delimiter=",", header="x,y", comments="", fmt="%.17g")
+        else:
+            np.savetxt(f, np.column_stack([pts, ring]), delimiter=",", header="x,y,ring",
+                       comments="", fmt=["%.17g", "%.17g", "%d"])
         out.append(str(f))
     return out
+
+
+def turning_hole(frames: int = 20, degrees: float = 10.0):
+    """square_hole_100 with its hole turned by ``degrees * k / frames`` in frame k
+    (the square stays); the frames and the ring column."""
+    rows = np.loadtxt(SHARED / "square_hole_100.csv", delimiter=",", skiprows=1)
+    pts, ring = rows[:, :2], rows[:, 2].astype(int)
+    hole = ring == 1
+    centre = pts[hole].mean(axis=0)
+    out = []
+    for k in range(1, frames + 1):
+        a = np.radians(degrees * k / frames)
+        rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+        p = pts.copy()
+        p[hole] = (pts[hole] - centre) @ rot.T + centre
+        out.append(p)
+    return out, ring
 
 
 def main():
@@ -51,6 +73,7 @@ def main():
                    fmt="%.17g")
         box = ["--exterior", "--box=-2,-2,3,2"]
         pulse = frames_to(d / "pulse160", pulsating(base160, amplitude=0.1))
+        turned, ring = turning_hole()
         cases = [
             ("pitching sample (README)", SAMPLES / "pitching" / "naca0012_80.csv",
              ["--exterior", "--box=-1.5,-1.5,2.5,1.5"],
@@ -63,6 +86,8 @@ def main():
              []),
             ("pulsating NACA 0012 (amplitude 0.1), --solve band", d / "naca160.csv", box, pulse,
              ["--solve", "band"]),
+            ("square_hole_100, the hole turning 10 degrees", SHARED / "square_hole_100.csv", [],
+             frames_to(d / "hole", turned, ring), []),
         ]
         for name, contour, mesh_opts, frames, move_opts in cases:
             mesh = d / "mesh.vtu"

@@ -506,19 +506,19 @@ def move_cmd(mesh_path, frames, out_dir, name, dt, steps, solver, solve, fmt, de
     written: list[tuple[float, str]] = []
     records = []
 
-    def write(k, pts, velocity, rec):
+    def write(k, pts, velocity, source, report):
         mesh = move.frame_mesh(motion, pts, {"velocity": velocity})
         file = f"{stem}_{k:0{width}d}.{fmt}"
         io.write_mesh(mesh, os.path.join(out_dir, file), fmt)
         written.append((k * dt, file))
-        records.append({"frame": k, "input": rec.pop("input"), "output": file, **rec})
+        records.append({"frame": k, "input": source, "output": file, **report})
 
     def finish():  # the time series of the frames written so far
         if fmt == "vtu" and written:
             io.write_bytes(io.pvd_bytes(written), os.path.join(out_dir, f"{stem}.pvd"))
 
     zero = np.zeros((len(points), 3))
-    write(0, motion.mesh.points, zero, {"input": mesh_path, **quality.stats(motion.mesh)})
+    write(0, motion.mesh.points, zero, mesh_path, quality.stats(motion.mesh))
     pts = motion.mesh.points
     advice = ("the frame's points cannot be reached from the previous frame's without folding",
               "use more --steps, or frames closer together")
@@ -531,7 +531,7 @@ def move_cmd(mesh_path, frames, out_dir, name, dt, steps, solver, solve, fmt, de
                     f"{c.source}: frame {k} of {len(contours)} cannot be reached without "
                     f"folding: {exc}; frames 0-{k - 1} are in {out_dir}") from None
             velocity = np.column_stack([(step.points - pts) / dt, np.zeros(len(pts))])
-            write(k, step.points, velocity, {"input": c.source, **step.report})
+            write(k, step.points, velocity, c.source, step.report)
             pts = step.points
             r = records[-1]
             _say(quiet, f"frame {k}/{len(contours)} {c.source}: min angle "
@@ -540,16 +540,17 @@ def move_cmd(mesh_path, frames, out_dir, name, dt, steps, solver, solve, fmt, de
     finally:
         finish()
     first = records[0]["min_angle"]
-    worst = min(r["min_angle"] for r in records)
+    lowest = min(records, key=lambda r: r["min_angle"])
+    worst = lowest["min_angle"]
     summary = {"mesh": mesh_path, "out_dir": out_dir, "format": fmt,
                "pvd": f"{stem}.pvd" if fmt == "vtu" else None, "frames": len(records),
                "nodes": records[0]["nodes"], "triangles": records[0]["triangles"],
                "min_angle": worst, "min_angle_first": first,
-               "min_angle_frame": int(min(records, key=lambda r: r["min_angle"])["frame"]),
+               "min_angle_frame": int(lowest["frame"]),
                "seconds": round(time.perf_counter() - t0, 3), "per_frame": records}
     if as_json:
         click.echo(json.dumps(summary))
-    if fmt not in ("vtu", "vtk", "xdmf"):
+    if fmt not in io.POINT_DATA_FORMATS:
         _say(quiet, f"note: .{fmt} has no point data: the velocity is not written")
     _say(quiet, f"{len(records)} frames -> {out_dir}"
                 f"{'/' + summary['pvd'] if summary['pvd'] else ''}: same {len(tri)} triangles "

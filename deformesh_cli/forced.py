@@ -145,24 +145,20 @@ def weakest_bound(points: np.ndarray, tri: np.ndarray, lines: np.ndarray,
     near = np.zeros(len(points), dtype=bool)
     near[tri[weak].ravel()] = True
     near[tri[touching(near, tri)].ravel()] = True
-    sub = lines[near[lines[:, 0]] | near[lines[:, 1]]]
-    if len(sub) == 0:
-        return 60.0
-    geom = mesh_domain(points, lines)
-    # each edge's bound, and C at the nodes of those edges (from the whole boundary's
-    # next/previous nodes)
-    c = node_angles(points, lines, geom, nodes=np.unique(sub))
-    return float(min(edge_angles(points, sub, geom).min(), c.min()))
+    which = near[lines[:, 0]] | near[lines[:, 1]]
+    return float(edge_bounds(points, lines, which=which).min()) if which.any() else 60.0
 
 
-def edge_bounds(points: np.ndarray, lines: np.ndarray, geom=None) -> np.ndarray:
-    """For each boundary edge: min(F(e), C(its two ends)), in degrees: in any mesh with
-    these boundary nodes, the edge's triangle or the worst triangle at one of its
-    ends has no larger smallest angle.  ``geom``: the domain (default:
-    :func:`mesh_domain`)."""
+def edge_bounds(points: np.ndarray, lines: np.ndarray, geom=None,
+                which: np.ndarray | None = None) -> np.ndarray:
+    """For each boundary edge (or those of the mask ``which``): min(F(e), C(its two
+    ends)), in degrees: in any mesh with these boundary nodes, the edge's triangle
+    or the worst triangle at one of its ends has no larger smallest angle.
+    ``geom``: the domain (default: :func:`mesh_domain`)."""
     if geom is None:
         geom = mesh_domain(points, lines)
+    sub = lines if which is None else lines[which]
+    ends = np.unique(sub)
     c = np.full(len(points), 60.0)
-    c[lines[:, 0]] = node_angles(points, lines, geom)
-    return np.minimum(edge_angles(points, lines, geom),
-                      np.minimum(c[lines[:, 0]], c[lines[:, 1]]))
+    c[ends] = node_angles(points, lines, geom, nodes=ends)
+    return np.minimum(edge_angles(points, sub, geom), np.minimum(c[sub[:, 0]], c[sub[:, 1]]))

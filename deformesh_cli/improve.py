@@ -306,9 +306,9 @@ def _insert(pts: np.ndarray, tri: np.ndarray, stuck: np.ndarray, tan: np.ndarray
         else:
             better = got > best
             best_at[better], best[better] = ext[q][better], got[better]
-    for i, ear in enumerate(ears):
-        if ear is not None:
-            best[i] = min(best[i], _tan_min(pts, np.array([ear]))[0])
+    eared = [i for i, ear in enumerate(ears) if ear is not None]
+    if eared:  # a corner's fan with its ear: the worse of the two counts
+        best[eared] = np.minimum(best[eared], _tan_min(pts, np.array([ears[i] for i in eared])))
     before = np.array([tan[cav].min() for cav in cavities])
     gain = np.where(best > _raised(before), best - before, -np.inf)
     # each owner's best cavity, then cavities sharing no triangle, worst first
@@ -384,7 +384,7 @@ def _outline(tri: np.ndarray, nb: np.ndarray, cav: list[int], ear=None):
         return None  # (the count fails if the cavity has a hole)
     if ear is not None:
         p, after, before = ear
-        if nxt.get(p) != after or p not in nxt:
+        if nxt.get(p) != after:
             return None
         k = loop.index(p)
         loop = loop[k + 1:] + loop[:k]

@@ -266,6 +266,9 @@ def _write_xdmf(mesh: Mesh, path: str) -> None:
     meshio.write(path, m, file_format="xdmf")
 
 
+#: Formats that write a mesh's ``point_data`` (``contour_point`` and the rest).
+POINT_DATA_FORMATS = ("vtk", "vtu", "xdmf")
+
 #: Formats that write a second file next to the first: extension -> sidecar extension.
 SIDECARS = {"xdmf": ".h5"}
 

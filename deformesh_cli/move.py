@@ -10,12 +10,18 @@ for folds and refined (halved) if one would fold.  The triangles never
 change: the same index arrays in every frame.  After each frame the mesh
 contract is checked against that frame's contour.
 
+Before the solve, each ring's best rigid motion is carried into the mesh by a
+smooth weight (:func:`carry`): a turning body needs a twist, which the
+div-curl system with ``curl U = 0`` cannot give.
+
 Data flow::
 
     mesh file (points, triangles) + first frame (how many points, which rings)
-      --prepare--> Motion (the Mesh with its boundary, who moves, who is held)
+      --prepare--> Motion (the Mesh with its boundary, who moves, who is held,
+                   each ring's weight)
     Motion, points of frame k-1, contour of frame k
-      --advance--> points of frame k (or FoldError), contract checked
+      --advance--> rigid part (carry), rest (div-curl) --> points of frame k
+                   (or FoldError), contract checked
 
 Nothing here prints or exits.
 """
@@ -28,7 +34,7 @@ import numpy as np
 
 from . import quality
 from .contour import Contour, make_contour
-from .deform import DEFAULT_STEPS, DeformStats, deform, deform_band
+from .deform import ADVICE, DEFAULT_STEPS, DeformStats, deform, deform_band
 from .errors import ContractError, DeformeshError, FoldError, InputError
 from .mesh import Mesh
 
@@ -47,6 +53,7 @@ class Motion:
     extra_at: np.ndarray  # and how far along that edge it sits (0..1)
     rings: list[np.ndarray]  # per ring: positions in ``moving`` of its nodes
     weights: list[np.ndarray]  # per ring, per node: how much of its rigid motion it follows
+    edges: tuple  # quality.edge_uses of the triangles: the same in every frame
 
 
 @dataclass
@@ -77,9 +84,10 @@ def prepare(points: np.ndarray, tri: np.ndarray, first: Contour, source: str) ->
         raise DeformeshError(f"{source}: its first {m} nodes are not a valid contour like "
                              f"{first.source}'s ({exc}); was it written by deformesh from "
                              f"{m} points?") from None
+    edges = quality.edge_uses(tri, len(points))
     try:
         mesh, box = quality.mesh_for_contour(points, tri, own)
-        quality.check_contract(mesh, own, box)
+        quality.check_contract(mesh, own, box, edges)
     except ContractError as exc:
         raise DeformeshError(f"{source}: not a deformesh mesh of {m} contour points in order "
                              f"({str(exc).removeprefix(source + ': ')})") from None
@@ -88,7 +96,7 @@ def prepare(points: np.ndarray, tri: np.ndarray, first: Contour, source: str) ->
     # on its ring) and how far along it sits
     on_rings = mesh.line_group < own.n_rings
     none = np.zeros(0, np.int64)
-    nodes, ext_from, ext_to, ext_at = [none], [none], [none], [np.zeros(0)]
+    nodes, ring_of, ext_from, ext_to, ext_at = [none], [own.ring], [none], [none], [np.zeros(0)]
     for r in range(own.n_rings):
         chain = mesh.lines[mesh.line_group == r, 0]
         is_point = chain < m
@@ -100,6 +108,7 @@ def prepare(points: np.ndarray, tri: np.ndarray, first: Contour, source: str) ->
         a, b, x = points[before], points[after], points[chain[idx]]
         ab = b - a
         nodes.append(chain[idx])
+        ring_of.append(np.full(len(idx), r))
         ext_from.append(before)
         ext_to.append(after)
         ext_at.append(((x - a) * ab).sum(axis=1) / (ab * ab).sum(axis=1))
@@ -107,20 +116,12 @@ def prepare(points: np.ndarray, tri: np.ndarray, first: Contour, source: str) ->
     held = np.unique(mesh.lines[~on_rings].ravel())  # the box
     moving = np.concatenate([np.arange(m), extra])
     # each ring's nodes (its points, then its extra nodes), as positions in ``moving``
-    ring_of = np.concatenate([own.ring, _extra_rings(mesh, own, extra)])
+    ring_of = np.concatenate(ring_of)
     rings = [np.flatnonzero(ring_of == r) for r in range(own.n_rings)]
     weights = [rigid_weight(points, moving[r], np.concatenate(
         [moving[np.flatnonzero(ring_of != k)], held])) for k, r in enumerate(rings)]
     return Motion(mesh, own, box, moving, held, np.concatenate(ext_from),
-                  np.concatenate(ext_to), np.concatenate(ext_at), rings, weights)
-
-
-def _extra_rings(mesh: Mesh, own: Contour, extra: np.ndarray) -> np.ndarray:
-    """The ring of each extra boundary node."""
-    ring = np.full(mesh.n_nodes, -1, dtype=np.int64)
-    on = mesh.line_group < own.n_rings
-    ring[mesh.lines[on, 0]] = mesh.line_group[on]
-    return ring[extra]
+                  np.concatenate(ext_to), np.concatenate(ext_at), rings, weights, edges)
 
 
 def rigid_weight(points: np.ndarray, own: np.ndarray, others: np.ndarray) -> np.ndarray:
@@ -197,7 +198,8 @@ def targets(motion: Motion, frame: Contour) -> np.ndarray:
 
 
 def advance(motion: Motion, points: np.ndarray, frame: Contour, steps: int = DEFAULT_STEPS,
-            solver: str = "auto", solve: str = "full", describe=None, advice=None) -> Step:
+            solver: str = "auto", solve: str = "full", describe=None,
+            advice: tuple[str, str] = ADVICE) -> Step:
     """Deform ``points`` (the previous frame's) so the contour nodes sit on ``frame``.
 
     Raises :class:`.errors.FoldError` when no refinement of the pseudo-time steps
@@ -220,8 +222,7 @@ def advance(motion: Motion, points: np.ndarray, frame: Contour, steps: int = DEF
         share /= 2
     else:
         start, share = points, 0.0
-    kwargs = dict(steps=steps, solver=solver, describe=describe,
-                  **({} if advice is None else {"advice": advice}))
+    kwargs = {"steps": steps, "solver": solver, "describe": describe, "advice": advice}
     # then the rest by the div-curl scheme, on the whole mesh; or (``solve="band"``, an
     # exterior mesh) on a band around the moving nodes, the rest held as the box is, and
     # on the whole mesh if the band is too narrow.  (An interior mesh always whole: a
@@ -230,28 +231,26 @@ def advance(motion: Motion, points: np.ndarray, frame: Contour, steps: int = DEF
     # took the contour nodes there already (within :data:`AT_TARGET` of the contour's
     # size: frames written with 10 digits): the div-curl system with zero data has the
     # zero solution.
+    new = None
     rest = float(np.max(np.abs(goal - start[motion.moving]), initial=0.0))
     if rest <= AT_TARGET * float(np.abs(goal).max() + np.ptp(goal)):
         new = start.copy()
         new[motion.moving] = goal
         stats = DeformStats(steps=0, solver="none", moved_nodes=0)
         if not (quality.signed_areas(new, mesh.triangles) > 0).all():
-            raise FoldError(f"the rigid motion folds a triangle ({frame.source})")
-    else:
-        band = _band(start, motion, goal) if solve == "band" and len(motion.held) else None
-        new = None
+            new = None  # (the last nudge folds: leave it to the solve)
+    if new is None and solve == "band" and len(motion.held):
+        band = _band(start, motion, goal)
         if band is not None:
             try:
                 new, stats = deform_band(start, mesh.triangles, motion.moving, goal,
                                          motion.held, band, **kwargs)
             except (FoldError, ValueError):  # folds in the band, or a moving node on its edge
                 new = None
-        if new is None:
-            new, stats = deform(start, mesh.triangles, motion.moving, goal, motion.held,
-                                **kwargs)
-    new[motion.moving[:frame.n]] = frame.points  # exactly (deform lands them; be sure)
+    if new is None:
+        new, stats = deform(start, mesh.triangles, motion.moving, goal, motion.held, **kwargs)
     out = frame_mesh(motion, new)
-    quality.check_contract(out, frame, motion.box)
+    quality.check_contract(out, frame, motion.box, motion.edges)
     report = quality.stats(out)
     report.update(solves=stats.solves, halvings=stats.halvings,
                   rigid_turn=[float(np.degrees(share * f[2])) for f in fits],
