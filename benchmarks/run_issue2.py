@@ -18,7 +18,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from results import heading, write_section  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-SHARED = ROOT.parent / "shared" / "contours"
+SHARED = ROOT / "tests" / "data" / "contours"
 EXE = str(Path(sys.executable).parent / "deformesh")
 
 CASES = [

@@ -21,13 +21,13 @@ settings.load_profile("dev")
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLES = ROOT / "samples"
-SHARED = ROOT.parent / "shared" / "contours"
+CONTOURS = ROOT / "tests" / "data" / "contours"
 
 
-def shared(name: str) -> Path:
-    """A reference contour from ../shared/contours (kept beside every clone here)."""
-    p = SHARED / name
-    if not p.exists():  # pragma: no cover - the workplace always has shared/
+def contour_file(name: str) -> Path:
+    """A reference contour from tests/data/contours (see its SOURCES.md)."""
+    p = CONTOURS / name
+    if not p.exists():
         pytest.fail(f"reference contour {p} is missing")
     return p
 

@@ -9,7 +9,7 @@ from deformesh_cli.deform import deform_band
 from deformesh_cli.quality import check_contract, signed_areas
 from deformesh_cli.select import Grid, grid_triangles
 
-from .conftest import SAMPLES, shared
+from .conftest import SAMPLES, contour_file
 
 #: How far the band's smallest angle may fall below the full solve's, in degrees, before
 #: the quality stage.  Measured with the band at 4 cells: circle_1000 14.42 -> 14.19,
@@ -52,7 +52,7 @@ def test_a_path_node_on_the_band_edge_is_refused():
 
 CASES = [SAMPLES / f for f in ("circle.csv", "naca0012.csv", "naca0012_cosine.csv",
                                "peanut.csv", "half_disk.csv", "bracket.svg")]
-CASES += [shared(f) for f in ("bean_100.csv", "star_100.csv", "square_hole_100.csv",
+CASES += [contour_file(f) for f in ("bean_100.csv", "star_100.csv", "square_hole_100.csv",
                               "bean_1000.csv")]
 
 

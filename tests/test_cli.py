@@ -10,7 +10,7 @@ from deformesh_cli import state
 from deformesh_cli.contour import load_contour
 from deformesh_cli.quality import check_contract
 
-from .conftest import SAMPLES, shared
+from .conftest import SAMPLES, contour_file
 
 SAMPLE_FILES = sorted(SAMPLES.glob("*.csv"))
 SHARED_DEFAULT = ["circle_100.csv", "circle_1000.csv", "bean_100.csv", "star_100.csv",
@@ -42,7 +42,7 @@ def test_every_sample_meets_the_contract_with_defaults(run, tmp_path, contour):
 
 @pytest.mark.parametrize("name", SHARED_DEFAULT)
 def test_reference_contours_meet_the_contract_with_defaults(run, tmp_path, name):
-    rec = _mesh_ok(run, shared(name), tmp_path / "m.vtk")
+    rec = _mesh_ok(run, contour_file(name), tmp_path / "m.vtk")
     assert rec["min_angle"] > 5
 
 
@@ -61,14 +61,14 @@ def test_paper_example_meshes(run, tmp_path):
 def test_naca0012_100_with_h_001(run, tmp_path):
     # several points per cell at the sharp trailing edge: Appendix A's greedy
     # choice cannot be joined into a simple path there, the traced path can
-    rec = _mesh_ok(run, shared("naca0012_100.csv"), tmp_path / "m.vtk", "--h", "0.01")
+    rec = _mesh_ok(run, contour_file("naca0012_100.csv"), tmp_path / "m.vtk", "--h", "0.01")
     assert rec["path_rule"] == "traced"
     assert any("traced the grid path" in n for n in rec["notes"])
 
 
 def test_uneven_contour_on_the_uniform_grid_refused_with_estimate_and_no_file(run, tmp_path):
     out = tmp_path / "naca.vtk"
-    r = run("all", shared("naca0012_1000.csv"), "-o", out, "--grid", "uniform")
+    r = run("all", contour_file("naca0012_1000.csv"), "-o", out, "--grid", "uniform")
     assert r.exit_code == 1
     assert "3.6e+10 nodes" in r.stderr and "--resample 0.00224" in r.stderr
     assert r.stderr.count("\n") == 1
@@ -76,7 +76,7 @@ def test_uneven_contour_on_the_uniform_grid_refused_with_estimate_and_no_file(ru
 
 
 def test_uneven_contour_meshes_on_the_adapted_grid_by_default_and_through_a_pipe(run, tmp_path):
-    c = shared("naca0012_1000.csv")
+    c = contour_file("naca0012_1000.csv")
     rec = _mesh_ok(run, c, tmp_path / "a.vtk")
     assert rec["h_rule"] == "typical-spacing" and rec["extra_boundary_nodes"] == 0
     assert run("select", c, "-o", tmp_path / "s").exit_code == 0
@@ -211,7 +211,7 @@ def test_clockwise_input_keeps_node_numbering(run, tmp_path):
 
 
 def test_resample_meshes_an_uneven_contour_and_quality_follows(run, tmp_path):
-    src = shared("naca0012_100.csv")  # spacing varies 32x
+    src = contour_file("naca0012_100.csv")  # spacing varies 32x
     out = tmp_path / "m.msh"
     r = run("all", src, "-o", out, "--resample", "3%", "--json")
     assert r.exit_code == 0, r.stderr

@@ -10,7 +10,7 @@ from deformesh_cli.errors import FoldError, LimitError, SelectionError
 from deformesh_cli.mesh import touching
 from deformesh_cli.quality import check_contract, measures, signed_areas
 
-from .conftest import SAMPLES, shared
+from .conftest import SAMPLES, contour_file
 from .test_properties import star_polygons
 
 
@@ -31,8 +31,8 @@ def corner_angles(c) -> np.ndarray:
 #: of that kind (samples/naca0012.csv is not: its blunt trailing edge is a 0.0025 edge
 #: between points 0.0127 apart, which forces 10.7 degrees; paper_example has a 46 degree
 #: corner).
-SMOOTH = [shared(f"{s}_{n}.csv") for s in ("circle", "bean", "star") for n in (100, 1000)]
-SMOOTH += [shared("channel_100.csv"), shared("square_hole_100.csv")]
+SMOOTH = [contour_file(f"{s}_{n}.csv") for s in ("circle", "bean", "star") for n in (100, 1000)]
+SMOOTH += [contour_file("channel_100.csv"), contour_file("square_hole_100.csv")]
 SMOOTH += [SAMPLES / f for f in ("circle.csv", "peanut.csv", "half_disk.csv", "bracket.svg")]
 
 
@@ -58,7 +58,7 @@ def _grow(mask, tri):
 
 
 def test_the_stage_only_touches_the_neighbourhood_of_bad_triangles():
-    c = load_contour(shared("circle_1000.csv"))
+    c = load_contour(contour_file("circle_1000.csv"))
     plain = pipeline.mesh_contour(c, improve=False).mesh
     better, stats = improve.improve(plain)
     n = len(plain.points)
@@ -87,7 +87,7 @@ def test_the_stage_only_touches_the_neighbourhood_of_bad_triangles():
 def test_squeezed_cells_of_an_adapted_grid_are_lifted_too():
     # NACA 0012 with 1,000 cosine-spaced points: the adapted grid squeezes the cells of
     # the thin aft part to 29 degrees, far from the contour (5,837 triangles under 30)
-    c = load_contour(shared("naca0012_1000.csv"))
+    c = load_contour(contour_file("naca0012_1000.csv"))
     plain = pipeline.mesh_contour(c, improve=False)
     better = pipeline.mesh_contour(c)
     ang = measures(better.mesh.points, better.mesh.triangles)[0]
@@ -142,7 +142,7 @@ def test_never_worse_and_the_contract_holds(pts):
 def test_patched_edge_uses_equal_a_recount():
     from deformesh_cli.quality import edge_uses, patch_edge_uses
 
-    c = load_contour(shared("bean_1000.csv"))
+    c = load_contour(contour_file("bean_1000.csv"))
     plain = pipeline.mesh_contour(c, improve=False).mesh
     better, stats = improve.improve(plain)
     assert stats.flips > 0 and len(stats.changed) > 0
@@ -175,7 +175,7 @@ CORPUS = SAMPLES.parent / "tests" / "data" / "corpus"
 #: The 20 airfoils (sharp trailing edges of 3.6-19.6 degrees, blunt ones, graded
 #: spacing), the sharp or thin samples, and a few jagged coastlines and icons.
 SHARP = sorted(CORPUS.glob("airfoil_*.csv")) + [
-    SAMPLES / "naca0012.csv", SAMPLES / "paper_example.csv", shared("naca0012_100.csv")]
+    SAMPLES / "naca0012.csv", SAMPLES / "paper_example.csv", contour_file("naca0012_100.csv")]
 SHARP += [CORPUS / f for f in ("coast_ireland.csv", "coast_sri_lanka.csv", "icon_si_apple.svg",
                                "icon_si_spotify.svg")]
 

@@ -16,7 +16,7 @@ from deformesh_cli.contour import load_contour, make_contour
 from deformesh_cli.errors import DeformeshError, FoldError
 from deformesh_cli.quality import check_contract, measures, signed_areas
 
-from .conftest import SAMPLES, shared
+from .conftest import SAMPLES, contour_file
 
 PITCHING = sorted((SAMPLES / "pitching").glob("frame_*.csv"))
 PULSATING = sorted((SAMPLES / "pulsating").glob("frame_*.csv"))
@@ -125,7 +125,7 @@ def test_the_pvd_lists_every_frame_in_time_order(pitching):
 
 def test_extra_boundary_nodes_stay_on_their_edges(tmp_path):
     # NACA 0012 with 100 cosine-spaced points, exterior: 30 extra boundary nodes
-    c = load_contour(shared("naca0012_100.csv"))
+    c = load_contour(contour_file("naca0012_100.csv"))
     res = pipeline.mesh_contour(c, exterior=True, box=(-1, -1, 2, 1))
     m = res.mesh
     assert m.n_extra > 0
@@ -149,7 +149,7 @@ def test_extra_boundary_nodes_stay_on_their_edges(tmp_path):
 def test_each_ring_follows_its_own_rigid_motion():
     # a hole turning 10 degrees inside a square that stays put: the hole's turn is
     # carried from the hole (weight 1) to the square (weight 0)
-    c = load_contour(shared("square_hole_100.csv"))
+    c = load_contour(contour_file("square_hole_100.csv"))
     m = pipeline.mesh_contour(c).mesh
     motion = move.prepare(m.points, m.triangles, c, "mesh")
     assert len(motion.rings) == 2

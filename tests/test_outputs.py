@@ -10,7 +10,7 @@ import pytest
 from deformesh_cli.contour import load_contour
 from deformesh_cli.quality import mesh_for_contour
 
-from .conftest import SAMPLES, shared
+from .conftest import SAMPLES, contour_file
 
 
 @pytest.fixture(scope="module")
@@ -44,7 +44,7 @@ def test_su2_has_a_marker_per_boundary_and_meshio_reads_it(run, tmp_path, bracke
 
 def test_exterior_su2_has_the_box_sides(run, tmp_path):
     out = tmp_path / "n.su2"
-    r = run("all", shared("naca0012_100.csv"), "--exterior", "--box=-2,-2,3,2", "-o", out, "-q")
+    r = run("all", contour_file("naca0012_100.csv"), "--exterior", "--box=-2,-2,3,2", "-o", out, "-q")
     assert r.exit_code == 0, r.stderr
     tags = [ln.split("=")[1].strip() for ln in out.read_text().splitlines()
             if ln.startswith("MARKER_TAG=")]
@@ -91,7 +91,7 @@ def test_xdmf_to_stdout_is_a_usage_error(run):
 @pytest.mark.parametrize("fmt", ["msh", "vtk", "vtu", "obj", "ply", "su2"])
 def test_quality_checks_the_contract_in_every_format(run, tmp_path, fmt):
     out = tmp_path / f"m.{fmt}"
-    src = shared("square_hole_100.csv")
+    src = contour_file("square_hole_100.csv")
     r = run("all", src, "-o", out, "--json")
     made = json.loads(r.stdout)
     r = run("quality", out, "--contour", src, "--json")
@@ -105,7 +105,7 @@ def test_quality_checks_the_contract_in_every_format(run, tmp_path, fmt):
 
 def test_quality_finds_an_exterior_mesh_and_its_box(run, tmp_path):
     out = tmp_path / "n.msh"
-    src = shared("naca0012_100.csv")
+    src = contour_file("naca0012_100.csv")
     assert run("all", src, "--exterior", "--box=-2,-2,3,2", "-o", out, "-q").exit_code == 0
     r = run("quality", out, "--contour", src, "--json")
     assert r.exit_code == 0, r.stdout

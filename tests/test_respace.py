@@ -13,7 +13,7 @@ from deformesh_cli.pipeline import (MIN_ADAPTED_ANGLE, candidate_selections, gri
                                     mesh_contour, run_select)
 from deformesh_cli.quality import check_contract
 
-from .conftest import ROOT, shared
+from .conftest import ROOT, contour_file
 
 CORPUS = ROOT / "tests" / "data" / "corpus"
 
@@ -36,7 +36,7 @@ def _cosine_airfoil(n=200, clockwise=False):
 
 
 def test_naca0012_1000_meshes_with_exactly_its_points_and_no_extra_node():
-    c = load_contour(shared("naca0012_1000.csv"))
+    c = load_contour(contour_file("naca0012_1000.csv"))
     assert grid_mode(c) == "adapt"
     res = mesh_contour(c)  # raises unless the contract holds
     r = res.report

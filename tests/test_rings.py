@@ -12,7 +12,7 @@ from deformesh_cli.errors import InputError
 from deformesh_cli.mesh import Mesh
 from deformesh_cli.quality import check_contract
 
-from .conftest import shared
+from .conftest import contour_file
 
 
 def _circle(cx, cy, r, n, cw=False):
@@ -36,7 +36,7 @@ def _reread(path, contour, rec, box=None):
 
 
 def test_square_with_hole_keeps_both_rings(run, tmp_path):
-    src = shared("square_hole_100.csv")
+    src = contour_file("square_hole_100.csv")
     out = tmp_path / "m.msh"
     r = run("all", src, "-o", out, "--json")
     assert r.exit_code == 0, r.stderr
@@ -89,7 +89,7 @@ def test_a_bad_ring_is_named():
 
 
 def test_exterior_airfoil_in_a_far_field_box(run, tmp_path):
-    src = shared("naca0012_100.csv")
+    src = contour_file("naca0012_100.csv")
     out = tmp_path / "naca.msh"
     r = run("all", src, "--exterior", "--box=-2,-2,3,2", "-o", out, "--json")
     assert r.exit_code == 0, r.stderr
@@ -124,7 +124,7 @@ def test_exterior_airfoil_in_a_far_field_box(run, tmp_path):
 
 
 def test_exterior_needs_room_around_the_contour(run, tmp_path):
-    r = run("all", shared("circle_100.csv"), "--exterior", "--box=-1,-1,1,1",
+    r = run("all", contour_file("circle_100.csv"), "--exterior", "--box=-1,-1,1,1",
             "-o", tmp_path / "m.vtk")
     assert r.exit_code == 2 and "exterior mesh needs room" in r.stderr
     assert list(tmp_path.iterdir()) == []
@@ -135,7 +135,7 @@ def test_msh_versions_keep_every_named_group(run, tmp_path, version):
     import gmsh
 
     out = tmp_path / "m.msh"
-    r = run("all", shared("square_hole_100.csv"), "--msh-version", version, "-o", out)
+    r = run("all", contour_file("square_hole_100.csv"), "--msh-version", version, "-o", out)
     assert r.exit_code == 0, r.stderr
     assert out.read_text().split("\n")[1].startswith(version.split(".")[0])
     gmsh.initialize()

@@ -19,7 +19,7 @@ from deformesh_cli.select import (
     select_nodes,
 )
 
-from .conftest import SAMPLES, shared
+from .conftest import SAMPLES, contour_file
 
 PAPER_P = [(1, 4), (1, 3), (2, 2), (3, 2), (4, 2), (4, 3), (5, 3), (6, 4), (7, 4), (8, 5),
            (7, 6), (6, 7), (5, 8), (4, 8), (4, 9), (3, 9), (2, 10), (1, 11)]
@@ -42,7 +42,7 @@ def test_paper_example_selects_exactly_p1_to_p18(run, tmp_path):
 
 
 def test_default_h_is_appendix_a_rule():
-    c = load_contour(shared("circle_100.csv"))
+    c = load_contour(contour_file("circle_100.csv"))
     g, info = choose_grid(c)
     d_c = c.min_spacing()[0]
     assert info["h"] == pytest.approx(0.9 * d_c / math.sqrt(2))
@@ -60,7 +60,7 @@ def test_box_must_contain_contour_and_be_ordered():
 
 
 def test_grid_limit_refused_with_estimate_and_hint():
-    c = load_contour(shared("naca0012_1000.csv"))
+    c = load_contour(contour_file("naca0012_1000.csv"))
     with pytest.raises(LimitError) as e:
         choose_grid(c)
     msg = str(e.value)
@@ -73,7 +73,7 @@ def test_grid_limit_refused_with_estimate_and_hint():
 def test_grid_limit_hint_names_an_h_that_works():
     import re
 
-    c = load_contour(shared("circle_100.csv"))
+    c = load_contour(contour_file("circle_100.csv"))
     with pytest.raises(LimitError) as e:
         choose_grid(c, max_nodes=2000)
     h = float(re.search(r"try --h ([0-9.e+-]+) ", str(e.value)).group(1))
@@ -139,7 +139,7 @@ def test_crossing_diagonal_steps_are_a_conflict():
 
 
 def test_strict_refuses_extra_nodes():
-    c = load_contour(shared("circle_100.csv"))
+    c = load_contour(contour_file("circle_100.csv"))
     with pytest.raises(SelectionError, match="--strict"):
         select(c, strict=True)
     # with h near the spacing consecutive nodes are neighbours and strict passes

@@ -10,7 +10,7 @@ from deformesh_cli.contour import load_contour, make_contour
 from deformesh_cli.errors import ContractError, LimitError, SelectionError
 from deformesh_cli.select import DIAG_BACKSLASH, DIAG_SLASH, Grid
 
-from .conftest import SAMPLES, shared
+from .conftest import SAMPLES, contour_file
 from .test_properties import star_polygons
 
 
@@ -30,8 +30,8 @@ def _by_topology(sel, contour, exterior):
 
 
 @pytest.mark.parametrize("path", [SAMPLES / "peanut.csv", SAMPLES / "naca0012.csv",
-                                  shared("square_hole_100.csv"), shared("star_100.csv"),
-                                  shared("channel_100.csv")], ids=lambda p: p.stem)
+                                  contour_file("square_hole_100.csv"), contour_file("star_100.csv"),
+                                  contour_file("channel_100.csv")], ids=lambda p: p.stem)
 @pytest.mark.parametrize("exterior", [False, True])
 def test_topology_agrees_with_shapely(path, exterior):
     c = load_contour(path)
