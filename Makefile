@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 SAMPLE ?= samples/peanut.csv
 OUT    ?= out
 
-.PHONY: demo test bench bench-peers install clean
+.PHONY: demo test lint bench bench-peers install clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -29,8 +29,12 @@ demo: $(VENV)/.installed
 	@mkdir -p $(OUT)
 	$(BIN)/deformesh all $(SAMPLE) -o $(OUT)/demo.vtk --png $(OUT)/demo.png
 
-test: $(VENV)/.installed-test
+test: $(VENV)/.installed-test lint
 	$(BIN)/python -m pytest -q --hypothesis-profile=ci
+
+lint: $(VENV)/.installed-test
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache .hypothesis

@@ -16,22 +16,29 @@ def write_section(name: str, text: str) -> None:
     if "<!-- section:" not in old:  # an older single-section file: start afresh
         old = HEAD
     block = f"<!-- section:{name} -->\n{text.rstrip()}\n<!-- end:{name} -->\n"
-    pattern = re.compile(rf"<!-- section:{re.escape(name)} -->.*?<!-- end:{re.escape(name)} -->\n",
-                         re.S)
-    new = pattern.sub(lambda m: block, old) if pattern.search(old) else old.rstrip() + "\n\n" + block
+    pattern = re.compile(
+        rf"<!-- section:{re.escape(name)} -->.*?<!-- end:{re.escape(name)} -->\n", re.S
+    )
+    new = (
+        pattern.sub(lambda m: block, old) if pattern.search(old) else old.rstrip() + "\n\n" + block
+    )
     RESULTS.write_text(new)
 
 
 def machine() -> str:
     """The machine a benchmark ran on, for the record."""
-    cpu = next((ln.split(":", 1)[1].strip() for ln in open("/proc/cpuinfo")
-                if ln.startswith("model name")), platform.processor())
+    with open("/proc/cpuinfo") as f:
+        cpu = next(
+            (ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name")),
+            platform.processor(),
+        )
     mem = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30
-    return (f"{platform.node()}: {cpu}, {os.cpu_count()} cores, {mem:.0f} GiB, "
-            f"Python {platform.python_version()}")
+    return (
+        f"{platform.node()}: {cpu}, {os.cpu_count()} cores, {mem:.0f} GiB, "
+        f"Python {platform.python_version()}"
+    )
 
 
 def heading(title: str, intro: str) -> list[str]:
     """A section's first lines: its title, the machine and the date, what it measures."""
-    return [title, "", f"Machine: {machine()}.  Date: {time.strftime('%Y-%m-%d')}.", "",
-            intro, ""]
+    return [title, "", f"Machine: {machine()}.  Date: {time.strftime('%Y-%m-%d')}.", "", intro, ""]

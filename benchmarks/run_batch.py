@@ -15,13 +15,19 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from results import heading  # noqa: E402
-from run_issue2 import EXE, ROOT, SHARED  # noqa: E402
+from results import heading
+from run_issue2 import EXE, ROOT, SHARED
 
-CONTOURS = [SHARED / n for n in ("circle_100.csv", "bean_100.csv", "star_100.csv",
-                                 "channel_100.csv", "square_hole_100.csv")] + \
-           [ROOT / "samples" / n for n in ("circle.csv", "peanut.csv", "paper_example.csv",
-                                          "bracket.svg")]
+CONTOURS = [
+    SHARED / n
+    for n in (
+        "circle_100.csv",
+        "bean_100.csv",
+        "star_100.csv",
+        "channel_100.csv",
+        "square_hole_100.csv",
+    )
+] + [ROOT / "samples" / n for n in ("circle.csv", "peanut.csv", "paper_example.csv", "bracket.svg")]
 
 
 def timed(cmd):
@@ -44,11 +50,14 @@ def main():
         files = sorted(src.iterdir())
         ways = {
             "one process per contour": lambda: sum(
-                timed([EXE, "all", str(f), "-o", f"{d}/loop.msh", "-q"]) for f in files),
-            "batch --jobs 1": lambda: timed([EXE, "all", str(src), "--out-dir", f"{d}/o1",
-                                             "--jobs", "1", "-q"]),
-            "batch --jobs 2": lambda: timed([EXE, "all", str(src), "--out-dir", f"{d}/o2",
-                                             "--jobs", "2", "-q"]),
+                timed([EXE, "all", str(f), "-o", f"{d}/loop.msh", "-q"]) for f in files
+            ),
+            "batch --jobs 1": lambda: timed(
+                [EXE, "all", str(src), "--out-dir", f"{d}/o1", "--jobs", "1", "-q"]
+            ),
+            "batch --jobs 2": lambda: timed(
+                [EXE, "all", str(src), "--out-dir", f"{d}/o2", "--jobs", "2", "-q"]
+            ),
         }
         times = {k: [] for k in ways}
         for _ in range(args.repeat):
@@ -60,8 +69,10 @@ def main():
         "# Batch benchmark",
         f"{len(files)} contours ({args.copies} copies each of "
         f"{', '.join(c.name for c in CONTOURS)}), meshed to .msh. Median of {args.repeat} "
-        "interleaved rounds (written by `make bench`).") + [
-        "| way | seconds | vs one process per contour |", "| --- | ---: | ---: |",
+        "interleaved rounds (written by `make bench`).",
+    ) + [
+        "| way | seconds | vs one process per contour |",
+        "| --- | ---: | ---: |",
     ]
     for k in ways:
         t = statistics.median(times[k])

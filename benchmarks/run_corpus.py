@@ -17,8 +17,8 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from results import heading, write_section  # noqa: E402
-from run_issue2 import EXE, ROOT  # noqa: E402
+from results import heading, write_section
+from run_issue2 import EXE, ROOT
 
 CORPUS = ROOT / "tests" / "data" / "corpus"
 
@@ -40,9 +40,22 @@ def main():
     else:
         with tempfile.TemporaryDirectory() as d:
             t = time.perf_counter()
-            p = subprocess.run([EXE, "all", str(CORPUS), "--out-dir", d, "--jobs",
-                                str(args.jobs), "--json", "-q", *extra],
-                               capture_output=True, text=True)
+            p = subprocess.run(
+                [
+                    EXE,
+                    "all",
+                    str(CORPUS),
+                    "--out-dir",
+                    d,
+                    "--jobs",
+                    str(args.jobs),
+                    "--json",
+                    "-q",
+                    *extra,
+                ],
+                capture_output=True,
+                text=True,
+            )
             wall = time.perf_counter() - t
         out = p.stdout
     recs = [json.loads(ln) for ln in out.splitlines()]
@@ -54,7 +67,8 @@ def main():
         f"## Corpus: real contours, {opts} (issue 5)",
         f"`deformesh all tests/data/corpus --out-dir ... --jobs {args.jobs}` ({opts}); "
         f"{len(recs)} contours in {wall:.0f} s wall. Seconds are per contour, inside the "
-        "batch (no start-up).") + [
+        "batch (no start-up).",
+    ) + [
         "| kind | contours | meshed (contract ok) | refused | median s (meshed) | "
         "max s (meshed) | max s (refused) |",
         "| --- | ---: | ---: | ---: | ---: | ---: | ---: |",
@@ -63,19 +77,29 @@ def main():
         rs = recs if k == "all" else by[k]
         ok = [r["seconds"] for r in rs if r["status"] == "ok"]
         bad = [r["seconds"] for r in rs if r["status"] != "ok"]
-        lines.append(f"| {k} | {len(rs)} | {len(ok)} ({100 * len(ok) / len(rs):.0f}%) | "
-                     f"{len(bad)} | {statistics.median(ok) if ok else 0:.2f} | "
-                     f"{max(ok, default=0):.2f} | {max(bad, default=0):.2f} |")
-    lines += ["", "| contour | status | seconds | nodes | min angle | reason |",
-              "| --- | --- | ---: | ---: | ---: | --- |"]
+        lines.append(
+            f"| {k} | {len(rs)} | {len(ok)} ({100 * len(ok) / len(rs):.0f}%) | "
+            f"{len(bad)} | {statistics.median(ok) if ok else 0:.2f} | "
+            f"{max(ok, default=0):.2f} | {max(bad, default=0):.2f} |"
+        )
+    lines += [
+        "",
+        "| contour | status | seconds | nodes | min angle | reason |",
+        "| --- | --- | ---: | ---: | ---: | --- |",
+    ]
     for r in recs:
         why = (r["error"] or "").removeprefix(f"{r['input']}: ")[:110].replace("|", "/")
         angle = f"{r['min_angle']:.1f}" if r["min_angle"] is not None else ""
-        lines.append(f"| {Path(r['input']).name} | {r['status']} | {r['seconds']:.2f} | "
-                     f"{r['nodes'] or ''} | {angle} | {why} |")
+        lines.append(
+            f"| {Path(r['input']).name} | {r['status']} | {r['seconds']:.2f} | "
+            f"{r['nodes'] or ''} | {angle} | {why} |"
+        )
     write_section("corpus", "\n".join(lines))
-    print(f"corpus: {sum(r['status'] == 'ok' for r in recs)}/{len(recs)} meshed, "
-          f"{wall:.0f} s; wrote benchmarks/RESULTS.md", file=sys.stderr)
+    print(
+        f"corpus: {sum(r['status'] == 'ok' for r in recs)}/{len(recs)} meshed, "
+        f"{wall:.0f} s; wrote benchmarks/RESULTS.md",
+        file=sys.stderr,
+    )
 
 
 if __name__ == "__main__":

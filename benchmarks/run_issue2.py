@@ -15,19 +15,25 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from results import heading, write_section  # noqa: E402
+from results import heading, write_section
 
 ROOT = Path(__file__).resolve().parent.parent
 SHARED = ROOT / "tests" / "data" / "contours"
 EXE = str(Path(sys.executable).parent / "deformesh")
 
 CASES = [
-    ("samples/circle.csv", []), ("samples/naca0012.csv", []), ("samples/peanut.csv", []),
+    ("samples/circle.csv", []),
+    ("samples/naca0012.csv", []),
+    ("samples/peanut.csv", []),
     ("samples/half_disk.csv", ["--box=-1.25,0,1.25,1.25"]),
     ("samples/paper_example.csv", ["--h", "1", "--box", "1,1,9,12"]),
-    ("circle_100.csv", []), ("circle_1000.csv", []), ("bean_100.csv", []),
-    ("star_100.csv", []), ("channel_100.csv", []),
-    ("naca0012_100.csv", ["--h", "0.01"]), ("naca0012_100.csv", []),
+    ("circle_100.csv", []),
+    ("circle_1000.csv", []),
+    ("bean_100.csv", []),
+    ("star_100.csv", []),
+    ("channel_100.csv", []),
+    ("naca0012_100.csv", ["--h", "0.01"]),
+    ("naca0012_100.csv", []),
     ("naca0012_1000.csv", []),  # the adapted grid (issue 5): exactly its 1,000 points
     ("naca0012_1000.csv", ["--grid", "uniform"]),  # refused: measures the time to refuse
     ("naca0012_1000.csv", ["--resample", "0.5%"]),  # what the refusal advises
@@ -46,14 +52,20 @@ def run_process(cmd: list[str]) -> tuple[float, float, int, str, str]:
         dt = time.perf_counter() - t
         fo.seek(0)
         fe.seek(0)
-        return dt, usage.ru_maxrss / 1024, os.waitstatus_to_exitcode(status), fo.read(), \
-            fe.read().strip()
+        return (
+            dt,
+            usage.ru_maxrss / 1024,
+            os.waitstatus_to_exitcode(status),
+            fo.read(),
+            fe.read().strip(),
+        )
 
 
 def run_once(path, opts, out):
     """``deformesh all`` on one contour: (seconds, peak RSS MB, exit code, record)."""
     dt, rss, code, out_text, err = run_process(
-        [EXE, "all", str(path), "-o", out, "--json", "-q", *opts])
+        [EXE, "all", str(path), "-o", out, "--json", "-q", *opts]
+    )
     return dt, rss, code, (json.loads(out_text) if code == 0 else {"error": err})
 
 
@@ -76,19 +88,24 @@ def main():
         "## Issue 2: `deformesh all` per contour (whole process, median of "
         f"{args.repeat}, written by `make bench`)",
         "Peak RSS of each process from wait4. A refusal's time is the whole process "
-        "(Python start-up and imports included).") + [
+        "(Python start-up and imports included).",
+    ) + [
         "| contour | options | seconds | peak RSS MB | exit | grid nodes | moved nodes | "
         "triangles | min angle | extra boundary nodes |",
         "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
     ]
     for name, opts, t, rss, code, rec in rows:
         if code == 0:
-            lines.append(f"| {name} | {opts} | {t:.2f} | {rss:.0f} | 0 | {rec['grid_nodes']} | "
-                         f"{rec['moved_nodes']} | {rec['triangles']} | {rec['min_angle']:.2f} | "
-                         f"{rec['extra_boundary_nodes']} |")
+            lines.append(
+                f"| {name} | {opts} | {t:.2f} | {rss:.0f} | 0 | {rec['grid_nodes']} | "
+                f"{rec['moved_nodes']} | {rec['triangles']} | {rec['min_angle']:.2f} | "
+                f"{rec['extra_boundary_nodes']} |"
+            )
         else:
             msg = rec["error"].split(": error: ", 1)[-1][:90]
-            lines.append(f"| {name} | {opts} | {t:.2f} | {rss:.0f} | {code} | refused: {msg}... | | | | |")
+            lines.append(
+                f"| {name} | {opts} | {t:.2f} | {rss:.0f} | {code} | refused: {msg}... | | | | |"
+            )
     write_section("issue2", "\n".join(lines))
     print("wrote benchmarks/RESULTS.md (issue 2 section)", file=sys.stderr)
 

@@ -32,8 +32,8 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from results import heading, write_section  # noqa: E402
-from run_issue2 import EXE, SHARED, run_process  # noqa: E402
+from results import heading, write_section
+from run_issue2 import EXE, SHARED, run_process
 
 PEERS = Path(__file__).resolve().parent / "peers"
 PY = sys.executable
@@ -65,8 +65,9 @@ def shape(name: str):
         return cs(np.linspace(0, 1, 20000, endpoint=False))
     if name == "naca0012":  # closed trailing edge (last coefficient -0.1036)
         x = (1 - np.cos(np.linspace(0, np.pi, 10000))) / 2
-        yt = 0.6 * (0.2969 * np.sqrt(x) - 0.1260 * x - 0.3516 * x**2 + 0.2843 * x**3
-                    - 0.1036 * x**4)
+        yt = 0.6 * (
+            0.2969 * np.sqrt(x) - 0.1260 * x - 0.3516 * x**2 + 0.2843 * x**3 - 0.1036 * x**4
+        )
         upper = np.column_stack([x[::-1], yt[::-1]])
         lower = np.column_stack([x[1:-1], -yt[1:-1]])
         return np.vstack([upper, lower])
@@ -159,7 +160,8 @@ def main():
         "Each contour has evenly spaced points at spacing h; every tool gets that h "
         "(deformesh `--h h`, Triangle `pq30a<h^2/2>Y`, Gmsh size h at every point). "
         "Quality is measured on the written file, by one code for all tools. "
-        "Ratio = seconds / Triangle's seconds in the same run.") + [
+        "Ratio = seconds / Triangle's seconds in the same run.",
+    ) + [
         "| shape | points | h | tool | triangles | seconds | triangles/s | peak RSS MB | "
         "min angle | mean radius ratio | time ratio to Triangle | RSS ratio to Triangle |",
         "| --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
@@ -168,14 +170,18 @@ def main():
     for name, n, h, tool, t, r, base in rows:
         if r["code"] != 0:
             why = r["err"].splitlines()[-1][-80:] if r["err"] else ""
-            lines.append(f"| {name} | {n} | {h:.3g} | {tool} | failed: {why} | "
-                         f"{t:.2f} | | {r['rss']:.0f} | | | | |")
+            lines.append(
+                f"| {name} | {n} | {h:.3g} | {tool} | failed: {why} | "
+                f"{t:.2f} | | {r['rss']:.0f} | | | | |"
+            )
             continue
         ntri, amin, rr = r["quality"]
         ratio = f"{t / base:.2f}" if base else ""
         rss_ratio = f"{r['rss'] / tri_rss[(name, n)]:.2f}" if (name, n) in tri_rss else ""
-        lines.append(f"| {name} | {n} | {h:.3g} | {tool} | {ntri} | {t:.2f} | {ntri / t:,.0f} | "
-                     f"{r['rss']:.0f} | {amin:.1f} | {rr:.3f} | {ratio} | {rss_ratio} |")
+        lines.append(
+            f"| {name} | {n} | {h:.3g} | {tool} | {ntri} | {t:.2f} | {ntri / t:,.0f} | "
+            f"{r['rss']:.0f} | {amin:.1f} | {rr:.3f} | {ratio} | {rss_ratio} |"
+        )
     write_section(args.section, "\n".join(lines))
     print(f"wrote benchmarks/RESULTS.md ({args.section} section)", file=sys.stderr)
 

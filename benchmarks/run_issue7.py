@@ -19,19 +19,32 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from results import heading, write_section  # noqa: E402
-from run_issue2 import EXE, ROOT, SHARED, run_process  # noqa: E402
-from run_issue6 import PEERS, PY, helper  # noqa: E402
+from results import heading, write_section
+from run_issue2 import EXE, ROOT, SHARED, run_process
+from run_issue6 import PEERS, PY, helper
 
 CONTOURS = [SHARED / f"{s}_{n}.csv" for s in ("circle", "bean", "star") for n in (100, 1000)]
-CONTOURS += [SHARED / f for f in ("channel_100.csv", "square_hole_100.csv", "naca0012_100.csv",
-                                  "naca0012_1000.csv")]
-CONTOURS += [ROOT / "samples" / f for f in ("circle.csv", "peanut.csv", "half_disk.csv",
-                                            "naca0012.csv", "paper_example.csv")]
+CONTOURS += [
+    SHARED / f
+    for f in ("channel_100.csv", "square_hole_100.csv", "naca0012_100.csv", "naca0012_1000.csv")
+]
+CONTOURS += [
+    ROOT / "samples" / f
+    for f in ("circle.csv", "peanut.csv", "half_disk.csv", "naca0012.csv", "paper_example.csv")
+]
 CORPUS = ROOT / "tests" / "data" / "corpus"
-CONTOURS += [CORPUS / f for f in ("airfoil_clarky.csv", "airfoil_e387.csv", "airfoil_n0012.csv",
-                                  "airfoil_sd7037.csv", "airfoil_usa35b.csv", "coast_cuba.csv",
-                                  "icon_bi_bell-fill.svg")]
+CONTOURS += [
+    CORPUS / f
+    for f in (
+        "airfoil_clarky.csv",
+        "airfoil_e387.csv",
+        "airfoil_n0012.csv",
+        "airfoil_sd7037.csv",
+        "airfoil_usa35b.csv",
+        "coast_cuba.csv",
+        "icon_bi_bell-fill.svg",
+    )
+]
 
 
 def points(src: str, out: str) -> dict:
@@ -60,15 +73,21 @@ def main():
             report = {}
             # Triangle gets the points deformesh read (one ring only: the peer has no holes)
             clean = f"{d}/points.csv"
-            if not json.loads(subprocess.run([PY, __file__, "--points", str(path), clean],
-                                             capture_output=True, text=True,
-                                             check=True).stdout)["one_ring"]:
+            if not json.loads(
+                subprocess.run(
+                    [PY, __file__, "--points", str(path), clean],
+                    capture_output=True,
+                    text=True,
+                    check=True,
+                ).stdout
+            )["one_ring"]:
                 clean = None
             for _ in range(args.repeat):
                 for k in ("on", "off"):
                     cmd = [EXE, "all", str(path), "-o", out[k], "--json", "-q"]
-                    dt, _, code, text, err = run_process(cmd + ([] if k == "on" else
-                                                                ["--no-improve"]))
+                    dt, _, code, text, err = run_process(
+                        cmd + ([] if k == "on" else ["--no-improve"])
+                    )
                     if code:
                         raise SystemExit(f"{path}: {err}")
                     times[k].append(dt)
@@ -76,7 +95,8 @@ def main():
                 if clean is not None:
                     h = report["on"]["h"]
                     dt, _, code, _, err = run_process(
-                        [PY, str(PEERS / "triangle_mesh.py"), clean, repr(h), out["triangle"]])
+                        [PY, str(PEERS / "triangle_mesh.py"), clean, repr(h), out["triangle"]]
+                    )
                     if code:
                         raise SystemExit(f"triangle on {path}: {err}")
                     times["triangle"].append(dt)
@@ -93,9 +113,11 @@ def main():
         "Quality measured on the written files by one code. Stage cost = seconds with "
         "minus seconds without (whole processes, so noisy at small sizes). Forced = the "
         "report's `forced_angle` where the mesh is under 30 degrees: no mesh with these "
-        "boundary nodes has a larger smallest angle (README, \"What the boundary forces\").") + [
-        "| contour | triangles | min angle without | min angle with | forced | Triangle min angle | "
-        "mean radius ratio without | with | Triangle | seconds without | with | stage cost |",
+        'boundary nodes has a larger smallest angle (README, "What the boundary forces").',
+    ) + [
+        "| contour | triangles | min angle without | min angle with | forced | "
+        "Triangle min angle | mean radius ratio without | with | Triangle | "
+        "seconds without | with | stage cost |",
         "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
     ]
     for path, rep, q, med in rows:
@@ -108,7 +130,8 @@ def main():
             f"| {path.name} | {q['on'][0]} | {q['off'][1]:.1f} | {q['on'][1]:.1f} | {forced} | "
             f"{t_ang} | "
             f"{q['off'][2]:.3f} | {q['on'][2]:.3f} | {t_rr} | {med['off']:.2f} | "
-            f"{med['on']:.2f} | {med['on'] - med['off']:+.2f} |")
+            f"{med['on']:.2f} | {med['on'] - med['off']:+.2f} |"
+        )
     write_section("issue7", "\n".join(lines))
     print("wrote benchmarks/RESULTS.md (issue7 section)", file=sys.stderr)
 

@@ -22,9 +22,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "scripts"))
-from make_samples import naca0012, pitching, pulsating  # noqa: E402
-from results import heading, write_section  # noqa: E402
-from run_issue2 import EXE, ROOT, SHARED, run_process  # noqa: E402
+from make_samples import naca0012, pitching, pulsating
+from results import heading, write_section
+from run_issue2 import EXE, ROOT, SHARED, run_process
 
 SAMPLES = ROOT / "samples"
 
@@ -38,8 +38,14 @@ def frames_to(folder: Path, frames: list[np.ndarray], ring=None) -> list[str]:
         if ring is None:
             np.savetxt(f, pts, delimiter=",", header="x,y", comments="", fmt="%.17g")
         else:
-            np.savetxt(f, np.column_stack([pts, ring]), delimiter=",", header="x,y,ring",
-                       comments="", fmt=["%.17g", "%.17g", "%d"])
+            np.savetxt(
+                f,
+                np.column_stack([pts, ring]),
+                delimiter=",",
+                header="x,y,ring",
+                comments="",
+                fmt=["%.17g", "%.17g", "%d"],
+            )
         out.append(str(f))
     return out
 
@@ -69,63 +75,111 @@ def main():
     with tempfile.TemporaryDirectory() as d:
         d = Path(d)
         base160 = naca0012(160)
-        np.savetxt(d / "naca160.csv", base160, delimiter=",", header="x,y", comments="",
-                   fmt="%.17g")
+        np.savetxt(
+            d / "naca160.csv", base160, delimiter=",", header="x,y", comments="", fmt="%.17g"
+        )
         box = ["--exterior", "--box=-2,-2,3,2"]
         pulse = frames_to(d / "pulse160", pulsating(base160, amplitude=0.1))
         turned, ring = turning_hole()
         cases = [
-            ("pitching sample (README)", SAMPLES / "pitching" / "naca0012_80.csv",
-             ["--exterior", "--box=-1.5,-1.5,2.5,1.5"],
-             sorted(str(p) for p in (SAMPLES / "pitching").glob("frame_*.csv")), []),
-            ("pulsating peanut (README)", SAMPLES / "peanut.csv", [],
-             sorted(str(p) for p in (SAMPLES / "pulsating").glob("frame_*.csv")), []),
-            ("pitching NACA 0012, 160 points, box -2..3", d / "naca160.csv", box,
-             frames_to(d / "pitch160", pitching(base160)), []),
-            ("pulsating NACA 0012 (amplitude 0.1), whole mesh", d / "naca160.csv", box, pulse,
-             []),
-            ("pulsating NACA 0012 (amplitude 0.1), --solve band", d / "naca160.csv", box, pulse,
-             ["--solve", "band"]),
-            ("square_hole_100, the hole turning 10 degrees", SHARED / "square_hole_100.csv", [],
-             frames_to(d / "hole", turned, ring), []),
+            (
+                "pitching sample (README)",
+                SAMPLES / "pitching" / "naca0012_80.csv",
+                ["--exterior", "--box=-1.5,-1.5,2.5,1.5"],
+                sorted(str(p) for p in (SAMPLES / "pitching").glob("frame_*.csv")),
+                [],
+            ),
+            (
+                "pulsating peanut (README)",
+                SAMPLES / "peanut.csv",
+                [],
+                sorted(str(p) for p in (SAMPLES / "pulsating").glob("frame_*.csv")),
+                [],
+            ),
+            (
+                "pitching NACA 0012, 160 points, box -2..3",
+                d / "naca160.csv",
+                box,
+                frames_to(d / "pitch160", pitching(base160)),
+                [],
+            ),
+            ("pulsating NACA 0012 (amplitude 0.1), whole mesh", d / "naca160.csv", box, pulse, []),
+            (
+                "pulsating NACA 0012 (amplitude 0.1), --solve band",
+                d / "naca160.csv",
+                box,
+                pulse,
+                ["--solve", "band"],
+            ),
+            (
+                "square_hole_100, the hole turning 10 degrees",
+                SHARED / "square_hole_100.csv",
+                [],
+                frames_to(d / "hole", turned, ring),
+                [],
+            ),
         ]
         for name, contour, mesh_opts, frames, move_opts in cases:
             mesh = d / "mesh.vtu"
-            _, _, code, _, err = run_process([EXE, "all", str(contour), "-o", str(mesh), "-q",
-                                              *mesh_opts])
+            _, _, code, _, err = run_process(
+                [EXE, "all", str(contour), "-o", str(mesh), "-q", *mesh_opts]
+            )
             if code:
                 raise SystemExit(f"{name}: {err}")
             times, rss, rec = [], [], None
             for _ in range(args.repeat):
                 dt, mb, code, text, err = run_process(
-                    [EXE, "move", str(mesh), *frames, "--out-dir", str(d / "out"), "--json",
-                     "-q", *move_opts])
+                    [
+                        EXE,
+                        "move",
+                        str(mesh),
+                        *frames,
+                        "--out-dir",
+                        str(d / "out"),
+                        "--json",
+                        "-q",
+                        *move_opts,
+                    ]
+                )
                 if code:
                     raise SystemExit(f"{name}: {err}")
                 times.append(dt)
                 rss.append(mb)
                 rec = json.loads(text)
             per = rec["per_frame"][1:]
-            rows.append((name, rec, statistics.median(times), statistics.median(rss),
-                         sum(r["solves"] for r in per), sum(r["halvings"] for r in per)))
-            print(f"{name}: {statistics.median(times):.2f} s, min angle "
-                  f"{rec['min_angle']:.1f} (frame 0 {rec['min_angle_first']:.1f})",
-                  file=sys.stderr)
+            rows.append(
+                (
+                    name,
+                    rec,
+                    statistics.median(times),
+                    statistics.median(rss),
+                    sum(r["solves"] for r in per),
+                    sum(r["halvings"] for r in per),
+                )
+            )
+            print(
+                f"{name}: {statistics.median(times):.2f} s, min angle "
+                f"{rec['min_angle']:.1f} (frame 0 {rec['min_angle_first']:.1f})",
+                file=sys.stderr,
+            )
     lines = heading(
         f"## Issue 8: deformesh move (whole processes, median of {args.repeat})",
         "`deformesh all` makes the mesh once; then `deformesh move MESH FRAME... --out-dir` "
         "(20 frames, `.vtu` and `.pvd`) is timed as a whole process. Min angle over all "
         "frames next to frame 0's; solves and step halvings summed over the frames (no "
-        "solve where the rigid motion alone reaches the frame).") + [
+        "solve where the rigid motion alone reaches the frame).",
+    ) + [
         "| case | triangles | frames | seconds | s per frame | peak RSS MB | min angle frame 0 "
         "| min angle all frames | worst frame | solves | halvings |",
         "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
     ]
     for name, rec, sec, mb, solves, halvings in rows:
         n = rec["frames"] - 1
-        lines.append(f"| {name} | {rec['triangles']} | {n} | {sec:.2f} | {sec / n:.3f} | "
-                     f"{mb:.0f} | {rec['min_angle_first']:.1f} | {rec['min_angle']:.1f} | "
-                     f"{rec['min_angle_frame']} | {solves} | {halvings} |")
+        lines.append(
+            f"| {name} | {rec['triangles']} | {n} | {sec:.2f} | {sec / n:.3f} | "
+            f"{mb:.0f} | {rec['min_angle_first']:.1f} | {rec['min_angle']:.1f} | "
+            f"{rec['min_angle_frame']} | {solves} | {halvings} |"
+        )
     write_section("issue8", "\n".join(lines))
     print("wrote benchmarks/RESULTS.md (issue8 section)", file=sys.stderr)
 

@@ -16,8 +16,8 @@ Public API::
 
 __version__ = "0.1.0"
 
-from .contour import Contour, load_contour, parse_csv  # noqa: E402
-from .errors import (  # noqa: E402
+from .contour import Contour, load_contour, parse_csv
+from .errors import (
     ContractError,
     DeformeshError,
     FoldError,
@@ -26,7 +26,7 @@ from .errors import (  # noqa: E402
     OptionError,
     SelectionError,
 )
-from .pipeline import MeshResult, mesh_contour  # noqa: E402
+from .pipeline import MeshResult, mesh_contour
 
 __all__ = [
     "__version__",

@@ -13,9 +13,9 @@ from __future__ import annotations
 import concurrent.futures as cf
 import glob
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator
 
 from . import io
 from .contour import load_contour
@@ -28,8 +28,17 @@ from .size import make as size_make
 CONTOUR_SUFFIXES = (".csv", ".txt", ".svg", ".svgz")
 
 #: Keys of every batch record (``--json`` prints one per input, in input order).
-RECORD_KEYS = ("input", "output", "status", "error", "seconds", "nodes", "triangles",
-               "min_angle", "contract")
+RECORD_KEYS = (
+    "input",
+    "output",
+    "status",
+    "error",
+    "seconds",
+    "nodes",
+    "triangles",
+    "min_angle",
+    "contract",
+)
 
 
 @dataclass(frozen=True)
@@ -53,12 +62,17 @@ def expand_inputs(args: list[str]) -> list[str]:
     for a in args:
         p = Path(a)
         if a != "-" and p.is_dir():
-            found = sorted(str(q) for q in p.iterdir() if q.is_file()
-                           and q.suffix.lower() in CONTOUR_SUFFIXES
-                           and not q.name.startswith("."))
+            found = sorted(
+                str(q)
+                for q in p.iterdir()
+                if q.is_file()
+                and q.suffix.lower() in CONTOUR_SUFFIXES
+                and not q.name.startswith(".")
+            )
             if not found:
-                raise OptionError(f"{a}: folder holds no contour files "
-                                  f"({', '.join(CONTOUR_SUFFIXES)})")
+                raise OptionError(
+                    f"{a}: folder holds no contour files ({', '.join(CONTOUR_SUFFIXES)})"
+                )
             out += found
         elif a != "-" and not p.exists() and any(ch in a for ch in "*?["):
             out += sorted(glob.glob(a)) or [a]
@@ -78,8 +92,10 @@ def make_tasks(inputs: list[str], out_dir: str, fmt: str, options: dict) -> list
         stem = "stdin" if src == "-" else Path(src).name.split(".")[0] or f"input_{k}"
         out = str(Path(out_dir) / f"{stem}.{fmt}")
         if out in outputs:
-            raise OptionError(f"{outputs[out]} and {src} would both write {out}; "
-                              "rename one or mesh them in two runs")
+            raise OptionError(
+                f"{outputs[out]} and {src} would both write {out}; "
+                "rename one or mesh them in two runs"
+            )
         outputs[out] = src
         data, error = None, None
         try:
@@ -101,19 +117,40 @@ def run_task(task: Task) -> tuple[dict, list[tuple[str, bytes]]]:
     try:
         if task.error is not None:
             raise DeformeshError(task.error)
-        c = load_contour(task.source, task.data, o.get("decimal", "."), o.get("tolerance"),
-                         o.get("element_id"), o.get("resample"))
-        res = mesh_contour(c, o.get("h"), o.get("box"), o.get("margin"), o.get("strict", False),
-                           o.get("max_nodes", DEFAULT_MAX_NODES), o.get("steps", DEFAULT_STEPS),
-                           solver=o.get("solver", "auto"), exterior=o.get("exterior", False),
-                           size=size_make(o.get("size"), o.get("size_field"), c),
-                           grid=o.get("grid", "auto"), solve=o.get("solve", "band"),
-                           improve=o.get("improve", True))
-        files = io.mesh_files(res.mesh, Path(task.output).name, o["fmt"],
-                              o.get("msh_version", "2.2"))
+        c = load_contour(
+            task.source,
+            task.data,
+            o.get("decimal", "."),
+            o.get("tolerance"),
+            o.get("element_id"),
+            o.get("resample"),
+        )
+        res = mesh_contour(
+            c,
+            o.get("h"),
+            o.get("box"),
+            o.get("margin"),
+            o.get("strict", False),
+            o.get("max_nodes", DEFAULT_MAX_NODES),
+            o.get("steps", DEFAULT_STEPS),
+            solver=o.get("solver", "auto"),
+            exterior=o.get("exterior", False),
+            size=size_make(o.get("size"), o.get("size_field"), c),
+            grid=o.get("grid", "auto"),
+            solve=o.get("solve", "band"),
+            improve=o.get("improve", True),
+        )
+        files = io.mesh_files(
+            res.mesh, Path(task.output).name, o["fmt"], o.get("msh_version", "2.2")
+        )
         r = res.report
-        rec.update(status="ok", nodes=r["nodes"], triangles=r["triangles"],
-                   min_angle=r["min_angle"], contract=r["contract"])
+        rec.update(
+            status="ok",
+            nodes=r["nodes"],
+            triangles=r["triangles"],
+            min_angle=r["min_angle"],
+            contract=r["contract"],
+        )
     except DeformeshError as exc:
         rec["error"] = str(exc)
     except MemoryError:
@@ -124,8 +161,9 @@ def run_task(task: Task) -> tuple[dict, list[tuple[str, bytes]]]:
     return rec, files
 
 
-def run(tasks: list[Task], jobs: int = 1, scheduler: str | None = None,
-        fail_fast: bool = False) -> Iterator[tuple[Task, dict, list]]:
+def run(
+    tasks: list[Task], jobs: int = 1, scheduler: str | None = None, fail_fast: bool = False
+) -> Iterator[tuple[Task, dict, list]]:
     """Run every task; yield ``(task, record, files)`` as each finishes.
 
     ``jobs`` > 1 uses a process pool; ``scheduler`` a Dask distributed cluster.
@@ -140,7 +178,7 @@ def run(tasks: list[Task], jobs: int = 1, scheduler: str | None = None,
             rec, files = run_task(t)
             yield t, rec, files
             if fail_fast and rec["status"] != "ok":
-                yield from _skipped(tasks[k + 1:])
+                yield from _skipped(tasks[k + 1 :])
                 return
         return
     yield from _run_pool(tasks, jobs, fail_fast)
@@ -154,9 +192,12 @@ def _run_pool(tasks: list[Task], jobs: int, fail_fast: bool) -> Iterator:
     failed = False
     with cf.ProcessPoolExecutor(max_workers=jobs) as pool:
         futures = {pool.submit(run_task, t): t for t in tasks}
-        for t, rec, files in _gather(futures, cf.as_completed(futures), fail_fast,
-                                     cancel=lambda: pool.shutdown(wait=False,
-                                                                  cancel_futures=True)):
+        for t, rec, files in _gather(
+            futures,
+            cf.as_completed(futures),
+            fail_fast,
+            cancel=lambda: pool.shutdown(wait=False, cancel_futures=True),
+        ):
             if rec.pop("_broken", False):
                 broken.append(t)
                 continue
@@ -185,8 +226,15 @@ def _gather(futures: dict, completed, fail_fast: bool, cancel) -> Iterator:
         try:
             rec, files = fut.result()
         except Exception as exc:  # the worker died (killed, out of memory, lost)
-            rec, files = _record(t, "failed", f"{t.source}: the worker process running it "
-                                 f"died ({type(exc).__name__}; killed or out of memory?)"), []
+            rec, files = (
+                _record(
+                    t,
+                    "failed",
+                    f"{t.source}: the worker process running it "
+                    f"died ({type(exc).__name__}; killed or out of memory?)",
+                ),
+                [],
+            )
             if isinstance(exc, cf.process.BrokenProcessPool):
                 rec["_broken"] = True
         done.add(t.index)
@@ -213,8 +261,9 @@ def _run_dask(tasks: list[Task], scheduler: str, fail_fast: bool) -> Iterator:
     try:
         from distributed import Client, as_completed
     except ImportError:
-        raise DeformeshError("--scheduler needs dask.distributed: "
-                             "pip install 'deformesh[dask]'") from None
+        raise DeformeshError(
+            "--scheduler needs dask.distributed: pip install 'deformesh[dask]'"
+        ) from None
     try:
         client = Client(scheduler, timeout="10s")
     except (OSError, TimeoutError, ValueError) as exc:
@@ -222,5 +271,6 @@ def _run_dask(tasks: list[Task], scheduler: str, fail_fast: bool) -> Iterator:
     with client:
         futs = client.map(run_task, tasks, pure=False)
         futures = dict(zip(futs, tasks))
-        yield from _gather(futures, as_completed(futs), fail_fast,
-                           cancel=lambda: client.cancel(futs))
+        yield from _gather(
+            futures, as_completed(futs), fail_fast, cancel=lambda: client.cancel(futs)
+        )

@@ -57,8 +57,9 @@ def _handle_errors(fn):
             click.echo(f"deformesh: error: {exc}", err=True)
             sys.exit(1)
         except MemoryError:
-            click.echo("deformesh: error: out of memory; lower --max-nodes or give a larger --h",
-                       err=True)
+            click.echo(
+                "deformesh: error: out of memory; lower --max-nodes or give a larger --h", err=True
+            )
             sys.exit(1)
 
     return wrapper
@@ -71,89 +72,171 @@ def _say(quiet: bool, msg: str) -> None:
 
 def _check_binary_stdout(out: str) -> None:
     if out == "-" and sys.stdout.isatty():
-        raise click.UsageError("refusing to write binary data to a terminal; "
-                               "use -o FILE or a pipe")
+        raise click.UsageError("refusing to write binary data to a terminal; use -o FILE or a pipe")
 
 
-def _read_contour(path: str, decimal: str = ".", tolerance=None, element_id=None,
-                  resample=None):
+def _read_contour(path: str, decimal: str = ".", tolerance=None, element_id=None, resample=None):
     return load_contour(path, None, decimal, tolerance, element_id, resample)
 
 
 contour_options = [
-    click.option("--decimal", type=click.Choice([".", ","]), default=".", show_default=True,
-                 help="Decimal mark of the CSV numbers; with ',' the delimiter is ';', tab or "
-                      "spaces."),
-    click.option("--tolerance", default=None, metavar="TOL",
-                 help="SVG: largest gap between a curve and its chords, in drawing units, or "
-                      "a percentage of the drawing's diagonal ('0.5%').  Default: 0.1%."),
-    click.option("--id", "element_id", default=None, metavar="ID",
-                 help="SVG: mesh only the element with this id (a shape or a group). "
-                      "Default: every filled shape."),
-    click.option("--resample", default=None, metavar="SPACING",
-                 help="Re-space the contour evenly (corners kept) at SPACING, in contour units "
-                      "or as a percentage of its diagonal ('1%'). The given points are then "
-                      "no longer all boundary nodes."),
+    click.option(
+        "--decimal",
+        type=click.Choice([".", ","]),
+        default=".",
+        show_default=True,
+        help="Decimal mark of the CSV numbers; with ',' the delimiter is ';', tab or spaces.",
+    ),
+    click.option(
+        "--tolerance",
+        default=None,
+        metavar="TOL",
+        help="SVG: largest gap between a curve and its chords, in drawing units, or "
+        "a percentage of the drawing's diagonal ('0.5%').  Default: 0.1%.",
+    ),
+    click.option(
+        "--id",
+        "element_id",
+        default=None,
+        metavar="ID",
+        help="SVG: mesh only the element with this id (a shape or a group). "
+        "Default: every filled shape.",
+    ),
+    click.option(
+        "--resample",
+        default=None,
+        metavar="SPACING",
+        help="Re-space the contour evenly (corners kept) at SPACING, in contour units "
+        "or as a percentage of its diagonal ('1%'). The given points are then "
+        "no longer all boundary nodes.",
+    ),
 ]
 
 select_options = [
-    click.option("--h", "h", type=float, callback=_positive, default=None,
-                 help="Grid step. Default: Appendix A's 0.9*d_c/sqrt(2), d_c the smallest "
-                      "distance between two contour points."),
-    click.option("--box", type=BoxType(), default=None,
-                 help="Background box XMIN,YMIN,XMAX,YMAX (must contain the contour). "
-                      "Default: the contour's bounding box grown by --margin."),
-    click.option("--margin", type=float, default=None,
-                 help="Gap between the contour's bounding box and the background box, in "
-                      "contour units. Default: 3 grid steps."),
-    click.option("--strict", is_flag=True,
-                 help="Fail instead of adding boundary nodes where consecutive contour points "
-                      "select grid nodes that are not neighbours."),
-    click.option("--max-nodes", type=click.IntRange(min=4), default=DEFAULT_MAX_NODES,
-                 show_default=True, help="Refuse grids with more nodes than this (memory guard)."),
+    click.option(
+        "--h",
+        "h",
+        type=float,
+        callback=_positive,
+        default=None,
+        help="Grid step. Default: Appendix A's 0.9*d_c/sqrt(2), d_c the smallest "
+        "distance between two contour points.",
+    ),
+    click.option(
+        "--box",
+        type=BoxType(),
+        default=None,
+        help="Background box XMIN,YMIN,XMAX,YMAX (must contain the contour). "
+        "Default: the contour's bounding box grown by --margin.",
+    ),
+    click.option(
+        "--margin",
+        type=float,
+        default=None,
+        help="Gap between the contour's bounding box and the background box, in "
+        "contour units. Default: 3 grid steps.",
+    ),
+    click.option(
+        "--strict",
+        is_flag=True,
+        help="Fail instead of adding boundary nodes where consecutive contour points "
+        "select grid nodes that are not neighbours.",
+    ),
+    click.option(
+        "--max-nodes",
+        type=click.IntRange(min=4),
+        default=DEFAULT_MAX_NODES,
+        show_default=True,
+        help="Refuse grids with more nodes than this (memory guard).",
+    ),
     *contour_options,
-    click.option("--exterior", is_flag=True,
-                 help="Mesh the box minus the contour (e.g. an airfoil in a far-field box). "
-                      "Default margin: the contour's larger extent."),
-    click.option("--grid", "grid", type=click.Choice(pipeline.GRIDS), default="auto",
-                 show_default=True,
-                 help="'adapt': select on the points evenly re-spaced between corners with h "
-                      "their median spacing, then slide each node along the contour to its "
-                      "point; 'uniform': Appendix A's grid; 'auto': adapt when the median "
-                      "spacing is over 4x the smallest (and no --h, not --exterior)."),
+    click.option(
+        "--exterior",
+        is_flag=True,
+        help="Mesh the box minus the contour (e.g. an airfoil in a far-field box). "
+        "Default margin: the contour's larger extent.",
+    ),
+    click.option(
+        "--grid",
+        "grid",
+        type=click.Choice(pipeline.GRIDS),
+        default="auto",
+        show_default=True,
+        help="'adapt': select on the points evenly re-spaced between corners with h "
+        "their median spacing, then slide each node along the contour to its "
+        "point; 'uniform': Appendix A's grid; 'auto': adapt when the median "
+        "spacing is over 4x the smallest (and no --h, not --exterior).",
+    ),
 ]
 size_options = [
-    click.option("--size", "size_expr", default=None, metavar="EXPR",
-                 help="Size function f: cells end with areas proportional to f. A numpy "
-                      "expression in x, y and d (distance to the contour), e.g. '0.2 + d'."),
-    click.option("--size-field", default=None, type=click.Path(dir_okay=False),
-                 help="Size function as values on a regular grid: rows x, y, f (CSV or .npy)."),
+    click.option(
+        "--size",
+        "size_expr",
+        default=None,
+        metavar="EXPR",
+        help="Size function f: cells end with areas proportional to f. A numpy "
+        "expression in x, y and d (distance to the contour), e.g. '0.2 + d'.",
+    ),
+    click.option(
+        "--size-field",
+        default=None,
+        type=click.Path(dir_okay=False),
+        help="Size function as values on a regular grid: rows x, y, f (CSV or .npy).",
+    ),
 ]
-steps_option = click.option("--steps", type=click.IntRange(min=1), default=DEFAULT_STEPS,
-                            show_default=True, help="Pseudo-time steps of the deformation.")
+steps_option = click.option(
+    "--steps",
+    type=click.IntRange(min=1),
+    default=DEFAULT_STEPS,
+    show_default=True,
+    help="Pseudo-time steps of the deformation.",
+)
 solver_option = click.option(
-    "--solver", type=click.Choice(SOLVERS), default="auto", show_default=True,
+    "--solver",
+    type=click.Choice(SOLVERS),
+    default="auto",
+    show_default=True,
     help="Linear solver per step: sparse LDL^T ('direct'), multigrid-preconditioned CG ('amg'), "
-         "or 'auto' (direct on the band, and up to 60,000 free nodes on a whole grid).")
+    "or 'auto' (direct on the band, and up to 60,000 free nodes on a whole grid).",
+)
 solve_option = click.option(
-    "--solve", type=click.Choice(pipeline.SOLVES), default="band", show_default=True,
+    "--solve",
+    type=click.Choice(pipeline.SOLVES),
+    default="band",
+    show_default=True,
     help="Deform only a narrow band of cells around the path ('band': at least 4 cells, "
-         "3 times the farthest path node's travel) or the whole background grid ('full').")
+    "3 times the farthest path node's travel) or the whole background grid ('full').",
+)
 improve_option = click.option(
-    "--improve/--no-improve", default=True, show_default=True,
+    "--improve/--no-improve",
+    default=True,
+    show_default=True,
     help="Better triangles: around every triangle under 35 degrees, flip edges, move "
-         "free nodes and, where that cannot help (a thin part, a sharp corner), re-mesh a "
-         "few triangles around one node, while the smallest angle grows (boundary nodes "
-         "never move).")
+    "free nodes and, where that cannot help (a thin part, a sharp corner), re-mesh a "
+    "few triangles around one node, while the smallest angle grows (boundary nodes "
+    "never move).",
+)
 format_option = click.option(
-    "--format", "fmt", type=click.Choice(sorted(io.FORMATS), case_sensitive=False),
-    default=None, help="Mesh format. Default: from the output file's extension.")
+    "--format",
+    "fmt",
+    type=click.Choice(sorted(io.FORMATS), case_sensitive=False),
+    default=None,
+    help="Mesh format. Default: from the output file's extension.",
+)
 msh_option = click.option(
-    "--msh-version", type=click.Choice(sorted(io.MSH_VERSIONS)), default="2.2", show_default=True,
-    help="Gmsh file version for .msh output (ASCII either way).")
+    "--msh-version",
+    type=click.Choice(sorted(io.MSH_VERSIONS)),
+    default="2.2",
+    show_default=True,
+    help="Gmsh file version for .msh output (ASCII either way).",
+)
 quiet_option = click.option("-q", "--quiet", is_flag=True, help="Print errors only.")
-png_option = click.option("--png", type=click.Path(dir_okay=False), default=None,
-                          help="Also draw the mesh to this PNG file (needs matplotlib).")
+png_option = click.option(
+    "--png",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Also draw the mesh to this PNG file (needs matplotlib).",
+)
 
 
 def _apply(options):
@@ -177,27 +260,54 @@ def cli():
 
 @cli.command("select")
 @click.argument("contour", type=click.Path(dir_okay=False, allow_dash=True))
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, allow_dash=True),
-              help="State file to write ('-' for stdout).")
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(dir_okay=False, allow_dash=True),
+    help="State file to write ('-' for stdout).",
+)
 @_apply(select_options)
 @quiet_option
 @_handle_errors
-def select_cmd(contour, output, h, box, margin, strict, max_nodes, decimal, tolerance,
-               element_id, resample, exterior, grid, quiet):
+def select_cmd(
+    contour,
+    output,
+    h,
+    box,
+    margin,
+    strict,
+    max_nodes,
+    decimal,
+    tolerance,
+    element_id,
+    resample,
+    exterior,
+    grid,
+    quiet,
+):
     """Lay the background grid and pick one grid node per contour point (stage 1)."""
     _check_binary_stdout(output)
     c = _read_contour(contour, decimal, tolerance, element_id, resample)
     sel = pipeline.run_select(c, h, box, margin, strict, max_nodes, exterior, grid)
     io.write_bytes(state.dumps(state.State("selected", c, sel)), output)
     g = sel.grid
-    _say(quiet, f"{c.source}: selected {c.n} grid nodes on a {g.nx}x{g.ny} grid "
-                f"(h = {sel.h:.4g}), {sel.extra_nodes} extra boundary nodes")
+    _say(
+        quiet,
+        f"{c.source}: selected {c.n} grid nodes on a {g.nx}x{g.ny} grid "
+        f"(h = {sel.h:.4g}), {sel.extra_nodes} extra boundary nodes",
+    )
 
 
 @cli.command("deform")
 @click.argument("state_in", metavar="STATE", type=click.Path(dir_okay=False, allow_dash=True))
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, allow_dash=True),
-              help="Deformed state file to write ('-' for stdout).")
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(dir_okay=False, allow_dash=True),
+    help="Deformed state file to write ('-' for stdout).",
+)
 @steps_option
 @solver_option
 @solve_option
@@ -211,21 +321,36 @@ def deform_cmd(state_in, output, steps, solver, solve, size_expr, size_field, qu
     st = state.loads(io.read_bytes(state_in), name, want="selected")
     size = _size.make(size_expr, size_field, st.contour)
     with _steps_bar(steps, quiet) as progress:
-        d = pipeline.run_deform(st.contour, st.selection, steps, callback=progress,
-                                solver=solver, size=size, solve=solve)
+        d = pipeline.run_deform(
+            st.contour,
+            st.selection,
+            steps,
+            callback=progress,
+            solver=solver,
+            size=size,
+            solve=solve,
+        )
     meta = {"steps": steps}
     if size is not None:
         meta.update(size=size_expr, size_field=size_field)
     out = state.State("deformed", st.contour, st.selection, d.points, meta)
     io.write_bytes(state.dumps(out), output)
-    _say(quiet, f"{st.contour.source}: deformed in {d.stats.solves} solves "
-                f"({d.stats.halvings} step halvings)")
+    _say(
+        quiet,
+        f"{st.contour.source}: deformed in {d.stats.solves} solves "
+        f"({d.stats.halvings} step halvings)",
+    )
 
 
 @cli.command("triangulate")
 @click.argument("state_in", metavar="STATE", type=click.Path(dir_okay=False, allow_dash=True))
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, allow_dash=True),
-              help="Mesh file to write; the format follows the extension.")
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(dir_okay=False, allow_dash=True),
+    help="Mesh file to write; the format follows the extension.",
+)
 @improve_option
 @format_option
 @msh_option
@@ -239,10 +364,12 @@ def triangulate_cmd(state_in, output, improve, fmt, msh_version, png, as_json, q
     fmt = _check_mesh_output(output, fmt, as_json)
     name = "<stdin>" if state_in == "-" else state_in
     st = state.loads(io.read_bytes(state_in), name, want="deformed")
-    size = _size.make(st.meta.get("size"), st.meta.get("size_field"), st.contour) \
-        if st.meta else None
-    mesh, report = pipeline.run_triangulate(st.contour, pipeline.Deformed(st.selection, st.points),
-                                            size, improve=improve)
+    size = (
+        _size.make(st.meta.get("size"), st.meta.get("size_field"), st.contour) if st.meta else None
+    )
+    mesh, report = pipeline.run_triangulate(
+        st.contour, pipeline.Deformed(st.selection, st.points), size, improve=improve
+    )
     report.update(pipeline.selection_report(st.selection))
     _finish(st.contour, mesh, report, output, fmt, as_json, quiet, t0, msh_version, png)
 
@@ -259,14 +386,23 @@ def _finish(contour, mesh, report, output, fmt, as_json, quiet, t0, msh_version=
         from . import plot
 
         io.check_folder(png)
-        picture = plot.render(mesh.points, mesh.triangles, boundary=mesh.lines,
-                              contour_points=mesh.points[:mesh.n_contour],
-                              title=_title(output, mesh))
+        picture = plot.render(
+            mesh.points,
+            mesh.triangles,
+            boundary=mesh.lines,
+            contour_points=mesh.points[: mesh.n_contour],
+            title=_title(output, mesh),
+        )
     io.write_mesh(mesh, output, fmt, msh_version)
     if picture is not None:
         io.write_bytes(picture, png)
-    report = {"input": contour.source, "output": output, "format": fmt, **report,
-              "seconds": round(time.perf_counter() - t0, 3)}
+    report = {
+        "input": contour.source,
+        "output": output,
+        "format": fmt,
+        **report,
+        "seconds": round(time.perf_counter() - t0, 3),
+    }
     report["notes"] = list(contour.notes) + list(report.get("notes", []))
     if as_json:
         click.echo(json.dumps(report, sort_keys=False))
@@ -285,18 +421,36 @@ def summary_line(r: dict) -> str:
 
 
 @cli.command("all")
-@click.argument("contours", metavar="CONTOUR...", nargs=-1, required=True,
-                type=click.Path(allow_dash=True))
-@click.option("-o", "--output", default=None, type=click.Path(dir_okay=False, allow_dash=True),
-              help="Mesh file to write (one contour); the format follows the extension.")
-@click.option("--out-dir", default=None, type=click.Path(file_okay=False),
-              help="Batch: write each contour's mesh here as NAME.FORMAT (created if missing). "
-                   "CONTOUR may then be several files, folders and glob patterns.")
-@click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,
-              help="Batch: processes to run at once. Default: the number of cores.")
-@click.option("--scheduler", default=None, metavar="ADDRESS",
-              help="Batch: run on a Dask distributed cluster (e.g. tcp://host:8786); "
-                   "needs deformesh[dask].")
+@click.argument(
+    "contours", metavar="CONTOUR...", nargs=-1, required=True, type=click.Path(allow_dash=True)
+)
+@click.option(
+    "-o",
+    "--output",
+    default=None,
+    type=click.Path(dir_okay=False, allow_dash=True),
+    help="Mesh file to write (one contour); the format follows the extension.",
+)
+@click.option(
+    "--out-dir",
+    default=None,
+    type=click.Path(file_okay=False),
+    help="Batch: write each contour's mesh here as NAME.FORMAT (created if missing). "
+    "CONTOUR may then be several files, folders and glob patterns.",
+)
+@click.option(
+    "-j",
+    "--jobs",
+    type=click.IntRange(min=1),
+    default=None,
+    help="Batch: processes to run at once. Default: the number of cores.",
+)
+@click.option(
+    "--scheduler",
+    default=None,
+    metavar="ADDRESS",
+    help="Batch: run on a Dask distributed cluster (e.g. tcp://host:8786); needs deformesh[dask].",
+)
 @click.option("--fail-fast", is_flag=True, help="Batch: stop at the first failure.")
 @_apply(select_options)
 @steps_option
@@ -307,44 +461,103 @@ def summary_line(r: dict) -> str:
 @format_option
 @msh_option
 @png_option
-@click.option("--json", "as_json", is_flag=True,
-              help="Print the summary as JSON on stdout (a batch: one record per contour).")
+@click.option(
+    "--json",
+    "as_json",
+    is_flag=True,
+    help="Print the summary as JSON on stdout (a batch: one record per contour).",
+)
 @quiet_option
 @_handle_errors
-def all_cmd(contours, output, out_dir, jobs, scheduler, fail_fast, h, box, margin, strict,
-            max_nodes, decimal, tolerance, element_id, resample, exterior, grid, steps, solver,
-            solve, size_expr, size_field, improve, fmt, msh_version, png, as_json, quiet):
+def all_cmd(
+    contours,
+    output,
+    out_dir,
+    jobs,
+    scheduler,
+    fail_fast,
+    h,
+    box,
+    margin,
+    strict,
+    max_nodes,
+    decimal,
+    tolerance,
+    element_id,
+    resample,
+    exterior,
+    grid,
+    steps,
+    solver,
+    solve,
+    size_expr,
+    size_field,
+    improve,
+    fmt,
+    msh_version,
+    png,
+    as_json,
+    quiet,
+):
     """Run select, deform and triangulate in one process, for one contour or a batch."""
     t0 = time.perf_counter()
     if out_dir is not None:
         if output is not None:
-            raise click.UsageError("give -o FILE (one contour) or --out-dir DIR (a batch), "
-                                   "not both")
+            raise click.UsageError(
+                "give -o FILE (one contour) or --out-dir DIR (a batch), not both"
+            )
         if png is not None:
             raise click.UsageError("--png names one file; it does not apply to a batch")
-        options = dict(h=h, box=box, margin=margin, strict=strict, max_nodes=max_nodes,
-                       decimal=decimal, tolerance=tolerance, element_id=element_id,
-                       resample=resample,
-                       exterior=exterior, grid=grid, steps=steps, solver=solver,
-                       solve=solve, msh_version=msh_version,
-                       size=size_expr, size_field=size_field, improve=improve)
-        _batch(list(contours), out_dir, fmt, options, jobs, scheduler, fail_fast, as_json, quiet,
-               t0)
+        options = {
+            "h": h,
+            "box": box,
+            "margin": margin,
+            "strict": strict,
+            "max_nodes": max_nodes,
+            "decimal": decimal,
+            "tolerance": tolerance,
+            "element_id": element_id,
+            "resample": resample,
+            "exterior": exterior,
+            "grid": grid,
+            "steps": steps,
+            "solver": solver,
+            "solve": solve,
+            "msh_version": msh_version,
+            "size": size_expr,
+            "size_field": size_field,
+            "improve": improve,
+        }
+        _batch(
+            list(contours), out_dir, fmt, options, jobs, scheduler, fail_fast, as_json, quiet, t0
+        )
         return
     if output is None:
         raise click.UsageError("give -o FILE (one contour) or --out-dir DIR (a batch)")
     if len(contours) != 1 or (contours[0] != "-" and os.path.isdir(contours[0])):
         raise click.UsageError("several contours or a folder need --out-dir DIR instead of -o")
     if jobs is not None or scheduler is not None or fail_fast:
-        raise click.UsageError("--jobs, --scheduler and --fail-fast apply to batches "
-                               "(--out-dir)")
+        raise click.UsageError("--jobs, --scheduler and --fail-fast apply to batches (--out-dir)")
     fmt = _check_mesh_output(output, fmt, as_json)
     c = _read_contour(contours[0], decimal, tolerance, element_id, resample)
     size = _size.make(size_expr, size_field, c)
     with _steps_bar(steps, quiet) as progress:
-        res = pipeline.mesh_contour(c, h, box, margin, strict, max_nodes, steps, solver=solver,
-                                    exterior=exterior, callback=progress, size=size, grid=grid,
-                                    solve=solve, improve=improve)
+        res = pipeline.mesh_contour(
+            c,
+            h,
+            box,
+            margin,
+            strict,
+            max_nodes,
+            steps,
+            solver=solver,
+            exterior=exterior,
+            callback=progress,
+            size=size,
+            grid=grid,
+            solve=solve,
+            improve=improve,
+        )
     _finish(c, res.mesh, res.report, output, fmt, as_json, quiet, t0, msh_version, png)
 
 
@@ -360,6 +573,7 @@ def _steps_bar(steps: int, quiet: bool):
         yield None
         return
     with click.progressbar(length=1000, label="deforming", file=sys.stderr) as bar:
+
         def progress(done, stats):
             bar.update(int(1000 * done) - bar.pos)
 
@@ -374,8 +588,9 @@ def _batch(contours, out_dir, fmt, options, jobs, scheduler, fail_fast, as_json,
     try:
         os.makedirs(out_dir, exist_ok=True)
     except OSError as exc:
-        raise DeformeshError(f"{out_dir}: cannot create the output folder: {exc.strerror}") \
-            from None
+        raise DeformeshError(
+            f"{out_dir}: cannot create the output folder: {exc.strerror}"
+        ) from None
     records: list[dict | None] = [None] * len(tasks)
     printed = 0
     bar = None
@@ -383,8 +598,7 @@ def _batch(contours, out_dir, fmt, options, jobs, scheduler, fail_fast, as_json,
         bar = click.progressbar(length=len(tasks), label="meshing", file=sys.stderr)
         bar.__enter__()
     try:
-        for task, rec, files in batch.run(tasks, jobs or os.cpu_count() or 1, scheduler,
-                                          fail_fast):
+        for task, rec, files in batch.run(tasks, jobs or os.cpu_count() or 1, scheduler, fail_fast):
             if rec["status"] == "ok":
                 try:
                     _write_files(out_dir, files)
@@ -431,17 +645,22 @@ def batch_table(records: list[dict], seconds: float) -> str:
     skipped = len(records) - ok - failed
     head = f"deformesh: {len(records)} contour(s): {ok} ok, {failed} failed"
     head += f", {skipped} skipped" if skipped else ""
-    rows = [head + f" ({seconds:.2f} s)",
-            f"  {'status':8} {'nodes':>8} {'triangles':>9} {'min angle':>9} {'seconds':>8}  input"]
+    rows = [
+        head + f" ({seconds:.2f} s)",
+        f"  {'status':8} {'nodes':>8} {'triangles':>9} {'min angle':>9} {'seconds':>8}  input",
+    ]
     for r in records:
         if r["status"] == "ok":
-            nums = (f"{r['nodes']:>8} {r['triangles']:>9} {r['min_angle']:>9.1f} "
-                    f"{r['seconds']:>8.2f}")
+            nums = (
+                f"{r['nodes']:>8} {r['triangles']:>9} {r['min_angle']:>9.1f} {r['seconds']:>8.2f}"
+            )
             rows.append(f"  {'ok':8} {nums}  {r['input']}")
         else:
             why = r["error"].removeprefix(f"{r['input']}: ")
-            rows.append(f"  {r['status']:8} {'-':>8} {'-':>9} {'-':>9} {r['seconds']:>8.2f}  "
-                        f"{r['input']}: {why}")
+            rows.append(
+                f"  {r['status']:8} {'-':>8} {'-':>9} {'-':>9} {r['seconds']:>8.2f}  "
+                f"{r['input']}: {why}"
+            )
     return "\n".join(rows)
 
 
@@ -451,31 +670,57 @@ def _title(name, mesh) -> str:
 
 @cli.command("move")
 @click.argument("mesh_path", metavar="MESH", type=click.Path(dir_okay=False))
-@click.argument("frames", metavar="FRAME...", nargs=-1, required=True,
-                type=click.Path(dir_okay=False))
-@click.option("--out-dir", required=True, type=click.Path(file_okay=False),
-              help="Write the frames here as NAME_0000.FORMAT, ... (created if missing), "
-                   "and NAME.pvd, the time series ParaView opens (.vtu only).")
+@click.argument(
+    "frames", metavar="FRAME...", nargs=-1, required=True, type=click.Path(dir_okay=False)
+)
+@click.option(
+    "--out-dir",
+    required=True,
+    type=click.Path(file_okay=False),
+    help="Write the frames here as NAME_0000.FORMAT, ... (created if missing), "
+    "and NAME.pvd, the time series ParaView opens (.vtu only).",
+)
 @click.option("--name", default=None, help="File name stem.  Default: MESH's.")
-@click.option("--dt", type=float, default=1.0, show_default=True, callback=_positive,
-              help="Time between frames: the .pvd's time step; velocity = displacement / dt.")
+@click.option(
+    "--dt",
+    type=float,
+    default=1.0,
+    show_default=True,
+    callback=_positive,
+    help="Time between frames: the .pvd's time step; velocity = displacement / dt.",
+)
 @steps_option
 @solver_option
-@click.option("--solve", type=click.Choice(pipeline.SOLVES), default="full", show_default=True,
-              help="Solve on the whole mesh ('full', the paper's scheme) or, on an exterior "
-                   "mesh, on a band around the contour ('band': faster, but changes of shape "
-                   "pile up at the band's edge).")
-@click.option("--format", "fmt", type=click.Choice(sorted(io.FORMATS), case_sensitive=False),
-              default="vtu", show_default=True,
-              help="Frame format.  Velocity is written where the format has point data "
-                   "(vtu, vtk, xdmf).")
-@click.option("--decimal", type=click.Choice([".", ","]), default=".", show_default=True,
-              help="Decimal mark of the frames' CSV numbers.")
+@click.option(
+    "--solve",
+    type=click.Choice(pipeline.SOLVES),
+    default="full",
+    show_default=True,
+    help="Solve on the whole mesh ('full', the paper's scheme) or, on an exterior "
+    "mesh, on a band around the contour ('band': faster, but changes of shape "
+    "pile up at the band's edge).",
+)
+@click.option(
+    "--format",
+    "fmt",
+    type=click.Choice(sorted(io.FORMATS), case_sensitive=False),
+    default="vtu",
+    show_default=True,
+    help="Frame format.  Velocity is written where the format has point data (vtu, vtk, xdmf).",
+)
+@click.option(
+    "--decimal",
+    type=click.Choice([".", ","]),
+    default=".",
+    show_default=True,
+    help="Decimal mark of the frames' CSV numbers.",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
 @quiet_option
 @_handle_errors
-def move_cmd(mesh_path, frames, out_dir, name, dt, steps, solver, solve, fmt, decimal, as_json,
-             quiet):
+def move_cmd(
+    mesh_path, frames, out_dir, name, dt, steps, solver, solve, fmt, decimal, as_json, quiet
+):
     """Carry a mesh along as its contour moves: one file per FRAME, same triangles.
 
     MESH is a mesh deformesh wrote (its nodes 0..m-1 are the contour points in
@@ -500,8 +745,9 @@ def move_cmd(mesh_path, frames, out_dir, name, dt, steps, solver, solve, fmt, de
     try:
         os.makedirs(out_dir, exist_ok=True)
     except OSError as exc:
-        raise DeformeshError(f"{out_dir}: cannot create the output folder: {exc.strerror}") \
-            from None
+        raise DeformeshError(
+            f"{out_dir}: cannot create the output folder: {exc.strerror}"
+        ) from None
     width = max(4, len(str(len(frames))))
     written: list[tuple[float, str]] = []
     records = []
@@ -520,8 +766,10 @@ def move_cmd(mesh_path, frames, out_dir, name, dt, steps, solver, solve, fmt, de
     zero = np.zeros((len(points), 3))
     write(0, motion.mesh.points, zero, mesh_path, quality.stats(motion.mesh))
     pts = motion.mesh.points
-    advice = ("the frame's points cannot be reached from the previous frame's without folding",
-              "use more --steps, or frames closer together")
+    advice = (
+        "the frame's points cannot be reached from the previous frame's without folding",
+        "use more --steps, or frames closer together",
+    )
     try:
         for k, c in enumerate(contours, start=1):
             try:
@@ -529,39 +777,59 @@ def move_cmd(mesh_path, frames, out_dir, name, dt, steps, solver, solve, fmt, de
             except FoldError as exc:
                 raise DeformeshError(
                     f"{c.source}: frame {k} of {len(contours)} cannot be reached without "
-                    f"folding: {exc}; frames 0-{k - 1} are in {out_dir}") from None
+                    f"folding: {exc}; frames 0-{k - 1} are in {out_dir}"
+                ) from None
             velocity = np.column_stack([(step.points - pts) / dt, np.zeros(len(pts))])
             write(k, step.points, velocity, c.source, step.report)
             pts = step.points
             r = records[-1]
-            _say(quiet, f"frame {k}/{len(contours)} {c.source}: min angle "
-                        f"{r['min_angle']:.1f} deg, {r['solves']} solves, "
-                        f"{r['halvings']} step halvings")
+            _say(
+                quiet,
+                f"frame {k}/{len(contours)} {c.source}: min angle "
+                f"{r['min_angle']:.1f} deg, {r['solves']} solves, "
+                f"{r['halvings']} step halvings",
+            )
     finally:
         finish()
     first = records[0]["min_angle"]
     lowest = min(records, key=lambda r: r["min_angle"])
     worst = lowest["min_angle"]
-    summary = {"mesh": mesh_path, "out_dir": out_dir, "format": fmt,
-               "pvd": f"{stem}.pvd" if fmt == "vtu" else None, "frames": len(records),
-               "nodes": records[0]["nodes"], "triangles": records[0]["triangles"],
-               "min_angle": worst, "min_angle_first": first,
-               "min_angle_frame": int(lowest["frame"]),
-               "seconds": round(time.perf_counter() - t0, 3), "per_frame": records}
+    summary = {
+        "mesh": mesh_path,
+        "out_dir": out_dir,
+        "format": fmt,
+        "pvd": f"{stem}.pvd" if fmt == "vtu" else None,
+        "frames": len(records),
+        "nodes": records[0]["nodes"],
+        "triangles": records[0]["triangles"],
+        "min_angle": worst,
+        "min_angle_first": first,
+        "min_angle_frame": int(lowest["frame"]),
+        "seconds": round(time.perf_counter() - t0, 3),
+        "per_frame": records,
+    }
     if as_json:
         click.echo(json.dumps(summary))
     if fmt not in io.POINT_DATA_FORMATS:
         _say(quiet, f"note: .{fmt} has no point data: the velocity is not written")
-    _say(quiet, f"{len(records)} frames -> {out_dir}"
-                f"{'/' + summary['pvd'] if summary['pvd'] else ''}: same {len(tri)} triangles "
-                f"in every frame, min angle {worst:.1f} deg over all frames (frame 0: "
-                f"{first:.1f}) ({summary['seconds']:.2f} s)")
+    _say(
+        quiet,
+        f"{len(records)} frames -> {out_dir}"
+        f"{'/' + summary['pvd'] if summary['pvd'] else ''}: same {len(tri)} triangles "
+        f"in every frame, min angle {worst:.1f} deg over all frames (frame 0: "
+        f"{first:.1f}) ({summary['seconds']:.2f} s)",
+    )
 
 
 @cli.command("quality")
 @click.argument("mesh_path", metavar="MESH", type=click.Path(dir_okay=False))
-@click.option("--contour", "contour_path", type=click.Path(dir_okay=False), default=None,
-              help="Check the mesh contract against this contour (the file it was made from).")
+@click.option(
+    "--contour",
+    "contour_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Check the mesh contract against this contour (the file it was made from).",
+)
 @_apply(contour_options)
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 @_handle_errors
@@ -605,10 +873,20 @@ def quality_text(r: dict) -> str:
 
 @cli.command("plot")
 @click.argument("mesh_path", metavar="MESH", type=click.Path(dir_okay=False))
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, allow_dash=True),
-              help="PNG file to write ('-' for stdout).")
-@click.option("--contour", "contour_path", type=click.Path(dir_okay=False), default=None,
-              help="Draw this contour's points over the mesh.")
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(dir_okay=False, allow_dash=True),
+    help="PNG file to write ('-' for stdout).",
+)
+@click.option(
+    "--contour",
+    "contour_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Draw this contour's points over the mesh.",
+)
 @_apply(contour_options)
 @_handle_errors
 def plot_cmd(mesh_path, output, contour_path, decimal, tolerance, element_id, resample):
@@ -620,8 +898,13 @@ def plot_cmd(mesh_path, output, contour_path, decimal, tolerance, element_id, re
     cpts = None
     if contour_path is not None:
         cpts = _read_contour(contour_path, decimal, tolerance, element_id, resample).points
-    plot.draw(points, tri, output, contour_points=cpts,
-              title=f"{mesh_path}: {len(points)} nodes, {len(tri)} triangles")
+    plot.draw(
+        points,
+        tri,
+        output,
+        contour_points=cpts,
+        title=f"{mesh_path}: {len(points)} nodes, {len(tri)} triangles",
+    )
 
 
 def main() -> None:

@@ -66,8 +66,7 @@ class Contour:
         if not self.depth:
             object.__setattr__(self, "depth", (0,) * self.n_rings)
         if not self.ring_labels:
-            object.__setattr__(self, "ring_labels",
-                               tuple(f"ring {r}" for r in range(self.n_rings)))
+            object.__setattr__(self, "ring_labels", tuple(f"ring {r}" for r in range(self.n_rings)))
 
     @property
     def n(self) -> int:
@@ -110,8 +109,13 @@ class Contour:
     @property
     def area(self) -> float:
         """Area enclosed: outer rings minus holes."""
-        return float(sum((-1 if self.is_hole(r) else 1) * abs(signed_area(self.points[
-            self.starts[r]:self.starts[r + 1]])) for r in range(self.n_rings)))
+        return float(
+            sum(
+                (-1 if self.is_hole(r) else 1)
+                * abs(signed_area(self.points[self.starts[r] : self.starts[r + 1]]))
+                for r in range(self.n_rings)
+            )
+        )
 
     def ring_name(self, r: int) -> str:
         """``contour``, ``contour_2``, ... for outer rings; ``hole_1``, ... for holes."""
@@ -127,7 +131,7 @@ class Contour:
         x, y = self.points[k]
         line = int(self.lines[k])
         parts = []
-        r = int(np.searchsorted(self.starts, k, side='right')) - 1
+        r = int(np.searchsorted(self.starts, k, side="right")) - 1
         if self.n_rings > 1 or self.ring_labels[r] not in ("ring 0", ""):
             parts.append(self.ring_labels[r])
         if line:
@@ -148,9 +152,9 @@ class Contour:
         points as scipy's cKDTree on every sample, reference and corpus contour.
         """
         g = shapely.points(self.points)
-        (src, dst), dist = shapely.STRtree(g).query_nearest(g, exclusive=True,
-                                                            return_distance=True,
-                                                            all_matches=False)
+        (src, dst), dist = shapely.STRtree(g).query_nearest(
+            g, exclusive=True, return_distance=True, all_matches=False
+        )
         k = int(np.argmin(dist))
         return float(dist[k]), int(src[k]), int(dst[k])
 
@@ -174,9 +178,14 @@ def signed_area(p: np.ndarray) -> float:
     return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
 
 
-def load_contour(path: str | Path, data: bytes | None = None, decimal: str = ".",
-                 tolerance=None, element_id: str | None = None,
-                 resample_spacing=None) -> Contour:
+def load_contour(
+    path: str | Path,
+    data: bytes | None = None,
+    decimal: str = ".",
+    tolerance=None,
+    element_id: str | None = None,
+    resample_spacing=None,
+) -> Contour:
     """Read a contour file: CSV, or SVG (by extension, or text starting with ``<``).
 
     ``data``, if given, are the file's bytes (``path`` names them; ``-`` is
@@ -214,10 +223,9 @@ def _read(path, data, decimal, tolerance, element_id) -> Contour:
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        line = data[:exc.start].count(b"\n") + 1
+        line = data[: exc.start].count(b"\n") + 1
         raise InputError(
-            f"{name}: line {line}: not UTF-8 text (byte {exc.start}); expected CSV with x,y "
-            "columns"
+            f"{name}: line {line}: not UTF-8 text (byte {exc.start}); expected CSV with x,y columns"
         ) from None
     return parse_csv(text, name, decimal)
 
@@ -268,8 +276,7 @@ def parse_csv(text: str, source: str = "<contour>", decimal: str = ".") -> Conto
         names = [f.strip().strip('"').strip("'").lower() for f in first]
         if "x" not in names or "y" not in names:
             raise InputError(
-                f"{source}: line {first_line}: header {','.join(first)!r} must name "
-                "columns x and y"
+                f"{source}: line {first_line}: header {','.join(first)!r} must name columns x and y"
             )
         cols = {"x": names.index("x"), "y": names.index("y")}
         if "ring" in names:
@@ -281,9 +288,7 @@ def parse_csv(text: str, source: str = "<contour>", decimal: str = ".") -> Conto
     else:
         ncols = len(first)
         if ncols < 2:
-            raise InputError(
-                f"{source}: line {first_line}: expected 2 columns x,y, got {ncols}"
-            )
+            raise InputError(f"{source}: line {first_line}: expected 2 columns x,y, got {ncols}")
         if ncols >= 3:
             ring_col = 2
     need = max(max(cols.values()), ring_col if ring_col is not None else 0) + 1
@@ -329,8 +334,9 @@ def parse_csv(text: str, source: str = "<contour>", decimal: str = ".") -> Conto
     return make_contour(xy, lines, source, ring_starts=np.concatenate([[0], change]))
 
 
-def make_contour(points, lines=None, source: str = "<contour>", ring_starts=None,
-                 ring_labels=None) -> Contour:
+def make_contour(
+    points, lines=None, source: str = "<contour>", ring_starts=None, ring_labels=None
+) -> Contour:
     """Validate the points of one or more closed rings and return a :class:`Contour`.
 
     ``ring_starts`` gives the index where each ring starts (default: one ring);
@@ -347,7 +353,7 @@ def make_contour(points, lines=None, source: str = "<contour>", ring_starts=None
     notes: list[str] = []
     pts, lns, starts, cw = [], [], [0], []
     for r in range(len(bounds) - 1):
-        rp, rl = p[bounds[r]:bounds[r + 1]], ln[bounds[r]:bounds[r + 1]]
+        rp, rl = p[bounds[r] : bounds[r + 1]], ln[bounds[r] : bounds[r + 1]]
         label = ring_labels[r] if ring_labels is not None else f"ring {r}"
         name = f"{label}: " if len(bounds) > 2 or ring_labels is not None else ""
         if len(rp) > 1 and np.array_equal(rp[0], rp[-1]):
@@ -362,11 +368,18 @@ def make_contour(points, lines=None, source: str = "<contour>", ring_starts=None
         cw.append(ring < 0)
     p, ln = np.concatenate(pts), np.concatenate(lns)
     labels = tuple(ring_labels) if ring_labels is not None else ()
-    c = Contour(p, ln, source, starts=tuple(starts), ring_clockwise=tuple(cw),
-                ring_labels=labels)
+    c = Contour(p, ln, source, starts=tuple(starts), ring_clockwise=tuple(cw), ring_labels=labels)
     depth = _check_rings_apart(c)
-    return Contour(p, ln, source, notes=tuple(notes), starts=tuple(starts),
-                   ring_clockwise=tuple(cw), depth=depth, ring_labels=labels)
+    return Contour(
+        p,
+        ln,
+        source,
+        notes=tuple(notes),
+        starts=tuple(starts),
+        ring_clockwise=tuple(cw),
+        depth=depth,
+        ring_labels=labels,
+    )
 
 
 def _check_ring(p: np.ndarray, ln: np.ndarray, source: str, name: str, offset: int) -> float:
@@ -385,16 +398,14 @@ def _check_ring(p: np.ndarray, ln: np.ndarray, source: str, name: str, offset: i
     if same.any():
         k = int(np.argmax(same))
         raise InputError(
-            f"{source}: {where((k + 1) % len(p))} repeats the previous point; "
-            "remove the duplicate"
+            f"{source}: {where((k + 1) % len(p))} repeats the previous point; remove the duplicate"
         )
     area = signed_area(p)
     span = float(np.ptp(p, axis=0).max())
     d = p - p[0]
     far = d[np.argmax(np.hypot(d[:, 0], d[:, 1]))]
     if np.abs(d[:, 0] * far[1] - d[:, 1] * far[0]).max() <= 1e-13 * span * span:
-        raise InputError(f"{source}: {name}the contour encloses no area (all points are "
-                         "collinear)")
+        raise InputError(f"{source}: {name}the contour encloses no area (all points are collinear)")
     _check_simple(c, where)
     return area
 
@@ -404,7 +415,7 @@ def _check_rings_apart(c: Contour) -> tuple[int, ...]:
     R = c.n_rings
     if R == 1:
         return (0,)
-    rings = [c.points[c.starts[r]:c.starts[r + 1]] for r in range(R)]
+    rings = [c.points[c.starts[r] : c.starts[r + 1]] for r in range(R)]
     geoms = np.array([shapely.LinearRing(q) for q in rings], dtype=object)
     tree = shapely.STRtree(geoms)
     a, b = tree.query(geoms, predicate="intersects")
@@ -474,8 +485,13 @@ def ring_corners(p: np.ndarray) -> np.ndarray:
     """Indices of one ring's vertices turning by more than :data:`CORNER_DEGREES`."""
     d_in = p - np.roll(p, 1, axis=0)
     d_out = np.roll(p, -1, axis=0) - p
-    turn = np.degrees(np.abs(np.arctan2(d_in[:, 0] * d_out[:, 1] - d_in[:, 1] * d_out[:, 0],
-                                        (d_in * d_out).sum(axis=1))))
+    turn = np.degrees(
+        np.abs(
+            np.arctan2(
+                d_in[:, 0] * d_out[:, 1] - d_in[:, 1] * d_out[:, 0], (d_in * d_out).sum(axis=1)
+            )
+        )
+    )
     return np.flatnonzero(turn > CORNER_DEGREES)
 
 
@@ -500,16 +516,31 @@ def resample(contour: Contour, spacing: float) -> Contour:
             cum = np.concatenate([[0.0], np.cumsum(seg)])
             k = max(1, int(round(cum[-1] / spacing)))
             s = cum[-1] * np.arange(k) / k
-            new.append(np.column_stack([np.interp(s, cum, piece[:, 0]),
-                                        np.interp(s, cum, piece[:, 1])]))
+            new.append(
+                np.column_stack([np.interp(s, cum, piece[:, 0]), np.interp(s, cum, piece[:, 1])])
+            )
         ring = np.vstack(new)
         pts.append(ring)
         starts.append(starts[-1] + len(ring))
-        notes.append(f"{contour.ring_name(r)}: resampled {len(p)} points to {len(ring)} at "
-                     f"spacing {spacing:.3g} (corners kept); the given points are not all "
-                     "boundary nodes")
-    c = make_contour(np.concatenate(pts), None, contour.source, ring_starts=starts[:-1],
-                     ring_labels=list(contour.ring_labels))
-    return Contour(c.points, c.lines, c.source, notes=tuple(contour.notes) + tuple(notes),
-                   starts=c.starts, ring_clockwise=c.ring_clockwise, depth=c.depth,
-                   ring_labels=c.ring_labels)
+        notes.append(
+            f"{contour.ring_name(r)}: resampled {len(p)} points to {len(ring)} at "
+            f"spacing {spacing:.3g} (corners kept); the given points are not all "
+            "boundary nodes"
+        )
+    c = make_contour(
+        np.concatenate(pts),
+        None,
+        contour.source,
+        ring_starts=starts[:-1],
+        ring_labels=list(contour.ring_labels),
+    )
+    return Contour(
+        c.points,
+        c.lines,
+        c.source,
+        notes=tuple(contour.notes) + tuple(notes),
+        starts=c.starts,
+        ring_clockwise=c.ring_clockwise,
+        depth=c.depth,
+        ring_labels=c.ring_labels,
+    )

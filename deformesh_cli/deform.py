@@ -16,8 +16,8 @@ The last step puts the path nodes exactly on their targets.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
@@ -31,8 +31,10 @@ DEFAULT_STEPS = 10
 
 #: What a fold message advises: at the last step (the targets themselves cannot be
 #: reached), and before it.
-ADVICE = ("its corners cannot all reach their contour points; give a smaller --h",
-          "give a smaller --h or more --steps")
+ADVICE = (
+    "its corners cannot all reach their contour points; give a smaller --h",
+    "give a smaller --h or more --steps",
+)
 
 
 @dataclass
@@ -118,14 +120,16 @@ class LinearSolver:
                 count[0] += 1
 
             guess = None if x0 is None else x0[:, k]
-            x, info = spla.cg(K, rhs[:, k], x0=guess, rtol=self.rtol, atol=0.0, M=M,
-                              maxiter=500, callback=cb)
+            x, info = spla.cg(
+                K, rhs[:, k], x0=guess, rtol=self.rtol, atol=0.0, M=M, maxiter=500, callback=cb
+            )
             if info != 0:  # preconditioner too stale: rebuild once and retry
                 self._ml = _sa_hierarchy(K)
                 self.setups += 1
                 M = self._ml.aspreconditioner(cycle="V")
-                x, info = spla.cg(K, rhs[:, k], x0=guess, rtol=self.rtol, atol=0.0, M=M,
-                                  maxiter=2000, callback=cb)
+                x, info = spla.cg(
+                    K, rhs[:, k], x0=guess, rtol=self.rtol, atol=0.0, M=M, maxiter=2000, callback=cb
+                )
                 if info != 0:
                     raise RuntimeError("conjugate gradients did not converge")
             out[:, k] = x
@@ -168,9 +172,16 @@ def deform(*args, **kwargs) -> tuple[np.ndarray, DeformStats]:
         return deform_(*args, **kwargs)
 
 
-def deform_band(points: np.ndarray, tri: np.ndarray, path_nodes: np.ndarray,
-                targets: np.ndarray, fixed_nodes: np.ndarray, active: np.ndarray,
-                describe=None, **kwargs) -> tuple[np.ndarray, DeformStats]:
+def deform_band(
+    points: np.ndarray,
+    tri: np.ndarray,
+    path_nodes: np.ndarray,
+    targets: np.ndarray,
+    fixed_nodes: np.ndarray,
+    active: np.ndarray,
+    describe=None,
+    **kwargs,
+) -> tuple[np.ndarray, DeformStats]:
     """:func:`deform` on the triangles whose three corners are all ``active`` (a band).
 
     Only those triangles move.  An active node that also belongs to a
@@ -197,8 +208,15 @@ def deform_band(points: np.ndarray, tri: np.ndarray, path_nodes: np.ndarray,
     sub_describe = None if describe is None else (lambda t: describe(nodes[t]))
     if kwargs.get("solver", "auto") == "auto":
         kwargs["solver"] = "direct"  # a band: see SOLVERS
-    sub, st = deform(points[nodes], remap[sub_tri], remap[path_nodes], targets, remap[held],
-                     describe=sub_describe, **kwargs)
+    sub, st = deform(
+        points[nodes],
+        remap[sub_tri],
+        remap[path_nodes],
+        targets,
+        remap[held],
+        describe=sub_describe,
+        **kwargs,
+    )
     out = np.array(points, dtype=np.float64, copy=True)
     out[nodes] = sub
     return out, st
@@ -306,8 +324,9 @@ def deform_(
             if (area > 0).all():
                 break
             if stats.halvings >= max_halvings * steps or theta <= 2.0**-max_halvings:
-                raise FoldError(_fold_message(new, tri, area, steps, remaining, last, describe,
-                                              advice))
+                raise FoldError(
+                    _fold_message(new, tri, area, steps, remaining, last, describe, advice)
+                )
             theta *= 0.5
             stats.halvings += 1
         pos = new

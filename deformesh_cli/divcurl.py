@@ -98,8 +98,7 @@ class SymmetricCSR(CSR):
         Its ``indices`` and ``indptr`` are the same objects on every matrix one
         :class:`Assembler` builds, so a solver can tell the pattern is unchanged.
         """
-        return CSR(self.data[self.upper_slots], self.upper_indices, self.upper_indptr,
-                   self.shape)
+        return CSR(self.data[self.upper_slots], self.upper_indices, self.upper_indptr, self.shape)
 
     def tocsr(self):
         """As a scipy.sparse matrix (for conjugate gradients and multigrid)."""
@@ -163,8 +162,7 @@ class Assembler:
         ok = free >= 0
         out = np.empty((self.n_free, 2))
         for comp, g in enumerate((gx, gy)):
-            out[:, comp] = np.bincount(free[ok], weights=(w * g).ravel()[ok],
-                                       minlength=self.n_free)
+            out[:, comp] = np.bincount(free[ok], weights=(w * g).ravel()[ok], minlength=self.n_free)
         return out
 
     def system(self, points: np.ndarray, u_dirichlet: np.ndarray):
@@ -175,8 +173,15 @@ class Assembler:
         """
         ke = stiffness_entries(points, self.tri).ravel()
         data = np.bincount(self._slot, weights=ke[self._ff], minlength=self._nnz)
-        K = SymmetricCSR(data, self._indices, self._indptr, (self.n_free,) * 2,
-                         self._up, self._up_indices, self._up_indptr)
+        K = SymmetricCSR(
+            data,
+            self._indices,
+            self._indptr,
+            (self.n_free,) * 2,
+            self._up,
+            self._up_indices,
+            self._up_indptr,
+        )
         w = ke[self._fd]
         rhs = np.empty((self.n_free, 2))
         for comp in range(2):

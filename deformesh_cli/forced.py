@@ -74,7 +74,7 @@ def mesh_domain(points: np.ndarray, lines: np.ndarray):
     first = lines[:, 0].tolist()
     for k, end in enumerate(lines[:, 1].tolist()):  # a ring closes back on its start
         if end == first[start]:
-            rings.append(points[lines[start:k + 1, 0]])
+            rings.append(points[lines[start : k + 1, 0]])
             start = k + 1
     return domain(rings)
 
@@ -88,8 +88,9 @@ def corner_angles(pts: np.ndarray, lines: np.ndarray):
     angle = np.full(len(pts), 360.0)
     p = lines[:, 0]
     a, b = pts[ends[p, 0]] - pts[p], pts[ends[p, 1]] - pts[p]
-    angle[p] = np.mod(np.degrees(np.arctan2(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0],
-                                            (a * b).sum(axis=1))), 360)
+    angle[p] = np.mod(
+        np.degrees(np.arctan2(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0], (a * b).sum(axis=1))), 360
+    )
     return ends, angle
 
 
@@ -120,8 +121,9 @@ def _fits(geom, a, b, apex) -> np.ndarray:
     return shapely.covers(geom, shapely.polygons(np.stack([a, b, apex, a], axis=1)))
 
 
-def triangle_bound(points: np.ndarray, tri: np.ndarray, lines: np.ndarray,
-                   forced: np.ndarray, reach: float = 1.0) -> np.ndarray:
+def triangle_bound(
+    points: np.ndarray, tri: np.ndarray, lines: np.ndarray, forced: np.ndarray, reach: float = 1.0
+) -> np.ndarray:
     """For each triangle, the smallest ``forced`` (one per boundary edge) of the edges
     within ``reach`` times the triangle's longest edge of it (60 where there is none)."""
     p = points[tri]
@@ -134,8 +136,9 @@ def triangle_bound(points: np.ndarray, tri: np.ndarray, lines: np.ndarray,
     return out
 
 
-def weakest_bound(points: np.ndarray, tri: np.ndarray, lines: np.ndarray,
-                  weak: np.ndarray) -> float:
+def weakest_bound(
+    points: np.ndarray, tri: np.ndarray, lines: np.ndarray, weak: np.ndarray
+) -> float:
     """The smallest :func:`edge_bounds` over the boundary edges with an end within one
     ring of the triangles ``weak`` (60 if none): no mesh with these boundary nodes
     has a larger smallest angle.  Only near the weak triangles, because that is
@@ -149,8 +152,9 @@ def weakest_bound(points: np.ndarray, tri: np.ndarray, lines: np.ndarray,
     return float(edge_bounds(points, lines, which=which).min()) if which.any() else 60.0
 
 
-def edge_bounds(points: np.ndarray, lines: np.ndarray, geom=None,
-                which: np.ndarray | None = None) -> np.ndarray:
+def edge_bounds(
+    points: np.ndarray, lines: np.ndarray, geom=None, which: np.ndarray | None = None
+) -> np.ndarray:
     """For each boundary edge (or those of the mask ``which``): min(F(e), C(its two
     ends)), in degrees: in any mesh with these boundary nodes, the edge's triangle
     or the worst triangle at one of its ends has no larger smallest angle.

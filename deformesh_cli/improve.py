@@ -92,7 +92,7 @@ def improve(mesh: Mesh, rounds: int = ROUNDS) -> tuple[Mesh, ImproveStats]:
     n = len(pts)
     free = np.ones(n, dtype=bool)
     free[mesh.lines.ravel()] = False
-    tan = np.concatenate([_tan_min(pts, tri[k:k + CHUNK]) for k in range(0, len(tri), CHUNK)])
+    tan = np.concatenate([_tan_min(pts, tri[k : k + CHUNK]) for k in range(0, len(tri), CHUNK)])
     stats = ImproveStats(min_angle_before=_degrees(tan.min()))
     target = np.tan(np.radians(TARGET))
     touched = np.zeros(len(tri), dtype=bool)
@@ -126,8 +126,9 @@ def improve(mesh: Mesh, rounds: int = ROUNDS) -> tuple[Mesh, ImproveStats]:
         stuck = low & ~touching(free, part)
         at = np.zeros(len(pts), dtype=bool)
         at[part[low].ravel()] = True
-        pts, added, added_nodes, cavities = _insert(pts, part, np.flatnonzero(stuck), part_tan,
-                                                    sharp[at[sharp]], ends)
+        pts, added, added_nodes, cavities = _insert(
+            pts, part, np.flatnonzero(stuck), part_tan, sharp[at[sharp]], ends
+        )
         if added_nodes:
             free = np.concatenate([free, np.ones(added_nodes, dtype=bool)])
         changed = (part[:, 0] != old[:, 0]) | (part[:, 1] != old[:, 1]) | (part[:, 2] != old[:, 2])
@@ -148,10 +149,19 @@ def improve(mesh: Mesh, rounds: int = ROUNDS) -> tuple[Mesh, ImproveStats]:
     m = len(mesh.triangles)
     idx = np.flatnonzero(touched[:m])  # changed at some point; maybe flipped back
     stats.changed = idx[np.any(tri[idx] != mesh.triangles[idx], axis=1)]
-    stats.moved_nodes = int(np.count_nonzero((pts[:n, 0] != mesh.points[:, 0])
-                                             | (pts[:n, 1] != mesh.points[:, 1])))
-    out = Mesh(pts, tri, mesh.lines, n_contour=mesh.n_contour, n_extra=mesh.n_extra,
-               line_group=mesh.line_group, groups=mesh.groups, n_box=mesh.n_box)
+    stats.moved_nodes = int(
+        np.count_nonzero((pts[:n, 0] != mesh.points[:, 0]) | (pts[:n, 1] != mesh.points[:, 1]))
+    )
+    out = Mesh(
+        pts,
+        tri,
+        mesh.lines,
+        n_contour=mesh.n_contour,
+        n_extra=mesh.n_extra,
+        line_group=mesh.line_group,
+        groups=mesh.groups,
+        n_box=mesh.n_box,
+    )
     return out, stats
 
 
@@ -160,8 +170,14 @@ def _degrees(tan_angle: float) -> float:
 
 
 def _tan_min(pts, tri):
-    return tan_min_angle(pts[tri[:, 0], 0], pts[tri[:, 0], 1], pts[tri[:, 1], 0],
-                         pts[tri[:, 1], 1], pts[tri[:, 2], 0], pts[tri[:, 2], 1])
+    return tan_min_angle(
+        pts[tri[:, 0], 0],
+        pts[tri[:, 0], 1],
+        pts[tri[:, 1], 0],
+        pts[tri[:, 1], 1],
+        pts[tri[:, 2], 0],
+        pts[tri[:, 2], 1],
+    )
 
 
 # --- flips
@@ -179,8 +195,9 @@ def _flip_all(pts: np.ndarray, tri: np.ndarray, target: float, max_passes: int =
         y = tri[t2, (k2 + 2) % 3]
         tan = _tan_min(pts, tri)
         before = np.minimum(tan[t1], tan[t2])
-        after = np.minimum(_tan_min(pts, np.column_stack([u, y, x])),
-                           _tan_min(pts, np.column_stack([y, w, x])))
+        after = np.minimum(
+            _tan_min(pts, np.column_stack([u, y, x])), _tan_min(pts, np.column_stack([y, w, x]))
+        )
         ok = (before < target) & (after > _raised(before))
         gain = after - before
         if not ok.any():
@@ -221,8 +238,14 @@ def _edge_pairs(tri: np.ndarray):
 # --- insertions
 
 
-def _insert(pts: np.ndarray, tri: np.ndarray, stuck: np.ndarray, tan: np.ndarray,
-            corners: np.ndarray, ends: np.ndarray):
+def _insert(
+    pts: np.ndarray,
+    tri: np.ndarray,
+    stuck: np.ndarray,
+    tan: np.ndarray,
+    corners: np.ndarray,
+    ends: np.ndarray,
+):
     """Re-mesh small cavities where the triangles ``stuck`` (rows of ``tri``, no free
     corner; ``tan`` the tangents of ``tri``) or sharp ``corners`` are, where that
     helps.
@@ -287,8 +310,12 @@ def _insert(pts: np.ndarray, tri: np.ndarray, stuck: np.ndarray, tan: np.ndarray
     k = len(loops)
     q = len(pts) + np.arange(k)  # the hub of each fan while it is judged
     size = np.array([len(loop) for loop in loops])
-    fans = np.concatenate([np.column_stack([np.full(len(loop), q[i]), loop, np.roll(loop, -1)])
-                           for i, loop in enumerate(loops)])
+    fans = np.concatenate(
+        [
+            np.column_stack([np.full(len(loop), q[i]), loop, np.roll(loop, -1)])
+            for i, loop in enumerate(loops)
+        ]
+    )
     first = np.concatenate([[0], np.cumsum(size)[:-1]])
     col = np.arange(int(size.max()))
     inc = np.where(col < size[:, None], first[:, None] + col, -1)
@@ -326,7 +353,7 @@ def _insert(pts: np.ndarray, tri: np.ndarray, stuck: np.ndarray, tan: np.ndarray
     pts = pts.copy()
     new_pts, extra = [], []
     for i in chosen:
-        fan = fans[first[i]:first[i] + size[i]].copy()
+        fan = fans[first[i] : first[i] + size[i]].copy()
         if hubs[i] >= 0:  # the inner node, moved
             fan[:, 0] = hubs[i]
             pts[hubs[i]] = best_at[i]
@@ -336,8 +363,8 @@ def _insert(pts: np.ndarray, tri: np.ndarray, stuck: np.ndarray, tan: np.ndarray
         if ears[i] is not None:
             fan = np.concatenate([np.array([ears[i]]), fan])
         rows = cavities[i]
-        tri[rows] = fan[:len(rows)]
-        extra.append(fan[len(rows):])
+        tri[rows] = fan[: len(rows)]
+        extra.append(fan[len(rows) :])
     if new_pts:
         pts = np.concatenate([pts, np.array(new_pts)])
     return pts, np.concatenate(extra), len(new_pts), len(chosen)
@@ -387,7 +414,7 @@ def _outline(tri: np.ndarray, nb: np.ndarray, cav: list[int], ear=None):
         if nxt.get(p) != after:
             return None
         k = loop.index(p)
-        loop = loop[k + 1:] + loop[:k]
+        loop = loop[k + 1 :] + loop[:k]
         if loop[-1] != before:
             return None
     return np.array(loop), (inner.pop() if inner else -1)
@@ -431,8 +458,7 @@ def _incidence(tri: np.ndarray, local: np.ndarray, count: int):
     return inc, slot
 
 
-def _independent_sets(tri: np.ndarray, nodes: np.ndarray,
-                      local: np.ndarray) -> list[np.ndarray]:
+def _independent_sets(tri: np.ndarray, nodes: np.ndarray, local: np.ndarray) -> list[np.ndarray]:
     """Split ``nodes`` (positions into it) into sets of which no two share a triangle.
 
     Jones-Plassmann colouring: in each round, every node whose priority beats all
@@ -467,8 +493,14 @@ def _move(pts, tri, nodes, inc, slot) -> int:
     pad = ~valid
 
     def quality(px, py):  # (n, c) candidate positions -> (n, c) tan of the smallest angle
-        q = tan_min_angle(px[:, :, None], py[:, :, None], ax[:, None, :], ay[:, None, :],
-                          bx[:, None, :], by[:, None, :])
+        q = tan_min_angle(
+            px[:, :, None],
+            py[:, :, None],
+            ax[:, None, :],
+            ay[:, None, :],
+            bx[:, None, :],
+            by[:, None, :],
+        )
         q[np.broadcast_to(pad[:, None, :], q.shape)] = np.inf
         return q.min(axis=2)
 

@@ -13,13 +13,14 @@ import io
 import os
 import sys
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
 from .errors import DeformeshError, InputError, OptionError
 from .mesh import Mesh
+
 
 def groups(mesh: Mesh) -> dict[str, tuple[int, int]]:
     """Physical groups (name -> (tag, dimension)): the boundary groups 1, 2, ... then ``domain``."""
@@ -34,9 +35,12 @@ def _meshio_mesh(mesh: Mesh, dim3: bool = False):
     pts = mesh.points
     if dim3:
         pts = np.column_stack([pts, np.zeros(len(pts))])
-    point_data = {"contour_point": np.where(np.arange(mesh.n_nodes) < mesh.n_contour,
-                                            np.arange(mesh.n_nodes), -1).astype(np.int32),
-                  **mesh.point_data}
+    point_data = {
+        "contour_point": np.where(
+            np.arange(mesh.n_nodes) < mesh.n_contour, np.arange(mesh.n_nodes), -1
+        ).astype(np.int32),
+        **mesh.point_data,
+    }
     return meshio.Mesh(
         pts,
         [("triangle", mesh.triangles.astype(np.int64)), ("line", mesh.lines.astype(np.int64))],
@@ -54,8 +58,14 @@ def _gmsh_blocks(mesh: Mesh) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarr
     boundary group (physical = geometrical = the group's tag)."""
     nt = len(mesh.triangles)
     line_tag = (mesh.line_group + 1).astype(np.int64)
-    blocks = [("triangle", np.full(nt, groups(mesh)["domain"][0]), np.ones(nt, np.int64),
-               mesh.triangles.astype(np.int64))]
+    blocks = [
+        (
+            "triangle",
+            np.full(nt, groups(mesh)["domain"][0]),
+            np.ones(nt, np.int64),
+            mesh.triangles.astype(np.int64),
+        )
+    ]
     for tag in np.unique(line_tag):
         on = line_tag == tag
         blocks.append(("line", line_tag[on], line_tag[on], mesh.lines[on].astype(np.int64)))
@@ -84,10 +94,15 @@ def _write_gmsh_meshio(mesh: Mesh, path: str, version: str) -> None:
         dim_tags = np.column_stack([np.full(mesh.n_nodes, 2), np.ones(mesh.n_nodes)])
         dim_tags[mesh.lines[:, 0]] = np.column_stack([np.ones(len(line_tag)), line_tag])
         point_data = {"gmsh:dim_tags": dim_tags.astype(np.int32)}
-    m = meshio.Mesh(mesh.points, [(kind, conn) for kind, _, _, conn in blocks],
-                    point_data=point_data,
-                    cell_data={"gmsh:physical": [b[1].astype(np.int32) for b in blocks],
-                               "gmsh:geometrical": [b[2].astype(np.int32) for b in blocks]})
+    m = meshio.Mesh(
+        mesh.points,
+        [(kind, conn) for kind, _, _, conn in blocks],
+        point_data=point_data,
+        cell_data={
+            "gmsh:physical": [b[1].astype(np.int32) for b in blocks],
+            "gmsh:geometrical": [b[2].astype(np.int32) for b in blocks],
+        },
+    )
     m.field_data = {name: np.array([tag, dim]) for name, (tag, dim) in groups(mesh).items()}
     meshio.write(path, m, file_format=MSH_VERSIONS[version], binary=False)
 
@@ -128,8 +143,7 @@ def _write_gmsh22(mesh: Mesh, path: str) -> None:
     for kind, phys, geom, conn in blocks:
         k = len(conn)
         table = np.column_stack([np.arange(first, first + k), phys, geom, conn + 1])
-        parts.append(_rows(f"%d {_GMSH_TYPE[kind]} 2" + " %d" * (2 + conn.shape[1]) + "\n",
-                           table))
+        parts.append(_rows(f"%d {_GMSH_TYPE[kind]} 2" + " %d" * (2 + conn.shape[1]) + "\n", table))
         first += k
     parts.append("$EndElements\n")
     with open(path, "w", encoding="ascii", newline="\n") as fh:
@@ -157,8 +171,9 @@ def _write_vtk(mesh: Mesh, path: str) -> None:
     nt, nl = len(tri), len(lines)
     pts = np.zeros((n, 3), dtype=">f8")
     pts[:, :2] = mesh.points
-    offsets = np.concatenate([np.arange(0, 3 * nt + 1, 3),
-                              3 * nt + np.arange(2, 2 * nl + 1, 2)]).astype(">i8")
+    offsets = np.concatenate(
+        [np.arange(0, 3 * nt + 1, 3), 3 * nt + np.arange(2, 2 * nl + 1, 2)]
+    ).astype(">i8")
     conn = np.concatenate([tri.ravel(), lines.ravel()]).astype(">i8")
     types = np.repeat(np.array([5, 3], dtype=">i4"), [nt, nl])  # VTK_TRIANGLE, VTK_LINE
     contour_point = np.where(np.arange(n) < mesh.n_contour, np.arange(n), -1).astype(">i4")
@@ -168,15 +183,21 @@ def _write_vtk(mesh: Mesh, path: str) -> None:
         k = 1 if data.ndim == 1 else data.shape[1]
         fields.append((f"{name} {k} {n} double\n".encode(), data))
     with open(path, "wb") as f:
-        f.write(f"# vtk DataFile Version 5.1\n{VTK_TITLE}\nBINARY\n"
-                f"DATASET UNSTRUCTURED_GRID\nPOINTS {n} double\n".encode())
-        for head, data in ((b"", pts),
-                           (f"CELLS {nt + nl + 1} {3 * nt + 2 * nl}\n"
-                            "OFFSETS vtktypeint64\n".encode(), offsets),
-                           (b"CONNECTIVITY vtktypeint64\n", conn),
-                           (f"CELL_TYPES {nt + nl}\n".encode(), types),
-                           (f"POINT_DATA {n}\nFIELD FieldData {len(fields)}\n".encode()
-                            + fields[0][0], contour_point), *fields[1:]):
+        f.write(
+            f"# vtk DataFile Version 5.1\n{VTK_TITLE}\nBINARY\n"
+            f"DATASET UNSTRUCTURED_GRID\nPOINTS {n} double\n".encode()
+        )
+        for head, data in (
+            (b"", pts),
+            (f"CELLS {nt + nl + 1} {3 * nt + 2 * nl}\nOFFSETS vtktypeint64\n".encode(), offsets),
+            (b"CONNECTIVITY vtktypeint64\n", conn),
+            (f"CELL_TYPES {nt + nl}\n".encode(), types),
+            (
+                f"POINT_DATA {n}\nFIELD FieldData {len(fields)}\n".encode() + fields[0][0],
+                contour_point,
+            ),
+            *fields[1:],
+        ):
             f.write(head)
             f.write(data.tobytes())
             f.write(b"\n")
@@ -185,7 +206,7 @@ def _write_vtk(mesh: Mesh, path: str) -> None:
 def _write_obj(mesh: Mesh, path: str) -> None:
     """Wavefront OBJ with z = 0, faces and the boundary as ``l`` lines (1-based)."""
     with open(path, "w", encoding="ascii", newline="\n") as f:
-        f.write("# deformesh mesh: nodes 1..%d are the contour points\n" % mesh.n_contour)
+        f.write(f"# deformesh mesh: nodes 1..{mesh.n_contour} are the contour points\n")
         np.savetxt(f, mesh.points, fmt="v %.17g %.17g 0")
         np.savetxt(f, mesh.triangles + 1, fmt="f %d %d %d")
         np.savetxt(f, mesh.lines + 1, fmt="l %d %d")
@@ -224,8 +245,9 @@ def _write_su2(mesh: Mesh, path: str) -> None:
     with open(path, "w", encoding="ascii", newline="\n") as f:
         f.write(f"% deformesh mesh: points 0..{mesh.n_contour - 1} are the contour points\n")
         f.write(f"NDIME= 2\nNELEM= {len(mesh.triangles)}\n")
-        tri = np.column_stack([np.full(len(mesh.triangles), 5), mesh.triangles,
-                               np.arange(len(mesh.triangles))])
+        tri = np.column_stack(
+            [np.full(len(mesh.triangles), 5), mesh.triangles, np.arange(len(mesh.triangles))]
+        )
         np.savetxt(f, tri, fmt="%d")
         f.write(f"NPOIN= {mesh.n_nodes}\n")
         for k, (x, y) in enumerate(mesh.points.tolist()):
@@ -248,8 +270,9 @@ def _write_xdmf(mesh: Mesh, path: str) -> None:
     try:
         import h5py  # noqa: F401
     except ImportError:
-        raise DeformeshError(f"{path}: writing .xdmf needs h5py: "
-                             "pip install 'deformesh[all]'") from None
+        raise DeformeshError(
+            f"{path}: writing .xdmf needs h5py: pip install 'deformesh[all]'"
+        ) from None
     import meshio
 
     g = groups(mesh)
@@ -257,11 +280,18 @@ def _write_xdmf(mesh: Mesh, path: str) -> None:
     m = meshio.Mesh(
         pts,
         [("triangle", mesh.triangles.astype(np.int64)), ("line", mesh.lines.astype(np.int64))],
-        point_data={"contour_point": np.where(np.arange(mesh.n_nodes) < mesh.n_contour,
-                                              np.arange(mesh.n_nodes), -1).astype(np.int32),
-                    **mesh.point_data},
-        cell_data={"group": [np.full(len(mesh.triangles), g["domain"][0], np.int32),
-                             (mesh.line_group + 1).astype(np.int32)]},
+        point_data={
+            "contour_point": np.where(
+                np.arange(mesh.n_nodes) < mesh.n_contour, np.arange(mesh.n_nodes), -1
+            ).astype(np.int32),
+            **mesh.point_data,
+        },
+        cell_data={
+            "group": [
+                np.full(len(mesh.triangles), g["domain"][0], np.int32),
+                (mesh.line_group + 1).astype(np.int32),
+            ]
+        },
     )
     meshio.write(path, m, file_format="xdmf")
 
@@ -360,15 +390,20 @@ def pvd_bytes(entries: list[tuple[float, str]]) -> bytes:
     names relative to the .pvd's folder."""
     from xml.sax.saxutils import quoteattr
 
-    rows = "".join(f'    <DataSet timestep="{t!r}" group="" part="0" file={quoteattr(name)}/>\n'
-                   for t, name in entries)
-    return ('<?xml version="1.0"?>\n'
-            '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">\n'
-            f"  <Collection>\n{rows}  </Collection>\n</VTKFile>\n").encode()
+    rows = "".join(
+        f'    <DataSet timestep="{t!r}" group="" part="0" file={quoteattr(name)}/>\n'
+        for t, name in entries
+    )
+    return (
+        '<?xml version="1.0"?>\n'
+        '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">\n'
+        f"  <Collection>\n{rows}  </Collection>\n</VTKFile>\n"
+    ).encode()
 
 
-def mesh_files(mesh: Mesh, name: str, fmt: str,
-               msh_version: str = "2.2") -> list[tuple[str, bytes]]:
+def mesh_files(
+    mesh: Mesh, name: str, fmt: str, msh_version: str = "2.2"
+) -> list[tuple[str, bytes]]:
     """The files ``write_mesh(mesh, name)`` would write, as ``[(file name, bytes)]`` in the
     order to write them (a sidecar before the file that refers to it)."""
     fmt = format_for(name, fmt)
@@ -411,9 +446,8 @@ def write_bytes(data: bytes, path: str) -> None:
         out.write(data)
         out.flush()
         return
-    with atomic_path(path) as tmp:
-        with open(tmp, "wb") as f:
-            f.write(data)
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        f.write(data)
 
 
 def _existing_file(path: str) -> Path:
@@ -463,8 +497,9 @@ def read_mesh(path: str, fmt: str | None = None) -> tuple[np.ndarray, np.ndarray
     if pts.shape[1] == 3:
         if np.any(pts[:, 2] != 0):
             k = int(np.argmax(pts[:, 2] != 0))
-            raise DeformeshError(f"{path}: node {k} has z = {pts[k, 2]:g}; only planar meshes "
-                                 "(z = 0) are supported")
+            raise DeformeshError(
+                f"{path}: node {k} has z = {pts[k, 2]:g}; only planar meshes (z = 0) are supported"
+            )
         pts = pts[:, :2]
     tri = np.concatenate(tri).astype(np.int64)
     if tri.min() < 0 or tri.max() >= len(pts):

@@ -75,22 +75,32 @@ def prepare(points: np.ndarray, tri: np.ndarray, first: Contour, source: str) ->
     """
     m = first.n
     if len(points) < m:
-        raise DeformeshError(f"{source}: the mesh has {len(points)} nodes, fewer than the "
-                             f"{m} points of {first.source}")
+        raise DeformeshError(
+            f"{source}: the mesh has {len(points)} nodes, fewer than the "
+            f"{m} points of {first.source}"
+        )
     try:
-        own = make_contour(points[:m], source=source, ring_starts=first.starts[:-1],
-                           ring_labels=first.ring_labels or None)
+        own = make_contour(
+            points[:m],
+            source=source,
+            ring_starts=first.starts[:-1],
+            ring_labels=first.ring_labels or None,
+        )
     except InputError as exc:
-        raise DeformeshError(f"{source}: its first {m} nodes are not a valid contour like "
-                             f"{first.source}'s ({exc}); was it written by deformesh from "
-                             f"{m} points?") from None
+        raise DeformeshError(
+            f"{source}: its first {m} nodes are not a valid contour like "
+            f"{first.source}'s ({exc}); was it written by deformesh from "
+            f"{m} points?"
+        ) from None
     edges = quality.edge_uses(tri, len(points))
     try:
         mesh, box = quality.mesh_for_contour(points, tri, own)
         quality.check_contract(mesh, own, box, edges)
     except ContractError as exc:
-        raise DeformeshError(f"{source}: not a deformesh mesh of {m} contour points in order "
-                             f"({str(exc).removeprefix(source + ': ')})") from None
+        raise DeformeshError(
+            f"{source}: not a deformesh mesh of {m} contour points in order "
+            f"({str(exc).removeprefix(source + ': ')})"
+        ) from None
     _same_rings(own, first, first.source)
     # each extra boundary node's contour edge (the contour nodes before and after it
     # on its ring) and how far along it sits
@@ -118,10 +128,25 @@ def prepare(points: np.ndarray, tri: np.ndarray, first: Contour, source: str) ->
     # each ring's nodes (its points, then its extra nodes), as positions in ``moving``
     ring_of = np.concatenate(ring_of)
     rings = [np.flatnonzero(ring_of == r) for r in range(own.n_rings)]
-    weights = [rigid_weight(points, moving[r], np.concatenate(
-        [moving[np.flatnonzero(ring_of != k)], held])) for k, r in enumerate(rings)]
-    return Motion(mesh, own, box, moving, held, np.concatenate(ext_from),
-                  np.concatenate(ext_to), np.concatenate(ext_at), rings, weights, edges)
+    weights = [
+        rigid_weight(
+            points, moving[r], np.concatenate([moving[np.flatnonzero(ring_of != k)], held])
+        )
+        for k, r in enumerate(rings)
+    ]
+    return Motion(
+        mesh,
+        own,
+        box,
+        moving,
+        held,
+        np.concatenate(ext_from),
+        np.concatenate(ext_to),
+        np.concatenate(ext_at),
+        rings,
+        weights,
+        edges,
+    )
 
 
 def rigid_weight(points: np.ndarray, own: np.ndarray, others: np.ndarray) -> np.ndarray:
@@ -158,8 +183,11 @@ def carry(points: np.ndarray, weight: np.ndarray, cp, cq, theta: float) -> np.nd
     w = weight[on]
     c, s = np.cos(w * theta), np.sin(w * theta)
     d = points[on] - cp
-    out[on] = cp + np.column_stack([c * d[:, 0] - s * d[:, 1], s * d[:, 0] + c * d[:, 1]]) \
+    out[on] = (
+        cp
+        + np.column_stack([c * d[:, 0] - s * d[:, 1], s * d[:, 0] + c * d[:, 1]])
         + w[:, None] * (cq - cp)
+    )
     return out
 
 
@@ -167,19 +195,27 @@ def _same_rings(own: Contour, frame: Contour, source: str) -> None:
     """A frame must have the mesh's rings: as many points each, the same way round,
     holes where holes were."""
     if frame.n != own.n:
-        raise DeformeshError(f"{source}: has {frame.n} points, the mesh's contour has "
-                             f"{own.n} (point k of each frame follows contour point k)")
+        raise DeformeshError(
+            f"{source}: has {frame.n} points, the mesh's contour has "
+            f"{own.n} (point k of each frame follows contour point k)"
+        )
     if frame.starts != own.starts:
-        raise DeformeshError(f"{source}: its rings start at points {list(frame.starts[:-1])}, "
-                             f"the mesh's at {list(own.starts[:-1])}")
+        raise DeformeshError(
+            f"{source}: its rings start at points {list(frame.starts[:-1])}, "
+            f"the mesh's at {list(own.starts[:-1])}"
+        )
     for r in range(own.n_rings):
         if frame.ring_clockwise[r] != own.ring_clockwise[r]:
-            raise DeformeshError(f"{source}: {frame.ring_labels[r]} runs the other way round "
-                                 "from the mesh's (a frame cannot turn a ring inside out)")
+            raise DeformeshError(
+                f"{source}: {frame.ring_labels[r]} runs the other way round "
+                "from the mesh's (a frame cannot turn a ring inside out)"
+            )
         if frame.is_hole(r) != own.is_hole(r):
-            raise DeformeshError(f"{source}: {frame.ring_labels[r]} is "
-                                 f"{'a hole' if frame.is_hole(r) else 'not a hole'}, "
-                                 "unlike in the mesh")
+            raise DeformeshError(
+                f"{source}: {frame.ring_labels[r]} is "
+                f"{'a hole' if frame.is_hole(r) else 'not a hole'}, "
+                "unlike in the mesh"
+            )
 
 
 def check_frame(motion: Motion, frame: Contour) -> None:
@@ -197,9 +233,16 @@ def targets(motion: Motion, frame: Contour) -> np.ndarray:
     return np.concatenate([p, extra])
 
 
-def advance(motion: Motion, points: np.ndarray, frame: Contour, steps: int = DEFAULT_STEPS,
-            solver: str = "auto", solve: str = "full", describe=None,
-            advice: tuple[str, str] = ADVICE) -> Step:
+def advance(
+    motion: Motion,
+    points: np.ndarray,
+    frame: Contour,
+    steps: int = DEFAULT_STEPS,
+    solver: str = "auto",
+    solve: str = "full",
+    describe=None,
+    advice: tuple[str, str] = ADVICE,
+) -> Step:
     """Deform ``points`` (the previous frame's) so the contour nodes sit on ``frame``.
 
     Raises :class:`.errors.FoldError` when no refinement of the pseudo-time steps
@@ -243,8 +286,9 @@ def advance(motion: Motion, points: np.ndarray, frame: Contour, steps: int = DEF
         band = _band(start, motion, goal)
         if band is not None:
             try:
-                new, stats = deform_band(start, mesh.triangles, motion.moving, goal,
-                                         motion.held, band, **kwargs)
+                new, stats = deform_band(
+                    start, mesh.triangles, motion.moving, goal, motion.held, band, **kwargs
+                )
             except (FoldError, ValueError):  # folds in the band, or a moving node on its edge
                 new = None
     if new is None:
@@ -252,10 +296,13 @@ def advance(motion: Motion, points: np.ndarray, frame: Contour, steps: int = DEF
     out = frame_mesh(motion, new)
     quality.check_contract(out, frame, motion.box, motion.edges)
     report = quality.stats(out)
-    report.update(solves=stats.solves, halvings=stats.halvings,
-                  rigid_turn=[float(np.degrees(share * f[2])) for f in fits],
-                  rigid_share=share,
-                  max_displacement=float(np.max(np.hypot(*(new - points).T))))
+    report.update(
+        solves=stats.solves,
+        halvings=stats.halvings,
+        rigid_turn=[float(np.degrees(share * f[2])) for f in fits],
+        rigid_share=share,
+        max_displacement=float(np.max(np.hypot(*(new - points).T))),
+    )
     return Step(new, stats, report)
 
 
@@ -281,8 +328,10 @@ def _band(points: np.ndarray, motion: Motion, goal: np.ndarray) -> np.ndarray | 
     origin = motion.mesh.points[motion.moving]
     cp, cq, theta = rigid_fit(origin, goal)
     since = carry(origin, np.ones(len(origin)), cp, cq, theta) - goal
-    travel = max(float(np.max(np.hypot(*(goal - points[motion.moving]).T), initial=0.0)),
-                 float(np.max(np.hypot(*since.T), initial=0.0)))
+    travel = max(
+        float(np.max(np.hypot(*(goal - points[motion.moving]).T), initial=0.0)),
+        float(np.max(np.hypot(*since.T), initial=0.0)),
+    )
     reach = max(BAND_EDGES * edge, BAND_TRAVEL * travel)
     near = cKDTree(points[motion.moving]).query(points, distance_upper_bound=reach)[0] <= reach
     return None if near.all() else near
@@ -291,6 +340,14 @@ def _band(points: np.ndarray, motion: Motion, goal: np.ndarray) -> np.ndarray | 
 def frame_mesh(motion: Motion, points: np.ndarray, point_data: dict | None = None) -> Mesh:
     """The motion's mesh at ``points`` (same triangles, lines and groups)."""
     m = motion.mesh
-    return Mesh(points, m.triangles, m.lines, n_contour=m.n_contour, n_extra=m.n_extra,
-                line_group=m.line_group, groups=m.groups, n_box=m.n_box,
-                point_data=point_data or {})
+    return Mesh(
+        points,
+        m.triangles,
+        m.lines,
+        n_contour=m.n_contour,
+        n_extra=m.n_extra,
+        line_group=m.line_group,
+        groups=m.groups,
+        n_box=m.n_box,
+        point_data=point_data or {},
+    )

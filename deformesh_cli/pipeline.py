@@ -12,9 +12,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import deform as _deform
-from . import forced
+from . import forced, quality, triangulate
 from . import improve as _improve
-from . import quality, triangulate
 from . import respace as _respace
 from . import size as _size
 from .contour import Contour
@@ -61,8 +60,16 @@ def grid_mode(contour: Contour, grid: str = "auto", h=None, exterior: bool = Fal
     return "adapt" if _respace.spacing_ratio(contour) > EVEN_SPACING_RATIO else "uniform"
 
 
-def candidate_selections(contour: Contour, h=None, box=None, margin=None, strict=False,
-                         max_nodes=DEFAULT_MAX_NODES, exterior=False, grid: str = "auto"):
+def candidate_selections(
+    contour: Contour,
+    h=None,
+    box=None,
+    margin=None,
+    strict=False,
+    max_nodes=DEFAULT_MAX_NODES,
+    exterior=False,
+    grid: str = "auto",
+):
     """The selections ``all`` tries in turn.
 
     On an adapted grid: the re-spaced ones (:func:`.respace.candidate_selections`),
@@ -71,19 +78,32 @@ def candidate_selections(contour: Contour, h=None, box=None, margin=None, strict
     """
     mode = grid_mode(contour, grid, h, exterior)
     if mode == "adapt":
-        yield from _respace.candidate_selections(contour, h, box, margin, strict, max_nodes,
-                                                 exterior)
-    sel = select(contour, h=h, box=box, margin=margin, strict=strict,
-                 max_nodes=max_nodes, exterior=exterior)
+        yield from _respace.candidate_selections(
+            contour, h, box, margin, strict, max_nodes, exterior
+        )
+    sel = select(
+        contour, h=h, box=box, margin=margin, strict=strict, max_nodes=max_nodes, exterior=exterior
+    )
     if mode == "adapt":
-        sel.notes.insert(0, "the adapted grid did not work here (no simple path, a fold, or "
-                         "an angle under 1 degree on every rung): "
-                         "fell back to the uniform grid")
+        sel.notes.insert(
+            0,
+            "the adapted grid did not work here (no simple path, a fold, or "
+            "an angle under 1 degree on every rung): "
+            "fell back to the uniform grid",
+        )
     yield sel
 
 
-def run_select(contour: Contour, h=None, box=None, margin=None, strict=False,
-               max_nodes=DEFAULT_MAX_NODES, exterior=False, grid: str = "auto") -> Selection:
+def run_select(
+    contour: Contour,
+    h=None,
+    box=None,
+    margin=None,
+    strict=False,
+    max_nodes=DEFAULT_MAX_NODES,
+    exterior=False,
+    grid: str = "auto",
+) -> Selection:
     return next(candidate_selections(contour, h, box, margin, strict, max_nodes, exterior, grid))
 
 
@@ -130,9 +150,15 @@ def _dilate(on: np.ndarray, reach: int, axis: int) -> np.ndarray:
     return c.take(hi, axis=axis) > c.take(lo, axis=axis)
 
 
-def run_deform(contour: Contour, sel: Selection, steps: int = DEFAULT_STEPS,
-               callback=None, solver: str = "auto", size: SizeFunction | None = None,
-               solve: str = "band") -> Deformed:
+def run_deform(
+    contour: Contour,
+    sel: Selection,
+    steps: int = DEFAULT_STEPS,
+    callback=None,
+    solver: str = "auto",
+    size: SizeFunction | None = None,
+    solve: str = "band",
+) -> Deformed:
     """Stage 2.  ``size`` (as given; normalised here over the grid's box) shapes the cells.
 
     ``solve="band"`` moves only the cells near the path (:func:`band_nodes`),
@@ -147,19 +173,26 @@ def run_deform(contour: Contour, sel: Selection, steps: int = DEFAULT_STEPS,
     if size is not None:
         size.normalise(grid.box)
     band = band_nodes(sel) if solve == "band" and size is None else None
-    kwargs = dict(
-        steps=steps, callback=callback, describe=_describer(contour, sel), solver=solver,
-        size=None if size is None else _size.SizePath(size.g1, grid.box),
-        slide=None if sel.path_slide is None else _respace.Slide(
-            contour, sel.path_ring, sel.path_slide[:, 0], sel.path_slide[:, 1],
-            sel.path_targets),
-    )
+    kwargs = {
+        "steps": steps,
+        "callback": callback,
+        "describe": _describer(contour, sel),
+        "solver": solver,
+        "size": None if size is None else _size.SizePath(size.g1, grid.box),
+        "slide": None
+        if sel.path_slide is None
+        else _respace.Slide(
+            contour, sel.path_ring, sel.path_slide[:, 0], sel.path_slide[:, 1], sel.path_targets
+        ),
+    }
     if band is None:
-        pos, st = _deform.deform(pts0, tri, sel.path_nodes, sel.path_targets,
-                                 grid.boundary_nodes(), **kwargs)
+        pos, st = _deform.deform(
+            pts0, tri, sel.path_nodes, sel.path_targets, grid.boundary_nodes(), **kwargs
+        )
     else:
-        pos, st = _deform.deform_band(pts0, tri, sel.path_nodes, sel.path_targets,
-                                      grid.boundary_nodes(), band, **kwargs)
+        pos, st = _deform.deform_band(
+            pts0, tri, sel.path_nodes, sel.path_targets, grid.boundary_nodes(), band, **kwargs
+        )
     return Deformed(sel, pos, st)
 
 
@@ -176,9 +209,13 @@ def _describer(contour: Contour, sel: Selection):
     return describe
 
 
-def run_triangulate(contour: Contour, d: Deformed, size: SizeFunction | None = None,
-                    cut: triangulate.Cut | None = None,
-                    improve: bool = True) -> tuple[Mesh, dict]:
+def run_triangulate(
+    contour: Contour,
+    d: Deformed,
+    size: SizeFunction | None = None,
+    cut: triangulate.Cut | None = None,
+    improve: bool = True,
+) -> tuple[Mesh, dict]:
     """Stage 3.  ``cut``: :func:`.triangulate.cut` of this selection, if already made.
     ``improve``: run the quality stage (:mod:`.improve`) on the mesh."""
     sel = d.selection
@@ -193,29 +230,41 @@ def run_triangulate(contour: Contour, d: Deformed, size: SizeFunction | None = N
         if len(better.changed) and edges is not None:  # the changed triangles' edges
             old = len(before.triangles)
             edges = quality.patch_edge_uses(
-                edges, mesh.n_nodes, before.triangles[better.changed],
-                np.concatenate([mesh.triangles[better.changed], mesh.triangles[old:]]))
+                edges,
+                mesh.n_nodes,
+                before.triangles[better.changed],
+                np.concatenate([mesh.triangles[better.changed], mesh.triangles[old:]]),
+            )
     # the contract check and the summary read the mesh independently; numpy and
     # scipy release the GIL in their loops, so on two cores the pair takes about as
     # long as the longer one (1e6 triangles, whole process: 2.02 s with the two in
     # turn, 1.73 s together; peak RSS 312 vs 345 MB)
     with ThreadPoolExecutor(max_workers=2) as pool:
         summary = pool.submit(quality.stats, mesh)
-        quality.check_contract(mesh, contour, sel.grid.box if sel.exterior else None,
-                               edges)
+        quality.check_contract(mesh, contour, sel.grid.box if sel.exterior else None, edges)
         report = summary.result()
     report["contract"] = "ok"
-    report["improve"] = None if better is None else {
-        "min_angle_before": better.min_angle_before, "flips": better.flips,
-        "node_moves": better.moves, "nodes_added": better.added, "rounds": better.rounds}
+    report["improve"] = (
+        None
+        if better is None
+        else {
+            "min_angle_before": better.min_angle_before,
+            "flips": better.flips,
+            "node_moves": better.moves,
+            "nodes_added": better.added,
+            "rounds": better.rounds,
+        }
+    )
     # what the boundary nodes allow next to the triangles under 30 degrees (README, "What
     # the boundary forces"), if any
     report["forced_angle"] = None
     if report["min_angle"] < 30:
-        weak = better.weak if better is not None else np.flatnonzero(
-            quality.measures(mesh.points, mesh.triangles)[0] < 30)
-        report["forced_angle"] = forced.weakest_bound(mesh.points, mesh.triangles, mesh.lines,
-                                                      weak)
+        weak = (
+            better.weak
+            if better is not None
+            else np.flatnonzero(quality.measures(mesh.points, mesh.triangles)[0] < 30)
+        )
+        report["forced_angle"] = forced.weakest_bound(mesh.points, mesh.triangles, mesh.lines, weak)
     if size is not None:
         report["size"] = size.label
         rho = _size.spearman(mesh.points, mesh.triangles, size, exclude=mesh.lines.ravel())
@@ -229,11 +278,22 @@ def run_triangulate(contour: Contour, d: Deformed, size: SizeFunction | None = N
 MIN_ADAPTED_ANGLE = 1.0
 
 
-def mesh_contour(contour: Contour, h=None, box=None, margin=None, strict=False,
-                 max_nodes=DEFAULT_MAX_NODES, steps=DEFAULT_STEPS, callback=None,
-                 solver: str = "auto", exterior: bool = False,
-                 size: SizeFunction | None = None, grid: str = "auto",
-                 solve: str = "band", improve: bool = True) -> MeshResult:
+def mesh_contour(
+    contour: Contour,
+    h=None,
+    box=None,
+    margin=None,
+    strict=False,
+    max_nodes=DEFAULT_MAX_NODES,
+    steps=DEFAULT_STEPS,
+    callback=None,
+    solver: str = "auto",
+    exterior: bool = False,
+    size: SizeFunction | None = None,
+    grid: str = "auto",
+    solve: str = "band",
+    improve: bool = True,
+) -> MeshResult:
     """Mesh the inside of ``contour`` (or the box minus it, ``exterior``).
 
     On an adapted grid, a rung whose deformation folds, or whose mesh has an
@@ -243,8 +303,7 @@ def mesh_contour(contour: Contour, h=None, box=None, margin=None, strict=False,
     """
     fold = flat = None
     try:
-        for sel in candidate_selections(contour, h, box, margin, strict, max_nodes, exterior,
-                                        grid):
+        for sel in candidate_selections(contour, h, box, margin, strict, max_nodes, exterior, grid):
             # stage 3's topology (which triangles, numbered how, and their edges) needs
             # only the selection: it runs on the second core while the deformation runs
             # (1e6 triangles, 7 alternating runs: 1.79 s in turn, 1.56 s alongside; peak

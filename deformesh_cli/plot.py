@@ -34,8 +34,13 @@ def draw(points: np.ndarray, tri: np.ndarray, path: str, **kw) -> None:
     io.write_bytes(render(points, tri, **kw), path)
 
 
-def render(points: np.ndarray, tri: np.ndarray, boundary: np.ndarray | None = None,
-           contour_points: np.ndarray | None = None, title: str = "") -> bytes:
+def render(
+    points: np.ndarray,
+    tri: np.ndarray,
+    boundary: np.ndarray | None = None,
+    contour_points: np.ndarray | None = None,
+    title: str = "",
+) -> bytes:
     """PNG bytes of the mesh.
 
     ``boundary`` are edges (k, 2) drawn over the mesh (default: the mesh's own
@@ -49,11 +54,21 @@ def render(points: np.ndarray, tri: np.ndarray, boundary: np.ndarray | None = No
         boundary = quality.boundary_edges(tri, len(points))
     span = np.ptp(points, axis=0)
     height = float(np.clip(7.5 * span[1] / max(span[0], 1e-300), 3.5, 9.0))  # follow the shape
-    fig, (ax, axh) = plt.subplots(1, 2, figsize=(9.6, height + 0.8),
-                                  gridspec_kw={"width_ratios": [4.2, 1]})
+    fig, (ax, axh) = plt.subplots(
+        1, 2, figsize=(9.6, height + 0.8), gridspec_kw={"width_ratios": [4.2, 1]}
+    )
     lw = 0.4 if len(tri) < 4000 else 0.15 if len(tri) < 40000 else 0.0
-    ax.tripcolor(points[:, 0], points[:, 1], tri, facecolors=rr, cmap=CMAP, vmin=0, vmax=1,
-                 edgecolors="k" if lw else "none", linewidth=lw)
+    ax.tripcolor(
+        points[:, 0],
+        points[:, 1],
+        tri,
+        facecolors=rr,
+        cmap=CMAP,
+        vmin=0,
+        vmax=1,
+        edgecolors="k" if lw else "none",
+        linewidth=lw,
+    )
     ax.add_collection(LineCollection(points[boundary], colors=BOUNDARY_COLOUR, linewidths=1.2))
     if contour_points is not None and len(contour_points) <= 5000:
         ax.plot(contour_points[:, 0], contour_points[:, 1], ".", color=BOUNDARY_COLOUR, ms=2.5)

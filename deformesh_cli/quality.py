@@ -25,8 +25,9 @@ AREA_RTOL = 1e-10
 
 def signed_areas(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
     x, y = points[tri, 0], points[tri, 1]  # (t, 3) each
-    return 0.5 * ((x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0])
-                  - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0]))
+    return 0.5 * (
+        (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
+    )
 
 
 def measures(points: np.ndarray, tri: np.ndarray):
@@ -59,8 +60,14 @@ def measures(points: np.ndarray, tri: np.ndarray):
 
 
 #: The measures of :func:`report` that a meshing summary (``--json``) carries.
-SUMMARY_KEYS = ("min_angle", "max_angle", "smallest_area", "mean_radius_ratio",
-                "min_radius_ratio", "area")
+SUMMARY_KEYS = (
+    "min_angle",
+    "max_angle",
+    "smallest_area",
+    "mean_radius_ratio",
+    "min_radius_ratio",
+    "area",
+)
 
 
 def stats(mesh: Mesh) -> dict:
@@ -144,8 +151,10 @@ def _check_boundary(mesh: Mesh, contour: Contour, box, edges=None) -> None:
         raise ContractError(f"{src}: an edge is shared by more than two triangles")
     if ((fwd > 1) | (rev > 1)).any():
         k = int(np.argmax((fwd > 1) | (rev > 1)))
-        raise ContractError(f"{src}: two triangles overlap along the edge from node {lo[k]} to "
-                            f"node {hi[k]} (both on the same side of it)")
+        raise ContractError(
+            f"{src}: two triangles overlap along the edge from node {lo[k]} to "
+            f"node {hi[k]} (both on the same side of it)"
+        )
     # directed boundary edges (domain on the left) must equal the line cells
     directed = _directed_boundary(lo, hi, fwd, rev)
     lines = mesh.lines
@@ -166,8 +175,9 @@ def _check_boundary(mesh: Mesh, contour: Contour, box, edges=None) -> None:
         _check_box(mesh, contour, box)
 
 
-def _check_chain(mesh: Mesh, contour: Contour, lines: np.ndarray, order: np.ndarray,
-                 r: int) -> None:
+def _check_chain(
+    mesh: Mesh, contour: Contour, lines: np.ndarray, order: np.ndarray, r: int
+) -> None:
     """One ring's lines: a closed chain through its points in ``order``, extras on edges."""
     src, pts, m = contour.source, mesh.points, contour.n
     name = contour.ring_name(r)
@@ -182,8 +192,9 @@ def _check_chain(mesh: Mesh, contour: Contour, lines: np.ndarray, order: np.ndar
     extra_idx = np.flatnonzero(~on_contour)
     if len(extra_idx):
         if (ring[extra_idx] >= m + mesh.n_extra).any():
-            raise ContractError(f"{src}: the {name} boundary has a node that is not an extra "
-                                "boundary node")
+            raise ContractError(
+                f"{src}: the {name} boundary has a node that is not an extra boundary node"
+            )
         pos = np.flatnonzero(on_contour)
         before = ring[pos[np.searchsorted(pos, extra_idx) - 1]]
         nxt = np.searchsorted(pos, extra_idx) % len(pos)
@@ -216,8 +227,9 @@ def _check_box(mesh: Mesh, contour: Contour, box) -> None:
         sel = mesh.line_group[side_lines] == groups.index(g)
         ends = pts[lines[sel].ravel(), axis]
         if not sel.any() or not np.all(ends == value):
-            raise ContractError(f"{src}: the {g} boundary does not lie on the box side "
-                                f"at {'xy'[axis]} = {value:g}")
+            raise ContractError(
+                f"{src}: the {g} boundary does not lie on the box side at {'xy'[axis]} = {value:g}"
+            )
 
 
 #: Bin edges of the radius-ratio histogram in quality reports.
@@ -233,12 +245,19 @@ def report(points: np.ndarray, tri: np.ndarray) -> dict:
     """What ``deformesh quality`` prints: angles, areas, radius ratios and their histogram."""
     if len(tri) == 0:
         raise ValueError("no triangles to measure")
-    lo_angle, hi_angle, below_20, folded, area_sum, rr_sum, rr_min = np.inf, -np.inf, 0, 0, \
-        0.0, 0.0, np.inf
+    lo_angle, hi_angle, below_20, folded, area_sum, rr_sum, rr_min = (
+        np.inf,
+        -np.inf,
+        0,
+        0,
+        0.0,
+        0.0,
+        np.inf,
+    )
     counts = np.zeros(len(RR_BINS) - 1, dtype=np.int64)
     least = (np.inf, 0)
     for start in range(0, len(tri), CHUNK):
-        smallest, largest, area, rr = measures(points, tri[start:start + CHUNK])
+        smallest, largest, area, rr = measures(points, tri[start : start + CHUNK])
         lo_angle, hi_angle = min(lo_angle, smallest.min()), max(hi_angle, largest.max())
         below_20 += int(np.count_nonzero(smallest < 20))
         t = int(np.argmin(area))
@@ -261,8 +280,10 @@ def report(points: np.ndarray, tri: np.ndarray) -> dict:
         "area": float(area_sum),
         "mean_radius_ratio": float(rr_sum / len(tri)),
         "min_radius_ratio": float(rr_min),
-        "radius_ratio_histogram": {"edges": [round(float(e), 2) for e in RR_BINS],
-                                   "counts": [int(k) for k in counts]},
+        "radius_ratio_histogram": {
+            "edges": [round(float(e), 2) for e in RR_BINS],
+            "counts": [int(k) for k in counts],
+        },
     }
 
 
@@ -324,8 +345,11 @@ def patch_edge_uses(edges, n: int, removed: np.ndarray, added: np.ndarray):
 
 def _directed_boundary(lo, hi, fwd, rev) -> np.ndarray:
     one = fwd + rev == 1
-    return np.where((fwd[one] == 1)[:, None], np.column_stack([lo[one], hi[one]]),
-                    np.column_stack([hi[one], lo[one]]))
+    return np.where(
+        (fwd[one] == 1)[:, None],
+        np.column_stack([lo[one], hi[one]]),
+        np.column_stack([hi[one], lo[one]]),
+    )
 
 
 def boundary_edges(tri: np.ndarray, n: int) -> np.ndarray:
@@ -349,8 +373,10 @@ def mesh_for_contour(points: np.ndarray, tri: np.ndarray, contour: Contour):
     starts, counts = np.unique(edges[:, 0], return_counts=True)
     if (counts > 1).any():
         k = int(starts[np.argmax(counts > 1)])
-        raise ContractError(f"{src}: the boundary touches itself at node {k} "
-                            f"({points[k, 0]:.6g}, {points[k, 1]:.6g})")
+        raise ContractError(
+            f"{src}: the boundary touches itself at node {k} "
+            f"({points[k, 0]:.6g}, {points[k, 1]:.6g})"
+        )
     nxt[edges[:, 0]] = edges[:, 1]
     used = np.zeros(n, dtype=bool)
     lines, group = [], []
@@ -370,8 +396,9 @@ def mesh_for_contour(points: np.ndarray, tri: np.ndarray, contour: Contour):
         if nxt[start] < 0:
             raise ContractError(f"{src}: {contour.where(start)} is not on the mesh boundary")
         if used[start]:
-            raise ContractError(f"{src}: {contour.ring_name(r)} shares its boundary with "
-                                "another ring")
+            raise ContractError(
+                f"{src}: {contour.ring_name(r)} shares its boundary with another ring"
+            )
         ring = walk(start, contour.where(start))
         used[ring] = True
         lines.append(np.column_stack([ring, np.roll(ring, -1)]))
@@ -390,14 +417,27 @@ def mesh_for_contour(points: np.ndarray, tri: np.ndarray, contour: Contour):
         ring = walk(int(corner[0]) if len(corner) else int(rest[0, 0]), "the box")
         seg = np.column_stack([ring, np.roll(ring, -1)])
         a, b = points[seg[:, 0]], points[seg[:, 1]]
-        side = np.select([(a[:, 1] == lo[1]) & (b[:, 1] == lo[1]),
-                          (a[:, 0] == hi[0]) & (b[:, 0] == hi[0]),
-                          (a[:, 1] == hi[1]) & (b[:, 1] == hi[1])], [0, 1, 2], 3)
+        side = np.select(
+            [
+                (a[:, 1] == lo[1]) & (b[:, 1] == lo[1]),
+                (a[:, 0] == hi[0]) & (b[:, 0] == hi[0]),
+                (a[:, 1] == hi[1]) & (b[:, 1] == hi[1]),
+            ],
+            [0, 1, 2],
+            3,
+        )
         lines.append(seg)
         group.append(len(names) + side)
         names += ["bottom", "right", "top", "left"]
-    mesh = Mesh(points, tri, np.concatenate(lines), n_contour=m, n_extra=n_extra,
-                line_group=np.concatenate(group), groups=tuple(names))
+    mesh = Mesh(
+        points,
+        tri,
+        np.concatenate(lines),
+        n_contour=m,
+        n_extra=n_extra,
+        line_group=np.concatenate(group),
+        groups=tuple(names),
+    )
     return mesh, box
 
 
@@ -411,8 +451,10 @@ def assess(points: np.ndarray, tri: np.ndarray, contour: Contour | None = None):
     problem = None
     if rep["folded"]:  # checked first: a fold also breaks the boundary walk
         x, y = rep["smallest_area_at"]
-        problem = (f"{rep['folded']} folded triangle(s); the worst, near ({x:.6g}, {y:.6g}), "
-                   f"has signed area {rep['smallest_area']:.3g}")
+        problem = (
+            f"{rep['folded']} folded triangle(s); the worst, near ({x:.6g}, {y:.6g}), "
+            f"has signed area {rep['smallest_area']:.3g}"
+        )
     rep["contract"] = "unchecked (no --contour)"
     if contour is not None:
         rep["contour"] = contour.source

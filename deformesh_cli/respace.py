@@ -83,19 +83,21 @@ def respace(contour: Contour) -> Respaced | None:
         q, cum = _ring_polyline(c, s_real, lengths, r)
         ends = np.union1d([0, b - a], corners(q[:-1]))
         for i, j in zip(ends[:-1], ends[1:]):  # points i..j-1 between piece ends i and j
-            s_copy[a + i:a + j] = cum[i] + (cum[j] - cum[i]) * np.arange(j - i) / (j - i)
+            s_copy[a + i : a + j] = cum[i] + (cum[j] - cum[i]) * np.arange(j - i) / (j - i)
         new[a:b, 0] = np.interp(s_copy[a:b], cum, q[:, 0])
         new[a:b, 1] = np.interp(s_copy[a:b], cum, q[:, 1])
     try:
-        copy = make_contour(new, c.lines, c.source, ring_starts=list(c.starts[:-1]),
-                            ring_labels=list(c.ring_labels))
+        copy = make_contour(
+            new, c.lines, c.source, ring_starts=list(c.starts[:-1]), ring_labels=list(c.ring_labels)
+        )
     except InputError:
         return None
     return Respaced(c, copy, s_real, s_copy, lengths)
 
 
-def path_arclengths(rs: Respaced, source: np.ndarray, ring: np.ndarray,
-                    targets_on_copy: np.ndarray):
+def path_arclengths(
+    rs: Respaced, source: np.ndarray, ring: np.ndarray, targets_on_copy: np.ndarray
+):
     """Start and end arc length of every path node, and its exact final position.
 
     A node carrying contour point k goes from ``s_copy[k]`` to ``s_real[k]``
@@ -149,7 +151,7 @@ def arclengths(contour: Contour) -> tuple[np.ndarray, np.ndarray]:
         a, b = c.starts[r], c.starts[r + 1]
         cum = np.cumsum(seg[a:b])
         s[a] = 0.0
-        s[a + 1:b] = cum[:-1]
+        s[a + 1 : b] = cum[:-1]
         lengths[r] = cum[-1]
     return s, lengths
 
@@ -165,12 +167,15 @@ class Slide:
     """Targets along the contour over pseudo-time: path node i at arc length
     ``(1-t) s0[i] + t s1[i]`` on its ring, exactly ``final[i]`` at ``t = 1``."""
 
-    def __init__(self, contour: Contour, ring: np.ndarray, s0: np.ndarray, s1: np.ndarray,
-                 final: np.ndarray):
+    def __init__(
+        self, contour: Contour, ring: np.ndarray, s0: np.ndarray, s1: np.ndarray, final: np.ndarray
+    ):
         self.s0, self.s1, self.final = s0, s1, final
         s, lengths = arclengths(contour)
-        self._groups = [(np.flatnonzero(ring == r), *_ring_polyline(contour, s, lengths, r),
-                         lengths[r]) for r in range(contour.n_rings)]
+        self._groups = [
+            (np.flatnonzero(ring == r), *_ring_polyline(contour, s, lengths, r), lengths[r])
+            for r in range(contour.n_rings)
+        ]
 
     def at(self, t: float) -> np.ndarray:
         if t >= 1.0:
@@ -199,13 +204,22 @@ JAGGED = 0.2
 
 
 def corner_fraction(contour: Contour) -> float:
-    n = sum(len(corners(contour.points[contour.starts[r]:contour.starts[r + 1]]))
-            for r in range(contour.n_rings))
+    n = sum(
+        len(corners(contour.points[contour.starts[r] : contour.starts[r + 1]]))
+        for r in range(contour.n_rings)
+    )
     return n / contour.n
 
 
-def candidate_selections(contour: Contour, h=None, box=None, margin=None, strict: bool = False,
-                         max_nodes: int = DEFAULT_MAX_NODES, exterior: bool = False):
+def candidate_selections(
+    contour: Contour,
+    h=None,
+    box=None,
+    margin=None,
+    strict: bool = False,
+    max_nodes: int = DEFAULT_MAX_NODES,
+    exterior: bool = False,
+):
     """Selections for an adapted grid, in the order of :data:`LADDER`.
 
     The typical spacing ``h0`` is the median spacing of the evenly spaced
@@ -227,21 +241,35 @@ def candidate_selections(contour: Contour, h=None, box=None, margin=None, strict
             continue
         ref, step = (rs.copy, h_copy / d) if slide else (contour, h_real / d)
         try:
-            sel = select(ref, h=step, box=box, margin=margin, strict=strict,
-                         max_nodes=max_nodes, exterior=exterior)
+            sel = select(
+                ref,
+                h=step,
+                box=box,
+                margin=margin,
+                strict=strict,
+                max_nodes=max_nodes,
+                exterior=exterior,
+            )
         except (LimitError, SelectionError):  # the estimate is made before any work
             continue
         sel.h_rule = "typical-spacing"
         if slide:
-            s0, s1, sel.path_targets = path_arclengths(rs, sel.path_source, sel.path_ring,
-                                                       sel.path_targets)
+            s0, s1, sel.path_targets = path_arclengths(
+                rs, sel.path_source, sel.path_ring, sel.path_targets
+            )
             sel.path_slide = np.column_stack([s0, s1])
-            sel.notes.insert(0, f"adapted grid: h = {step:.4g}, the median spacing of the "
-                             "points evenly re-spaced between corners"
-                             + (f" / {d}" if d > 1 else "")
-                             + "; the deformation slides each node along the contour to its "
-                             "point")
+            sel.notes.insert(
+                0,
+                f"adapted grid: h = {step:.4g}, the median spacing of the "
+                "points evenly re-spaced between corners"
+                + (f" / {d}" if d > 1 else "")
+                + "; the deformation slides each node along the contour to its "
+                "point",
+            )
         else:
-            sel.notes.insert(0, f"adapted grid: h = {step:.4g}, the median spacing of the "
-                             f"points / {d}, on the points as given (not slid)")
+            sel.notes.insert(
+                0,
+                f"adapted grid: h = {step:.4g}, the median spacing of the "
+                f"points / {d}, on the points as given (not slid)",
+            )
         yield sel

@@ -139,20 +139,35 @@ def choose_grid(
     if est > max_nodes:
         margin_cells = DEFAULT_MARGIN_CELLS if default_margin and not exterior else 0
         size = (hi - lo) if default_margin and not exterior else (width, height)
-        raise LimitError(_too_many_nodes(contour, est, h, info["h_rule"], d_c, ka, kb,
-                                         tuple(float(v) for v in size), margin_cells, max_nodes))
+        raise LimitError(
+            _too_many_nodes(
+                contour,
+                est,
+                h,
+                info["h_rule"],
+                d_c,
+                ka,
+                kb,
+                tuple(float(v) for v in size),
+                margin_cells,
+                max_nodes,
+            )
+        )
     nx = max(1, math.ceil(width / h - 1e-9))
     ny = max(1, math.ceil(height / h - 1e-9))
     grid = Grid(box[0], box[1], width / nx, height / ny, nx, ny)
     if exterior:
-        gap = np.minimum(np.minimum(p[:, 0] - box[0], box[2] - p[:, 0]) / grid.hx,
-                         np.minimum(p[:, 1] - box[1], box[3] - p[:, 1]) / grid.hy)
+        gap = np.minimum(
+            np.minimum(p[:, 0] - box[0], box[2] - p[:, 0]) / grid.hx,
+            np.minimum(p[:, 1] - box[1], box[3] - p[:, 1]) / grid.hy,
+        )
         if gap.min() < 1.0:
             k = int(np.argmin(gap))
             raise OptionError(
                 f"{contour.source}: {contour.where(k)} is less than one cell from the box "
                 f"{_fmt_box(box)}; an exterior mesh needs room around the contour: give a "
-                "larger --box or --margin")
+                "larger --box or --margin"
+            )
     info["h"] = h
     return grid, info
 
@@ -165,8 +180,7 @@ def _fmt_box(box) -> str:
 EVEN_SPACING_RATIO = 4.0
 
 
-def _too_many_nodes(contour, est, h, rule, d_c, ka, kb, box_size, margin_cells,
-                    max_nodes) -> str:
+def _too_many_nodes(contour, est, h, rule, d_c, ka, kb, box_size, margin_cells, max_nodes) -> str:
     """The refusal message, with a hint that only names an ``--h`` known to be workable.
 
     Every contour point needs a grid node of its own, so ``h`` cannot be much
@@ -184,18 +198,25 @@ def _too_many_nodes(contour, est, h, rule, d_c, ka, kb, box_size, margin_cells,
         if rule == "appendix-a"
         else f"--h {h:.3g}"
     )
-    head = (f"{contour.source}: the background grid would need {est:.2g} nodes ({why}), "
-            f"over --max-nodes {max_nodes}")
+    head = (
+        f"{contour.source}: the background grid would need {est:.2g} nodes ({why}), "
+        f"over --max-nodes {max_nodes}"
+    )
     h_try = float(seg.min())
     grow = 2 * margin_cells * h_try
     est_try = estimate_nodes(box_size[0] + grow, box_size[1] + grow, h_try)
     if h_try > h and est_try <= max_nodes:
-        return (f"{head}: try --h {h_try:.3g} (the smallest spacing between consecutive "
-                "points; with a larger h crowded points get no node of their own)")
-    fix = ("use fewer contour points" if ratio <= EVEN_SPACING_RATIO else
-           "re-space it with --resample SPACING (corners kept; e.g. --resample "
-           f"{float(np.median(seg)):.3g}, its median spacing; the given points are then not "
-           "all boundary nodes)")
+        return (
+            f"{head}: try --h {h_try:.3g} (the smallest spacing between consecutive "
+            "points; with a larger h crowded points get no node of their own)"
+        )
+    fix = (
+        "use fewer contour points"
+        if ratio <= EVEN_SPACING_RATIO
+        else "re-space it with --resample SPACING (corners kept; e.g. --resample "
+        f"{float(np.median(seg)):.3g}, its median spacing; the given points are then not "
+        "all boundary nodes)"
+    )
     return (
         f"{head}; even h = {h_try:.3g}, the smallest spacing between consecutive points, "
         f"would need {est_try:.2g} nodes (the spacing varies {ratio:.3g}x along the contour): "
@@ -249,8 +270,9 @@ class Selection:
         return self._triangles
 
 
-def grid_triangles(grid: Grid, diagonals: np.ndarray, cells: np.ndarray | None = None
-                   ) -> np.ndarray:
+def grid_triangles(
+    grid: Grid, diagonals: np.ndarray, cells: np.ndarray | None = None
+) -> np.ndarray:
     """Counter-clockwise triangles of the grid, two per cell, split as ``diagonals`` says.
 
     ``cells`` (cell ids ``j * nx + i``) restricts them to those cells, in that order.
@@ -318,8 +340,13 @@ class NoFreeNode(SelectionError):
         self.k = k
 
 
-def select_nodes(grid: Grid, q: np.ndarray, taken: set[int] | None = None,
-                 vis: _Visibility | None = None, offset: int = 0) -> tuple[np.ndarray, int]:
+def select_nodes(
+    grid: Grid,
+    q: np.ndarray,
+    taken: set[int] | None = None,
+    vis: _Visibility | None = None,
+    offset: int = 0,
+) -> tuple[np.ndarray, int]:
     """Appendix A: for each point, the nearest free corner of the cell holding it.
 
     Points are taken in the order given.  A corner counts only if the point
@@ -352,14 +379,27 @@ def select_nodes(grid: Grid, q: np.ndarray, taken: set[int] | None = None,
         chosen = -1
         for c in rank[k]:
             nid = int(ids[k, c])
-            if seen[k, c] and nid not in taken and _forward(grid, prev_ij, II[k, c], JJ[k, c],
-                                                             tangent[k]):
+            if (
+                seen[k, c]
+                and nid not in taken
+                and _forward(grid, prev_ij, II[k, c], JJ[k, c], tangent[k])
+            ):
                 chosen = nid
                 break
         if chosen < 0:
             further += 1
-            chosen = _search_further(grid, vis, k + offset, t[k], s[k], int(ci[k]), int(cj[k]),
-                                     taken, prev_ij, tangent[k])
+            chosen = _search_further(
+                grid,
+                vis,
+                k + offset,
+                t[k],
+                s[k],
+                int(ci[k]),
+                int(cj[k]),
+                taken,
+                prev_ij,
+                tangent[k],
+            )
             if chosen < 0:
                 raise NoFreeNode(k)
         taken.add(chosen)
@@ -375,8 +415,18 @@ def _forward(grid: Grid, prev_ij, i, j, tangent) -> bool:
     return (i - prev_ij[0]) * grid.hx * tangent[0] + (j - prev_ij[1]) * grid.hy * tangent[1] >= 0
 
 
-def _search_further(grid: Grid, vis: _Visibility, k: int, t: float, s: float, i: int, j: int,
-                    taken: set[int], prev_ij=None, tangent=None) -> int:
+def _search_further(
+    grid: Grid,
+    vis: _Visibility,
+    k: int,
+    t: float,
+    s: float,
+    i: int,
+    j: int,
+    taken: set[int],
+    prev_ij=None,
+    tangent=None,
+) -> int:
     """Nearest free, visible and forward node in widening rings; forward is dropped past r=3.
 
     Returns -1 when the whole grid has been searched.
@@ -384,24 +434,25 @@ def _search_further(grid: Grid, vis: _Visibility, k: int, t: float, s: float, i:
     for r in range(1, max(grid.nx, grid.ny) + 1):
         ii = np.arange(max(0, i - r), min(grid.nx, i + 1 + r) + 1)
         jj = np.arange(max(0, j - r), min(grid.ny, j + 1 + r) + 1)
-        I, J = np.meshgrid(ii, jj)
-        I, J = I.ravel(), J.ravel()
-        ids = J * (grid.nx + 1) + I
+        gi, gj = np.meshgrid(ii, jj)
+        gi, gj = gi.ravel(), gj.ravel()
+        ids = gj * (grid.nx + 1) + gi
         free = np.array([int(n) not in taken for n in ids])
         if r <= 3 and prev_ij is not None:
-            free &= _forward(grid, prev_ij, I, J, tangent)
+            free &= _forward(grid, prev_ij, gi, gj, tangent)
         if free.any():
-            xy = np.column_stack([grid.x0 + I[free] * grid.hx, grid.y0 + J[free] * grid.hy])
+            xy = np.column_stack([grid.x0 + gi[free] * grid.hx, grid.y0 + gj[free] * grid.hy])
             ok = vis.visible(np.full(len(xy), k), xy)
             if ok.any():
-                d = np.hypot((I[free] - t) * grid.hx, (J[free] - s) * grid.hy)
+                d = np.hypot((gi[free] - t) * grid.hx, (gj[free] - s) * grid.hy)
                 d[~ok] = np.inf
-                return int(ids[free][np.lexsort((I[free], J[free], d))[0]])
+                return int(ids[free][np.lexsort((gi[free], gj[free], d))[0]])
     return -1
 
 
-def build_path(grid: Grid, sel: np.ndarray, q: np.ndarray, src: np.ndarray,
-               taken: set[int] | None = None):
+def build_path(
+    grid: Grid, sel: np.ndarray, q: np.ndarray, src: np.ndarray, taken: set[int] | None = None
+):
     """Close the selected nodes into a grid path of 8-neighbour steps.
 
     Where two consecutive selected nodes are ``D >= 2`` cells apart, the grid
@@ -414,7 +465,7 @@ def build_path(grid: Grid, sel: np.ndarray, q: np.ndarray, src: np.ndarray,
     """
     i, j = grid.node_ij(sel)
     m = len(sel)
-    used = set(int(n) for n in sel) | (taken or set())
+    used = {int(n) for n in sel} | (taken or set())
     nodes, targets, source = [], [], []
     for k in range(m):
         k2 = (k + 1) % m
@@ -436,8 +487,11 @@ def build_path(grid: Grid, sel: np.ndarray, q: np.ndarray, src: np.ndarray,
         used.update(fill)
         targets.extend(q[k] + f[:, None] * (q[k2] - q[k]))
         source.extend([-1] * len(fill))
-    return (np.asarray(nodes, dtype=np.int64), np.asarray(targets, dtype=np.float64),
-            np.asarray(source, dtype=np.int64))
+    return (
+        np.asarray(nodes, dtype=np.int64),
+        np.asarray(targets, dtype=np.float64),
+        np.asarray(source, dtype=np.int64),
+    )
 
 
 def _route(grid: Grid, a, b, used: set[int], pad: int = 2) -> list[int] | None:
@@ -486,8 +540,9 @@ def _route(grid: Grid, a, b, used: set[int], pad: int = 2) -> list[int] | None:
     return None
 
 
-def force_diagonals(grid: Grid, nodes: np.ndarray, targets: np.ndarray | None = None,
-                    ring: np.ndarray | None = None):
+def force_diagonals(
+    grid: Grid, nodes: np.ndarray, targets: np.ndarray | None = None, ring: np.ndarray | None = None
+):
     """Cell splits forced by the path(s), or the index of the first conflict.
 
     ``ring`` tells which closed path each entry is on (default: one path);
@@ -542,8 +597,7 @@ def force_diagonals(grid: Grid, nodes: np.ndarray, targets: np.ndarray | None = 
         s0 = start[g]
         w0, w1 = int(ws[s0]), int(ws[s0 + 1])
         # exactly two L-turns at consecutive path positions: a U-turn
-        if count[g] == 2 and ks[s0] == 1 and ks[s0 + 1] == 1 and (nxt[w0] == w1
-                                                                  or nxt[w1] == w0):
+        if count[g] == 2 and ks[s0] == 1 and ks[s0 + 1] == 1 and (nxt[w0] == w1 or nxt[w1] == w0):
             uturn_cells.append(int(uniq[g]))
             continue
         # two diagonal steps in one cell always cross or retrace; an L-turn
@@ -602,8 +656,9 @@ def fit_path(contour: Contour, grid: Grid, strict: bool = False, method: str = "
     next.  Returns ``(nodes, targets, source, ring, diagonals,
     searched_further)`` with the rings' paths one after the other.
     """
-    vis = (_Visibility(contour.ccw_points, next_on_ring(contour.ring))
-           if method == "greedy" else None)
+    vis = (
+        _Visibility(contour.ccw_points, next_on_ring(contour.ring)) if method == "greedy" else None
+    )
     taken: set[int] = set()
     parts, further = [], 0
     offset = 0
@@ -620,7 +675,8 @@ def fit_path(contour: Contour, grid: Grid, strict: bool = False, method: str = "
                     f"{contour.source}: no free grid node left that "
                     f"{contour.where(int(order[exc.k]))} can see (h = "
                     f"{max(grid.hx, grid.hy):.4g}); the contour has more points here than the "
-                    "grid has nodes: give a smaller --h") from None
+                    "grid has nodes: give a smaller --h"
+                ) from None
             further += f
             if strict:
                 _check_strict(contour, grid, sel, order)
@@ -635,8 +691,14 @@ def fit_path(contour: Contour, grid: Grid, strict: bool = False, method: str = "
     if strict and (source < 0).any():
         t = int(np.argmax(source < 0))
         after = source[t:][source[t:] >= 0]
-        raise SelectionError(_strict_msg(contour, grid, _nearest_point(source, t),
-                                         int(after[0]) if len(after) else int(source[0])))
+        raise SelectionError(
+            _strict_msg(
+                contour,
+                grid,
+                _nearest_point(source, t),
+                int(after[0]) if len(after) else int(source[0]),
+            )
+        )
     problem, diagonals = check_path(grid, nodes, targets, ring)
     if problem is not None:
         t, what = problem
@@ -644,13 +706,13 @@ def fit_path(contour: Contour, grid: Grid, strict: bool = False, method: str = "
             raise SelectionError(
                 f"{contour.source}: the grid path of ring {int(ring[t])} runs clockwise or "
                 f"encloses nothing (h = {max(grid.hx, grid.hy):.4g} is too coarse for this "
-                "contour); give a smaller --h")
+                "contour); give a smaller --h"
+            )
         raise SelectionError(_touch_msg(contour, grid, source, t, what))
     return nodes, targets, source, ring, diagonals, further
 
 
-def check_path(grid: Grid, nodes: np.ndarray, targets: np.ndarray,
-               ring: np.ndarray | None = None):
+def check_path(grid: Grid, nodes: np.ndarray, targets: np.ndarray, ring: np.ndarray | None = None):
     """``(problem, diagonals)``: ``problem`` is ``None`` if the path can be deformed
     onto its targets, else ``(path index, what)``; ``diagonals`` the forced splits.
 
@@ -681,8 +743,13 @@ def check_path(grid: Grid, nodes: np.ndarray, targets: np.ndarray,
         bad_t = np.flatnonzero(~(signed_areas(pos, tri) > 1e-12 * longest))
         if len(bad_t):
             t = int(np.flatnonzero(nodes == tri[bad_t[0], 0])[0])
-            return (t, ("would need a triangle whose three corners are contour points in the "
-                        "wrong order (it would fold)")), diagonals
+            return (
+                t,
+                (
+                    "would need a triangle whose three corners are contour points in the "
+                    "wrong order (it would fold)"
+                ),
+            ), diagonals
     return None, diagonals
 
 
@@ -691,8 +758,9 @@ def _check_strict(contour: Contour, grid: Grid, sel: np.ndarray, order: np.ndarr
     gap = np.maximum(np.abs(np.roll(i, -1) - i), np.abs(np.roll(j, -1) - j)) >= 2
     if gap.any():
         k = int(np.argmax(gap))
-        raise SelectionError(_strict_msg(contour, grid, int(order[k]),
-                                         int(order[(k + 1) % len(order)])))
+        raise SelectionError(
+            _strict_msg(contour, grid, int(order[k]), int(order[(k + 1) % len(order)]))
+        )
 
 
 def _strict_msg(contour: Contour, grid: Grid, a: int, b: int) -> str:
@@ -715,7 +783,8 @@ def _trace(contour: Contour, grid: Grid, q: np.ndarray, order: np.ndarray):
             where = f" near {contour.where(int(order[exc.k]))}" if exc.k is not None else ""
             last_error = SelectionError(
                 f"{contour.source}: the grid path traced around the contour {exc.what}{where} "
-                f"(h = {max(grid.hx, grid.hy):.4g}); give a smaller --h")
+                f"(h = {max(grid.hx, grid.hy):.4g}); give a smaller --h"
+            )
             continue
         if check_path(grid, nodes, targets)[0] is None or rule == REGION_RULES[-1]:
             return nodes, targets, source  # the caller words a failure
@@ -760,8 +829,14 @@ def _shifted(grid: Grid, shift: tuple[float, float], box_given: bool) -> Grid:
         x1, y1 = grid.x0 + grid.nx * grid.hx, grid.y0 + grid.ny * grid.hy
         nx, ny = grid.nx + (sx > 0), grid.ny + (sy > 0)
         return Grid(grid.x0, grid.y0, (x1 - grid.x0) / nx, (y1 - grid.y0) / ny, nx, ny)
-    return Grid(grid.x0 - sx * grid.hx, grid.y0 - sy * grid.hy, grid.hx, grid.hy,
-                grid.nx + (sx > 0), grid.ny + (sy > 0))
+    return Grid(
+        grid.x0 - sx * grid.hx,
+        grid.y0 - sy * grid.hy,
+        grid.hx,
+        grid.hy,
+        grid.nx + (sx > 0),
+        grid.ny + (sy > 0),
+    )
 
 
 def select(
@@ -799,9 +874,12 @@ def select(
             except (SelectionError, LimitError):
                 continue
             sel.h_rule = "spacing"
-            sel.notes.insert(0, f"exterior mesh: h = {h_try:.4g}, the coarsest step tried "
-                             "(median spacing / 1.25^k) that gives every contour point a node "
-                             "of its own")
+            sel.notes.insert(
+                0,
+                f"exterior mesh: h = {h_try:.4g}, the coarsest step tried "
+                "(median spacing / 1.25^k) that gives every contour point a node "
+                "of its own",
+            )
             return sel
     grid, info = choose_grid(contour, h, box, margin, max_nodes, exterior)
     h_used = info["h"]
@@ -814,16 +892,19 @@ def select(
             if g.n_nodes > max_nodes:
                 continue
             try:
-                nodes, targets, source, ring, diagonals, further = fit_path(contour, g, strict,
-                                                                            method)
+                nodes, targets, source, ring, diagonals, further = fit_path(
+                    contour, g, strict, method
+                )
             except SelectionError as exc:
                 first_error = first_error or exc
                 if strict:
                     raise
                 continue
             if method == "trace":
-                notes.append("traced the grid path around the contour: Appendix A's selection "
-                             "gave no simple path on any grid shift")
+                notes.append(
+                    "traced the grid path around the contour: Appendix A's selection "
+                    "gave no simple path on any grid shift"
+                )
             if shift != (0.0, 0.0):
                 notes.append(f"shifted the grid by {shift} cells: the first try failed")
             return Selection(

@@ -12,9 +12,9 @@ needs ``g1 = 1/f`` (normalised) at the moving nodes: :meth:`SizeFunction.g1`.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -22,9 +22,28 @@ from .contour import Contour, next_on_ring
 from .errors import InputError, OptionError
 
 #: Names an expression may use besides x, y and d.
-_NAMESPACE = {name: getattr(np, name) for name in (
-    "sqrt", "exp", "log", "log10", "sin", "cos", "tan", "arctan2", "tanh", "abs", "minimum",
-    "maximum", "where", "clip", "hypot", "pi", "e")}
+_NAMESPACE = {
+    name: getattr(np, name)
+    for name in (
+        "sqrt",
+        "exp",
+        "log",
+        "log10",
+        "sin",
+        "cos",
+        "tan",
+        "arctan2",
+        "tanh",
+        "abs",
+        "minimum",
+        "maximum",
+        "where",
+        "clip",
+        "hypot",
+        "pi",
+        "e",
+    )
+}
 _NAMESPACE.update(min=np.minimum, max=np.maximum)
 
 
@@ -95,14 +114,17 @@ class SizeFunction:
         if f.shape == ():
             f = np.full(len(q), float(f))
         if f.shape != (len(q),):
-            raise OptionError(f"size function {self.label}: gave shape {f.shape} for "
-                              f"{len(q)} points")
+            raise OptionError(
+                f"size function {self.label}: gave shape {f.shape} for {len(q)} points"
+            )
         bad = ~(np.isfinite(f) & (f > 0))
         if bad.any():
             k = int(np.argmax(bad))
-            raise OptionError(f"size function {self.label} is {f[k]:.3g} at "
-                              f"({q[k, 0]:.6g}, {q[k, 1]:.6g}); it must be finite and > 0 "
-                              "over the whole background box")
+            raise OptionError(
+                f"size function {self.label} is {f[k]:.3g} at "
+                f"({q[k, 0]:.6g}, {q[k, 1]:.6g}); it must be finite and > 0 "
+                "over the whole background box"
+            )
         return f
 
     def normalise(self, box, n: int = 256) -> None:
@@ -122,8 +144,10 @@ def compile_expression(expr: str):
         raise OptionError(f"--size {expr!r} is not an expression: {exc.msg}") from None
     names = set(code.co_names) - set(_NAMESPACE) - {"x", "y", "d"}
     if names:
-        raise OptionError(f"--size {expr!r} uses unknown name(s) {', '.join(sorted(names))}; "
-                          f"allowed: x, y, d, {', '.join(sorted(_NAMESPACE))}")
+        raise OptionError(
+            f"--size {expr!r} uses unknown name(s) {', '.join(sorted(names))}; "
+            f"allowed: x, y, d, {', '.join(sorted(_NAMESPACE))}"
+        )
     return code
 
 
@@ -138,7 +162,7 @@ def from_expression(expr: str, contour: Contour) -> SizeFunction:
             ns["d"] = dist(q)
         try:
             with np.errstate(all="ignore"):
-                return eval(code, {"__builtins__": {}}, ns)  # noqa: S307 - names checked
+                return eval(code, {"__builtins__": {}}, ns)
         except Exception as exc:
             raise OptionError(f"--size {expr!r} fails: {type(exc).__name__}: {exc}") from None
 
@@ -157,8 +181,12 @@ def from_field(path: str) -> SizeFunction:
         if p.suffix.lower() == ".npy":
             rows = np.load(p, allow_pickle=False)
         else:
-            rows = np.genfromtxt(p, delimiter=None if b"," not in p.read_bytes()[:4096]
-                                 else ",", comments="#", skip_header=_header_lines(p))
+            rows = np.genfromtxt(
+                p,
+                delimiter=None if b"," not in p.read_bytes()[:4096] else ",",
+                comments="#",
+                skip_header=_header_lines(p),
+            )
     except (ValueError, OSError) as exc:
         raise InputError(f"{path}: cannot read the size field: {exc}") from None
     rows = np.atleast_2d(np.asarray(rows, dtype=np.float64))
@@ -166,8 +194,10 @@ def from_field(path: str) -> SizeFunction:
         raise InputError(f"{path}: a size field is rows of x, y, f (got shape {rows.shape})")
     xs, ys = np.unique(rows[:, 0]), np.unique(rows[:, 1])
     if len(xs) * len(ys) != len(rows) or len(xs) < 2 or len(ys) < 2:
-        raise InputError(f"{path}: the x, y of a size field must form a regular grid "
-                         f"({len(xs)} x values, {len(ys)} y values, {len(rows)} rows)")
+        raise InputError(
+            f"{path}: the x, y of a size field must form a regular grid "
+            f"({len(xs)} x values, {len(ys)} y values, {len(rows)} rows)"
+        )
     grid = np.full((len(xs), len(ys)), np.nan)
     grid[np.searchsorted(xs, rows[:, 0]), np.searchsorted(ys, rows[:, 1])] = rows[:, 2]
     if np.isnan(grid).any():
@@ -175,8 +205,9 @@ def from_field(path: str) -> SizeFunction:
     bad = ~(np.isfinite(grid) & (grid > 0))
     if bad.any():
         i, j = np.argwhere(bad)[0]
-        raise InputError(f"{path}: f = {grid[i, j]:g} at ({xs[i]:g}, {ys[j]:g}); it must be "
-                         "finite and > 0")
+        raise InputError(
+            f"{path}: f = {grid[i, j]:g} at ({xs[i]:g}, {ys[j]:g}); it must be finite and > 0"
+        )
     interp = RegularGridInterpolator((xs, ys), grid, bounds_error=False, fill_value=None)
 
     def raw(q):
@@ -187,8 +218,14 @@ def from_field(path: str) -> SizeFunction:
 
 
 def _header_lines(p: Path) -> int:
-    first = next((ln for ln in p.read_text(errors="replace").splitlines()
-                  if ln.strip() and not ln.lstrip().startswith("#")), "")
+    first = next(
+        (
+            ln
+            for ln in p.read_text(errors="replace").splitlines()
+            if ln.strip() and not ln.lstrip().startswith("#")
+        ),
+        "",
+    )
     try:
         [float(v) for v in first.replace(",", " ").split()]
         return 0
@@ -196,8 +233,9 @@ def _header_lines(p: Path) -> int:
         return 1
 
 
-def spearman(points: np.ndarray, tri: np.ndarray, size: SizeFunction,
-             exclude: np.ndarray | None = None) -> float:
+def spearman(
+    points: np.ndarray, tri: np.ndarray, size: SizeFunction, exclude: np.ndarray | None = None
+) -> float:
     """Rank correlation of triangle areas with ``f`` at their centroids (``exclude``:
     node ids whose triangles are left out, e.g. the boundary nodes)."""
     from scipy.stats import spearmanr
@@ -246,8 +284,9 @@ class SizePath:
     path asks for nearly all of a 1000-fold shrink in the first step).
     """
 
-    def __init__(self, g1: Callable[[np.ndarray], np.ndarray], box, geometric: bool = False,
-                 n: int = 256):
+    def __init__(
+        self, g1: Callable[[np.ndarray], np.ndarray], box, geometric: bool = False, n: int = 256
+    ):
         self.g1 = g1
         self.geometric = geometric
         if geometric:

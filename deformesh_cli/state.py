@@ -85,8 +85,9 @@ def dumps(state: State) -> bytes:
         arrays["points"] = state.points
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w", zipfile.ZIP_STORED) as zf:
-        zf.writestr(zipfile.ZipInfo("meta.json", _EPOCH),
-                    json.dumps(meta, indent=1, sort_keys=True))
+        zf.writestr(
+            zipfile.ZipInfo("meta.json", _EPOCH), json.dumps(meta, indent=1, sort_keys=True)
+        )
         for name, arr in arrays.items():
             b = io.BytesIO()
             np.lib.format.write_array(b, np.ascontiguousarray(arr), allow_pickle=False)
@@ -128,40 +129,62 @@ def loads(data: bytes, name: str = "<state>", want: str | None = None) -> State:
         for key, (kind, ndim, tail) in spec.items():
             with zf.open(f"{key}.npy") as fh:
                 a = np.lib.format.read_array(io.BytesIO(fh.read()), allow_pickle=False)
-            if a.dtype.kind not in (kind, "i" if kind == "u" else kind) or a.ndim != ndim \
-                    or a.shape[1:] != tail:
+            if (
+                a.dtype.kind not in (kind, "i" if kind == "u" else kind)
+                or a.ndim != ndim
+                or a.shape[1:] != tail
+            ):
                 raise ValueError(key)
             arrays[key] = a
         g = meta["grid"]
-        grid = Grid(float(g["x0"]), float(g["y0"]), float(g["hx"]), float(g["hy"]),
-                    int(g["nx"]), int(g["ny"]))
+        grid = Grid(
+            float(g["x0"]),
+            float(g["y0"]),
+            float(g["hx"]),
+            float(g["hy"]),
+            int(g["nx"]),
+            int(g["ny"]),
+        )
     except (KeyError, ValueError, TypeError, zipfile.BadZipFile, EOFError, OSError) as exc:
         raise InputError(f"{name}: damaged state file ({exc.__class__.__name__}: {exc})") from None
     n = grid.n_nodes
     p = len(arrays["path_nodes"])
     ok = (
-        grid.nx >= 1 and grid.ny >= 1 and grid.hx > 0 and grid.hy > 0
+        grid.nx >= 1
+        and grid.ny >= 1
+        and grid.hx > 0
+        and grid.hy > 0
         and len(arrays["diagonals"]) == grid.nx * grid.ny
-        and len(arrays["path_targets"]) == p and len(arrays["path_source"]) == p
+        and len(arrays["path_targets"]) == p
+        and len(arrays["path_source"]) == p
         and len(arrays["path_ring"]) == p
         and len(arrays.get("path_slide", arrays["path_ring"])) == p
-        and p >= 3 and arrays["path_nodes"].min() >= 0 and arrays["path_nodes"].max() < n
+        and p >= 3
+        and arrays["path_nodes"].min() >= 0
+        and arrays["path_nodes"].max() < n
         and len(arrays["contour_lines"]) == len(arrays["contour_points"])
         and (stage != "deformed" or arrays["points"].shape == (n, 2))
     )
     if not ok:
         raise InputError(f"{name}: inconsistent state file (array sizes do not match the grid)")
     starts = arrays["contour_starts"]
-    if len(starts) < 2 or starts[0] != 0 or starts[-1] != len(arrays["contour_points"]) \
-            or (np.diff(starts) < 3).any():
-        raise InputError(f"{name}: inconsistent state file (ring starts do not match the "
-                         "contour)")
+    if (
+        len(starts) < 2
+        or starts[0] != 0
+        or starts[-1] != len(arrays["contour_points"])
+        or (np.diff(starts) < 3).any()
+    ):
+        raise InputError(f"{name}: inconsistent state file (ring starts do not match the contour)")
     labels = meta.get("ring_labels")
     if labels is not None and (not isinstance(labels, list) or len(labels) != len(starts) - 1):
         raise InputError(f"{name}: inconsistent state file (ring_labels do not match the rings)")
-    contour = make_contour(arrays["contour_points"], arrays["contour_lines"],
-                           str(meta.get("source", name)), ring_starts=starts[:-1],
-                           ring_labels=[str(x) for x in labels] if labels else None)
+    contour = make_contour(
+        arrays["contour_points"],
+        arrays["contour_lines"],
+        str(meta.get("source", name)),
+        ring_starts=starts[:-1],
+        ring_labels=[str(x) for x in labels] if labels else None,
+    )
     src = arrays["path_source"]
     if src.max() >= contour.n or np.count_nonzero(src >= 0) != contour.n:
         raise InputError(f"{name}: inconsistent state file (path does not match the contour)")

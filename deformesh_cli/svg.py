@@ -50,8 +50,9 @@ def parse_tolerance(value: str | float | None) -> tuple[float, bool] | None:
     return tol, rel
 
 
-def parse_svg(data: bytes, source: str = "<svg>", tolerance=None,
-              element_id: str | None = None) -> Contour:
+def parse_svg(
+    data: bytes, source: str = "<svg>", tolerance=None, element_id: str | None = None
+) -> Contour:
     """Read SVG bytes into a validated :class:`Contour` (see the module docstring).
 
     ``tolerance`` is ``None`` (1/1000 of the drawing's diagonal), a number in
@@ -78,8 +79,9 @@ def parse_svg(data: bytes, source: str = "<svg>", tolerance=None,
     sized = svg.values.get("height") is not None or svg.viewbox is not None
     height = float(svg.height) if sized and svg.height else 0.0
 
-    rings, labels, element, evenodd, notes = _collect_rings(shapes, tol, height, 1e-9 * diag,
-                                                                source)
+    rings, labels, element, evenodd, notes = _collect_rings(
+        shapes, tol, height, 1e-9 * diag, source
+    )
     if not rings:
         raise InputError(f"{source}: no filled area in the SVG (every subpath is empty)")
     starts = np.cumsum([0] + [len(r) for r in rings])[:-1]
@@ -87,17 +89,35 @@ def parse_svg(data: bytes, source: str = "<svg>", tolerance=None,
     make_contour(np.concatenate(rings), None, source, ring_starts=starts, ring_labels=labels)
     keep = _bounding_rings(rings, element, evenodd)
     for r in np.flatnonzero(~keep):
-        notes.append(f"dropped {labels[r]}: filled on both sides (fill rule "
-                     f"{'evenodd' if evenodd[r] else 'nonzero'})")
+        notes.append(
+            f"dropped {labels[r]}: filled on both sides (fill rule "
+            f"{'evenodd' if evenodd[r] else 'nonzero'})"
+        )
     _check_elements_apart(rings, keep, element, shapes, source)
     kept = [r for r in range(len(rings)) if keep[r]]
     starts = np.cumsum([0] + [len(rings[r]) for r in kept])[:-1]
-    c = make_contour(np.concatenate([rings[r] for r in kept]), None, source,
-                     ring_starts=starts, ring_labels=[labels[r] for r in kept])
-    notes.insert(0, f"read {len(kept)} ring(s) from {len(shapes)} SVG shape(s), curves "
-                    f"flattened to a chord tolerance of {tol:.3g}")
-    return Contour(c.points, c.lines, source, notes=tuple(notes), starts=c.starts,
-                   ring_clockwise=c.ring_clockwise, depth=c.depth, ring_labels=c.ring_labels)
+    c = make_contour(
+        np.concatenate([rings[r] for r in kept]),
+        None,
+        source,
+        ring_starts=starts,
+        ring_labels=[labels[r] for r in kept],
+    )
+    notes.insert(
+        0,
+        f"read {len(kept)} ring(s) from {len(shapes)} SVG shape(s), curves "
+        f"flattened to a chord tolerance of {tol:.3g}",
+    )
+    return Contour(
+        c.points,
+        c.lines,
+        source,
+        notes=tuple(notes),
+        starts=c.starts,
+        ring_clockwise=c.ring_clockwise,
+        depth=c.depth,
+        ring_labels=c.ring_labels,
+    )
 
 
 def _collect_rings(shapes, tol: float, height: float, eps: float, source: str):
@@ -119,16 +139,20 @@ def _collect_rings(shapes, tol: float, height: float, eps: float, source: str):
                 # an open subpath ending within the chord tolerance of its start (rounded
                 # coordinates, as minified icons have): its end is its start
                 ring = ring[:-1]
-                notes.append(f"closed subpath {j + 1} of {name}: its end was {gap:.3g} from "
-                             "its start (within --tolerance)")
+                notes.append(
+                    f"closed subpath {j + 1} of {name}: its end was {gap:.3g} from "
+                    "its start (within --tolerance)"
+                )
                 gap = 0.0
             exact = len(_drop_repeats(ring, eps))
             # points closer than the tolerance to the previous one are the same point at
             # the drawing's precision (minified icons round 0.0005 away from their start)
             ring = _drop_repeats(ring, max(eps, tol))
             if len(ring) < exact:
-                notes.append(f"merged {exact - len(ring)} point(s) of {name} subpath {j + 1} "
-                             f"closer than the tolerance {tol:.3g} to the previous one")
+                notes.append(
+                    f"merged {exact - len(ring)} point(s) of {name} subpath {j + 1} "
+                    f"closer than the tolerance {tol:.3g} to the previous one"
+                )
             if _flat(ring):
                 notes.append(f"skipped subpath {j + 1} of {name}: it encloses no area")
                 continue
@@ -138,7 +162,8 @@ def _collect_rings(shapes, tol: float, height: float, eps: float, source: str):
                     f"{source}: {name} subpath {j + 1} is not closed: it ends at "
                     f"({x1:.6g}, {y1:.6g}), {gap:.3g} from its start at ({x0:.6g}, {y0:.6g}); "
                     "end it with Z (or draw a polygon); ends closer than --tolerance are "
-                    "taken as closed")
+                    "taken as closed"
+                )
             rings.append(ring)
             labels.append(f"{name} subpath {j + 1}")
             element.append(k)
@@ -167,8 +192,10 @@ def _pick_shapes(svg, source: str, element_id: str | None) -> list:
         if found is None:
             ids = [e.id for e in svg.elements() if getattr(e, "id", None)]
             listing = ", ".join(ids[:10]) + (" ..." if len(ids) > 10 else "")
-            raise OptionError(f"{source}: no element with id {element_id!r}"
-                              + (f"; ids: {listing}" if ids else "; the file has no ids"))
+            raise OptionError(
+                f"{source}: no element with id {element_id!r}"
+                + (f"; ids: {listing}" if ids else "; the file has no ids")
+            )
         if isinstance(found, se.Shape):
             return [found]
         shapes = [e for e in found.select() if isinstance(e, se.Shape) and _filled(e)]
@@ -178,8 +205,10 @@ def _pick_shapes(svg, source: str, element_id: str | None) -> list:
     every = [e for e in svg.elements() if isinstance(e, se.Shape)]
     shapes = [e for e in every if _filled(e)]
     if not shapes:
-        raise InputError(f"{source}: no filled shape in the SVG ({len(every)} unfilled "
-                         "shape(s)); give --id to mesh one of them")
+        raise InputError(
+            f"{source}: no filled shape in the SVG ({len(every)} unfilled "
+            "shape(s)); give --id to mesh one of them"
+        )
     return shapes
 
 
@@ -213,6 +242,7 @@ def _subpaths(path, tol: float) -> list[tuple[np.ndarray, bool]]:
 
 def _pieces(seg, tol: float) -> int:
     """How many equal parameter steps keep ``seg``'s chords within ``tol``."""
+
     def p(q):
         return np.array([q.x, q.y], dtype=float)
 
@@ -292,7 +322,8 @@ def _check_elements_apart(rings, keep, element, shapes, source) -> None:
     if pairs:
         i, j = pairs[0]
         x, y = shapely.get_coordinates(
-            shapely.point_on_surface(shapely.intersection(areas[i], areas[j])))[0]
+            shapely.point_on_surface(shapely.intersection(areas[i], areas[j]))
+        )[0]
         raise InputError(
             f"{source}: {_label(shapes[owners[i]], owners[i])} and "
             f"{_label(shapes[owners[j]], owners[j])} overlap near ({x:.6g}, {y:.6g}); "

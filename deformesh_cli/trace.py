@@ -88,9 +88,10 @@ def region_cells(grid, q: np.ndarray, rule: str = "crossed") -> np.ndarray:
     import shapely
     from scipy import ndimage
 
-    I, J = np.meshgrid(np.arange(nx), np.arange(ny))
-    cells |= shapely.contains_xy(shapely.polygons(q), grid.x0 + (I + 0.5) * grid.hx,
-                                 grid.y0 + (J + 0.5) * grid.hy)
+    gi, gj = np.meshgrid(np.arange(nx), np.arange(ny))
+    cells |= shapely.contains_xy(
+        shapely.polygons(q), grid.x0 + (gi + 0.5) * grid.hx, grid.y0 + (gj + 0.5) * grid.hy
+    )
     pi, pj = _cell_of(grid, q)
     channels = None
     if rule == "thin":  # thin peninsulas are kept by their strips instead of point cells
@@ -155,8 +156,11 @@ def thin_features(grid, q: np.ndarray):
     d = s[j] - s[i]
     side_i = np.sum(d * out[i], axis=1)  # > 0: j lies on i's outer side
     side_j = -np.sum(d * out[j], axis=1)
-    keep = ((np.minimum(apart, seg.sum() - apart) >= THIN_ARC * h)
-            & (np.sum(out[i] * out[j], axis=1) < -0.5) & (side_i * side_j > 0))
+    keep = (
+        (np.minimum(apart, seg.sum() - apart) >= THIN_ARC * h)
+        & (np.sum(out[i] * out[j], axis=1) < -0.5)
+        & (side_i * side_j > 0)
+    )
     i, j, outside = i[keep], j[keep], side_i[keep] > 0
     ci, cj = _cell_of(grid, 0.5 * (s[i] + s[j]))
     strips = np.zeros((grid.ny, grid.nx), dtype=bool)
@@ -207,12 +211,11 @@ def _close(grid, cells: np.ndarray, q: np.ndarray, channels=None) -> np.ndarray:
 
     cells = ndimage.binary_fill_holes(cells)
     # only adding cells always ends; opening channels could go back and forth
-    for _ in (itertools.count() if channels is None else range(MAX_CLOSE_ROUNDS)):
+    for _ in itertools.count() if channels is None else range(MAX_CLOSE_ROUNDS):
         pi, pj = _pinches(cells)
         if len(pi) == 0:
             return cells
-        chan = (np.zeros(len(pi), dtype=bool) if channels is None
-                else channels[pj, pi].any(axis=1))
+        chan = np.zeros(len(pi), dtype=bool) if channels is None else channels[pj, pi].any(axis=1)
         # close: of the two empty cells (columns 0 and 1), add the one whose
         # centre is nearer the contour (the first on a tie)
         r = np.flatnonzero(~chan)
@@ -303,7 +306,7 @@ def assign(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
     # squared distances point x path node, once for every start (when it fits in memory)
     dist = None
     if m * L <= 20_000_000:
-        dist = ((Q[:, None, 0] - P[None, :, 0]) ** 2 + (Q[:, None, 1] - P[None, :, 1]) ** 2)
+        dist = (Q[:, None, 0] - P[None, :, 0]) ** 2 + (Q[:, None, 1] - P[None, :, 1]) ** 2
     for s in starts:
         cols = np.roll(idx, -int(s))  # path positions counted from this start
         Ps = P[cols]
@@ -316,8 +319,8 @@ def assign(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
             newmin = prev < np.concatenate([[np.inf], run[:-1]])
             back[k] = np.maximum.accumulate(np.where(newmin, idx, 0)) - 1
             cost = run + (dist[k, cols] if dist is not None else np.sum((Ps - Q[k]) ** 2, axis=1))
-            cost[: k] = np.inf
-            cost[L - (m - k) + 1:] = np.inf
+            cost[:k] = np.inf
+            cost[L - (m - k) + 1 :] = np.inf
         t = int(np.argmin(cost))
         if cost[t] < best_total:
             best_total = cost[t]
@@ -357,9 +360,14 @@ def cut_corners(grid, path: np.ndarray, carried: np.ndarray):
         n = len(keep)
         a, b, c, d = (keep[(t + r) % n] for r in range(4))
         s1, s2, s3 = step(a, b), step(b, c), step(c, d)
-        if (not carried[b] and not carried[c] and abs(s1[0]) + abs(s1[1]) == 1
-                and abs(s2[0]) + abs(s2[1]) == 1 and s1[0] * s2[0] + s1[1] * s2[1] == 0
-                and s3 == (-s1[0], -s1[1])):
+        if (
+            not carried[b]
+            and not carried[c]
+            and abs(s1[0]) + abs(s1[1]) == 1
+            and abs(s2[0]) + abs(s2[1]) == 1
+            and s1[0] * s2[0] + s1[1] * s2[1] == 0
+            and s3 == (-s1[0], -s1[1])
+        ):
             on_path.difference_update((nodes[b], nodes[c]))
             for pos in sorted(((t + 1) % n, (t + 2) % n), reverse=True):
                 del keep[pos]
@@ -375,9 +383,13 @@ def cut_corners(grid, path: np.ndarray, carried: np.ndarray):
                 a, c, b = keep[(t - 1) % len(keep)], keep[t], keep[(t + 1) % len(keep)]
                 (ai, aj), (ci, cj), (bi, bj) = ij[a], ij[c], ij[b]
                 fourth = (ai + bi - ci) + (aj + bj - cj) * w
-                if (carried[c] or abs(ai - bi) != 1 or abs(aj - bj) != 1
-                        or ((ci - ai) * (bj - cj) - (cj - aj) * (bi - ci) > 0) != want_left
-                        or fourth in on_path):
+                if (
+                    carried[c]
+                    or abs(ai - bi) != 1
+                    or abs(aj - bj) != 1
+                    or ((ci - ai) * (bj - cj) - (cj - aj) * (bi - ci) > 0) != want_left
+                    or fourth in on_path
+                ):
                     t += 1
                     continue
                 on_path.discard(nodes[c])
@@ -422,5 +434,5 @@ def trace_path(grid, q: np.ndarray, src: np.ndarray, rule: str = "crossed"):
         gap = t2 - t - 1
         if gap:
             f = np.arange(1, gap + 1) / (gap + 1)
-            targets[t + 1:t2] = q[k] + f[:, None] * (q[(k + 1) % m] - q[k])
+            targets[t + 1 : t2] = q[k] + f[:, None] * (q[(k + 1) % m] - q[k])
     return path, targets, source

@@ -113,8 +113,17 @@ def cut(contour: Contour, sel, edges: bool = False) -> Cut:
         group.append(contour.n_rings + side)
         names += list(BOX_SIDES)
     triangles = new_id[kept]
-    out = Cut(inside, order, triangles, np.concatenate(lines), np.concatenate(group),
-              tuple(names), m, len(extra), len(box_ring))
+    out = Cut(
+        inside,
+        order,
+        triangles,
+        np.concatenate(lines),
+        np.concatenate(group),
+        tuple(names),
+        m,
+        len(extra),
+        len(box_ring),
+    )
     if edges:
         from .quality import edge_uses
 
@@ -144,12 +153,21 @@ def place(contour: Contour, sel, c: Cut, points: np.ndarray) -> Mesh:
             f"{contour.source}: inside/outside disagree near ({x:.6g}, {y:.6g}): the "
             "deformed mesh is not a faithful image of the grid there"
         )
-    return Mesh(points[c.order], c.triangles, c.lines, n_contour=c.n_contour,
-                n_extra=c.n_extra, line_group=c.line_group, groups=c.groups, n_box=c.n_box)
+    return Mesh(
+        points[c.order],
+        c.triangles,
+        c.lines,
+        n_contour=c.n_contour,
+        n_extra=c.n_extra,
+        line_group=c.line_group,
+        groups=c.groups,
+        n_box=c.n_box,
+    )
 
 
-def topology_inside(grid, diagonals: np.ndarray, path_nodes: np.ndarray,
-                    path_ring: np.ndarray, n_rings: int) -> np.ndarray:
+def topology_inside(
+    grid, diagonals: np.ndarray, path_nodes: np.ndarray, path_ring: np.ndarray, n_rings: int
+) -> np.ndarray:
     """Whether each grid triangle (in :func:`~.select.grid_triangles` order) lies inside
     the rings' grid paths by the even-odd rule.
 
@@ -207,4 +225,3 @@ def _box_ring(grid) -> np.ndarray:
     top = ny * w + np.arange(nx, 0, -1)
     left = np.arange(ny, 0, -1) * w
     return np.concatenate([bottom, right, top, left])
-

@@ -12,16 +12,17 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import meshio  # noqa: E402
+import matplotlib.pyplot as plt
+import meshio
 
-from deformesh_cli.quality import measures  # noqa: E402
+from deformesh_cli.quality import measures
 
 
 def main(out, window, *files):
     x0, y0, x1, y1 = (float(v) for v in window.split(","))
-    fig, axes = plt.subplots(1, len(files), figsize=(4 * len(files), 4 * (y1 - y0) / (x1 - x0)),
-                             squeeze=False)
+    fig, axes = plt.subplots(
+        1, len(files), figsize=(4 * len(files), 4 * (y1 - y0) / (x1 - x0)), squeeze=False
+    )
     for ax, f in zip(axes[0], files):
         m = meshio.read(f)
         tri = m.cells_dict["triangle"]
@@ -34,8 +35,7 @@ def main(out, window, *files):
         ax.set_aspect("equal")
         ax.set_xticks([])
         ax.set_yticks([])
-        ax.set_title(f"{Path(f).stem}: min angle {measures(pts, tri)[0].min():.1f} deg",
-                     fontsize=9)
+        ax.set_title(f"{Path(f).stem}: min angle {measures(pts, tri)[0].min():.1f} deg", fontsize=9)
     fig.tight_layout()
     fig.savefig(out, dpi=80)
 

@@ -30,31 +30,95 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "tests" / "data" / "corpus"
 
-AIRFOILS = ["e387", "clarky", "naca2412", "s1223", "fx63137", "ag35", "mh32", "sd7037",
-            "rae2822", "e423", "dae11", "ah79100a", "naca4412", "n0012", "usa35b", "hsnlf213",
-            "sc20714", "lrn1015", "s8036", "goe398"]
-SIMPLE_ICONS = ["apple", "android", "github", "docker", "python", "rust", "nodedotjs",
-                "debian", "ubuntu", "mozilla", "spotify", "x"]
-BOOTSTRAP = ["heart-fill", "star-fill", "cloud-fill", "house-fill", "bell-fill", "gear-fill",
-             "bookmark-fill", "lightning-fill"]
-COUNTRIES = ["Australia", "Madagascar", "Iceland", "Sri Lanka", "Ireland", "Cuba", "Chile",
-             "Norway", "Italy", "India"]
+AIRFOILS = [
+    "e387",
+    "clarky",
+    "naca2412",
+    "s1223",
+    "fx63137",
+    "ag35",
+    "mh32",
+    "sd7037",
+    "rae2822",
+    "e423",
+    "dae11",
+    "ah79100a",
+    "naca4412",
+    "n0012",
+    "usa35b",
+    "hsnlf213",
+    "sc20714",
+    "lrn1015",
+    "s8036",
+    "goe398",
+]
+SIMPLE_ICONS = [
+    "apple",
+    "android",
+    "github",
+    "docker",
+    "python",
+    "rust",
+    "nodedotjs",
+    "debian",
+    "ubuntu",
+    "mozilla",
+    "spotify",
+    "x",
+]
+BOOTSTRAP = [
+    "heart-fill",
+    "star-fill",
+    "cloud-fill",
+    "house-fill",
+    "bell-fill",
+    "gear-fill",
+    "bookmark-fill",
+    "lightning-fill",
+]
+COUNTRIES = [
+    "Australia",
+    "Madagascar",
+    "Iceland",
+    "Sri Lanka",
+    "Ireland",
+    "Cuba",
+    "Chile",
+    "Norway",
+    "Italy",
+    "India",
+]
 
-PACKAGES = {"aerosandbox": ("pip", "aerosandbox==4.2.10"),
-            "simple-icons": ("npm", "simple-icons@16.37.0"),
-            "bootstrap-icons": ("npm", "bootstrap-icons@1.13.2"),
-            "world-atlas": ("npm", "world-atlas@2.0.2")}
+PACKAGES = {
+    "aerosandbox": ("pip", "aerosandbox==4.2.10"),
+    "simple-icons": ("npm", "simple-icons@16.37.0"),
+    "bootstrap-icons": ("npm", "bootstrap-icons@1.13.2"),
+    "world-atlas": ("npm", "world-atlas@2.0.2"),
+}
 
 
 def fetch(where: Path) -> None:
     """npm pack / pip download every package into ``where`` (the only network use)."""
     for kind, spec in PACKAGES.values():
         if kind == "npm":
-            subprocess.run(["npm", "pack", spec, "--silent"], cwd=where, check=True,
-                           stdout=subprocess.DEVNULL)
+            subprocess.run(
+                ["npm", "pack", spec, "--silent"], cwd=where, check=True, stdout=subprocess.DEVNULL
+            )
         else:
-            subprocess.run([sys.executable, "-m", "pip", "download", spec, "--no-deps",
-                            "-q", "-d", str(where)], check=True)
+            subprocess.run(
+                [
+                    sys.executable,
+                    "-m",
+                    "pip",
+                    "download",
+                    spec,
+                    "--no-deps",
+                    "-q",
+                    "-d",
+                    str(where),
+                ],
+                check=True,
+            )
 
 
 def unpack(where: Path) -> dict[str, Path]:
@@ -88,7 +152,7 @@ def read_dat(path: Path) -> np.ndarray:
     xy = np.array(rows)
     if len(xy) and xy[0, 0] > 1.5 and xy[0, 1] > 1.5:  # Lednicer: point counts first
         nu, nl = int(xy[0, 0]), int(xy[0, 1])
-        upper, lower = xy[1:1 + nu], xy[1 + nu:1 + nu + nl]
+        upper, lower = xy[1 : 1 + nu], xy[1 + nu : 1 + nu + nl]
         xy = np.vstack([upper[::-1], lower[1:] if np.allclose(lower[0], upper[0]) else lower])
     return xy
 
@@ -124,8 +188,11 @@ def build(roots: dict[str, Path]) -> list[tuple[str, str, str]]:
     for name in AIRFOILS:
         src = roots["aerosandbox"] / f"{name}.dat"
         xy = read_dat(src)
-        write_csv(OUT / f"airfoil_{name}.csv", xy,
-                  f"{name} from the UIUC airfoil database as shipped by AeroSandbox 4.2.10")
+        write_csv(
+            OUT / f"airfoil_{name}.csv",
+            xy,
+            f"{name} from the UIUC airfoil database as shipped by AeroSandbox 4.2.10",
+        )
         made.append((f"airfoil_{name}.csv", "aerosandbox 4.2.10 (PyPI)", "MIT (UIUC data: free)"))
     for name in SIMPLE_ICONS:
         shutil.copy(roots["simple-icons"] / "icons" / f"{name}.svg", OUT / f"icon_si_{name}.svg")
@@ -141,10 +208,18 @@ def build(roots: dict[str, Path]) -> list[tuple[str, str, str]]:
         rings = [decode_topojson(topo, poly[0]) for poly in polys]
         outer = max(rings, key=ring_area)
         slug = name.lower().replace(" ", "_")
-        write_csv(OUT / f"coast_{slug}.csv", outer,
-                  f"{name}, largest polygon, Natural Earth 1:50m via world-atlas 2.0.2; lon,lat")
-        made.append((f"coast_{slug}.csv", "world-atlas 2.0.2 (npm), Natural Earth",
-                     "ISC (package), public domain (data)"))
+        write_csv(
+            OUT / f"coast_{slug}.csv",
+            outer,
+            f"{name}, largest polygon, Natural Earth 1:50m via world-atlas 2.0.2; lon,lat",
+        )
+        made.append(
+            (
+                f"coast_{slug}.csv",
+                "world-atlas 2.0.2 (npm), Natural Earth",
+                "ISC (package), public domain (data)",
+            )
+        )
     return made
 
 
@@ -161,10 +236,15 @@ def main():
         else:
             fetch(where)
         made = build(unpack(where))
-    lines = ["# Corpus: real contours from public packages", "",
-             "Written by `scripts/make_corpus.py` (it says how each file was converted). "
-             "Coordinates as published; icons are the packages' SVG files unchanged.", "",
-             "| file | from | licence |", "| --- | --- | --- |"]
+    lines = [
+        "# Corpus: real contours from public packages",
+        "",
+        "Written by `scripts/make_corpus.py` (it says how each file was converted). "
+        "Coordinates as published; icons are the packages' SVG files unchanged.",
+        "",
+        "| file | from | licence |",
+        "| --- | --- | --- |",
+    ]
     lines += [f"| {f} | {src} | {lic} |" for f, src, lic in made]
     (OUT / "SOURCES.md").write_text("\n".join(lines) + "\n")
     print(f"wrote {len(made)} contours to {OUT}", file=sys.stderr)

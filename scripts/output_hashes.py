@@ -41,7 +41,10 @@ OUTPUTS = [
 
 def samples() -> list[Path]:
     found = sorted(SAMPLES.glob("*.csv")) + sorted(SAMPLES.glob("*.svg"))
-    return found + [SAMPLES / "pitching" / "naca0012_80.csv", SAMPLES / "pulsating" / "frame_01.csv"]
+    return found + [
+        SAMPLES / "pitching" / "naca0012_80.csv",
+        SAMPLES / "pulsating" / "frame_01.csv",
+    ]
 
 
 def exe() -> str:
@@ -90,8 +93,9 @@ def run_all(out: Path) -> dict[str, str]:
         name, args = job
         r = subprocess.run([exe(), *args], capture_output=True, text=True)
         if r.returncode != 0:
-            raise SystemExit(f"{name}: deformesh {' '.join(args)} exited {r.returncode}: "
-                             f"{r.stderr.strip()}")
+            raise SystemExit(
+                f"{name}: deformesh {' '.join(args)} exited {r.returncode}: {r.stderr.strip()}"
+            )
 
     with ThreadPoolExecutor(2) as pool:
         list(pool.map(run, meshes))

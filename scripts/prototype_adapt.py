@@ -38,12 +38,12 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from deformesh_cli import triangulate  # noqa: E402
-from deformesh_cli.contour import load_contour, make_contour  # noqa: E402
-from deformesh_cli.deform import deform  # noqa: E402
-from deformesh_cli.quality import check_contract, stats  # noqa: E402
-from deformesh_cli.select import DIAG_SLASH, Grid, grid_triangles, select  # noqa: E402
-from deformesh_cli.size import SizeFunction, SizePath  # noqa: E402
+from deformesh_cli import triangulate
+from deformesh_cli.contour import load_contour, make_contour
+from deformesh_cli.deform import deform
+from deformesh_cli.quality import check_contract, stats
+from deformesh_cli.select import DIAG_SLASH, Grid, grid_triangles, select
+from deformesh_cli.size import SizeFunction, SizePath
 
 KAPPA = float(__import__("os").environ.get("KAPPA", 0.9 / np.sqrt(2)))
 
@@ -75,7 +75,7 @@ class Between:
 
     def g_and_rate(self, q, t):
         a, b = (np.ones(len(q)) if self.g_start is None else self.g_start(q)), self.g_end(q)
-        g = a ** (1 - t) * b ** t
+        g = a ** (1 - t) * b**t
         return g, g * (np.log(b) - np.log(a))
 
 
@@ -92,8 +92,15 @@ def adapt(grid, tri, s, s_k, box, steps, ratio):
         clip = smin * ratio**j
         f = SizeFunction(lambda q, clip=clip: np.maximum(s(q), clip) ** 2, f"clip {clip:.3g}")
         f.normalise(box, n=512)
-        pos, st = deform(pos, tri, np.array([], int), np.zeros((0, 2)),
-                         grid.boundary_nodes(), steps=steps, size=Between(prev, f.g1))
+        pos, st = deform(
+            pos,
+            tri,
+            np.array([], int),
+            np.zeros((0, 2)),
+            grid.boundary_nodes(),
+            steps=steps,
+            size=Between(prev, f.g1),
+        )
         halvings += st.halvings
         prev = f.g1
     return pos, halvings
@@ -145,8 +152,9 @@ def main():
     ap.add_argument("contour")
     ap.add_argument("--gamma", type=float, default=0.05)
     ap.add_argument("--steps", type=int, default=10, help="per stage")
-    ap.add_argument("--ratio", type=float, default=0, help="spacing ratio per stage "
-                    "(0: one geometric stage)")
+    ap.add_argument(
+        "--ratio", type=float, default=0, help="spacing ratio per stage (0: one geometric stage)"
+    )
     ap.add_argument("--refine", type=int, default=1, help="adaptation grid = selection / this")
     ap.add_argument("--png")
     a = ap.parse_args()
@@ -163,15 +171,23 @@ def main():
     nx, ny = nx * a.refine, ny * a.refine  # adapt on a finer grid, select on the coarse one
     grid = Grid(box[0], box[1], (box[2] - box[0]) / nx, (box[3] - box[1]) / ny, nx, ny)
     tri = grid_triangles(grid, np.full(nx * ny, DIAG_SLASH, dtype=np.uint8))
-    print(f"spacing ratio {s_k.max() / s_k.min():.0f}; reference grid {nx}x{ny} = "
-          f"{grid.n_nodes} nodes, h {h:.3g}")
+    print(
+        f"spacing ratio {s_k.max() / s_k.min():.0f}; reference grid {nx}x{ny} = "
+        f"{grid.n_nodes} nodes, h {h:.3g}"
+    )
     t = time.perf_counter()
     if a.ratio > 0:
         adapted, halvings = adapt(grid, tri, s, s_k, box, a.steps, a.ratio)
     else:
-        adapted, st = deform(grid.coords(), tri, np.array([], int), np.zeros((0, 2)),
-                             grid.boundary_nodes(), steps=a.steps,
-                             size=SizePath(size.g1, box, geometric=True))
+        adapted, st = deform(
+            grid.coords(),
+            tri,
+            np.array([], int),
+            np.zeros((0, 2)),
+            grid.boundary_nodes(),
+            steps=a.steps,
+            size=SizePath(size.g1, box, geometric=True),
+        )
         halvings = st.halvings
     print(f"adapt: {time.perf_counter() - t:.1f} s, {halvings} halvings")
     t = time.perf_counter()
@@ -180,12 +196,16 @@ def main():
     ref_pts = (grid.coords()[tri[tt]] * bb[:, :, None]).sum(axis=1)
     ref = make_contour(ref_pts, c.lines, c.source, ring_starts=c.starts[:-1])
     e = ref.edge_lengths()
-    print(f"reference contour: spacing ratio {e.max() / e.min():.1f} "
-          f"({time.perf_counter() - t:.2f} s)")
+    print(
+        f"reference contour: spacing ratio {e.max() / e.min():.1f} "
+        f"({time.perf_counter() - t:.2f} s)"
+    )
     t = time.perf_counter()
     sel = select(ref, h=h, box=box)
-    print(f"select: {time.perf_counter() - t:.1f} s, rule {sel.path_rule}, grid "
-          f"{sel.grid.nx}x{sel.grid.ny}, {sel.extra_nodes} extra boundary nodes")
+    print(
+        f"select: {time.perf_counter() - t:.1f} s, rule {sel.path_rule}, grid "
+        f"{sel.grid.nx}x{sel.grid.ny}, {sel.extra_nodes} extra boundary nodes"
+    )
     # real targets: contour points exactly; extra nodes at the same fraction of their edge
     src = sel.path_source
     targets = sel.path_targets.copy()
@@ -209,14 +229,22 @@ def main():
     mesh = triangulate.extract(c, sel, pos)
     check_contract(mesh, c)
     r = stats(mesh)
-    print(f"contract ok: {r['nodes']} nodes, {r['triangles']} triangles, angles "
-          f"{r['min_angle']:.1f}-{r['max_angle']:.1f}, {r['extra_boundary_nodes']} extra "
-          f"boundary nodes; total {time.perf_counter() - t0:.1f} s")
+    print(
+        f"contract ok: {r['nodes']} nodes, {r['triangles']} triangles, angles "
+        f"{r['min_angle']:.1f}-{r['max_angle']:.1f}, {r['extra_boundary_nodes']} extra "
+        f"boundary nodes; total {time.perf_counter() - t0:.1f} s"
+    )
     if a.png:
         from deformesh_cli import plot
 
-        plot.draw(mesh.points, mesh.triangles, a.png, boundary=mesh.lines,
-                  contour_points=c.points, title=Path(a.contour).name)
+        plot.draw(
+            mesh.points,
+            mesh.triangles,
+            a.png,
+            boundary=mesh.lines,
+            contour_points=c.points,
+            title=Path(a.contour).name,
+        )
 
 
 if __name__ == "__main__":

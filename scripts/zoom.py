@@ -9,10 +9,10 @@ import sys
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import meshio  # noqa: E402
+import matplotlib.pyplot as plt
+import meshio
 
-from deformesh_cli.contour import load_contour  # noqa: E402
+from deformesh_cli.contour import load_contour
 
 
 def main(out, mesh_path, contour_path, *windows):

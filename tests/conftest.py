@@ -13,10 +13,16 @@ from deformesh_cli.cli import cli
 # Hypothesis profiles: "dev" (default) for quick local runs; "ci" (what `make test` runs)
 # puts 1,000 random polygons with holes through the whole pipeline, derandomised so a CI
 # run is repeatable.  Tests with their own max_examples keep it under any profile.
-settings.register_profile("dev", max_examples=50, deadline=None,
-                          suppress_health_check=[HealthCheck.too_slow])
-settings.register_profile("ci", max_examples=1000, deadline=None, derandomize=True,
-                          suppress_health_check=[HealthCheck.too_slow])
+settings.register_profile(
+    "dev", max_examples=50, deadline=None, suppress_health_check=[HealthCheck.too_slow]
+)
+settings.register_profile(
+    "ci",
+    max_examples=1000,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.too_slow],
+)
 settings.load_profile("dev")
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -55,8 +61,13 @@ def sh():
     def _sh(cmd: str, cwd=None, check=True):
         env = dict(os.environ)
         env["PATH"] = str(Path(deformesh_exe()).parent) + os.pathsep + env["PATH"]
-        r = subprocess.run(["bash", "-o", "pipefail", "-c", cmd], cwd=cwd, env=env,
-                           capture_output=True, stdin=subprocess.DEVNULL)
+        r = subprocess.run(
+            ["bash", "-o", "pipefail", "-c", cmd],
+            cwd=cwd,
+            env=env,
+            capture_output=True,
+            stdin=subprocess.DEVNULL,
+        )
         if check and r.returncode != 0:
             raise AssertionError(f"{cmd!r} exited {r.returncode}: {r.stderr.decode()}")
         return r

@@ -20,36 +20,69 @@ CASES = {
     "empty.csv": ("", 1, r"empty\.csv: empty: no points"),
     "comments.csv": ("# only\n# comments\n", 1, r"comments\.csv: empty: no points"),
     "binary.csv": (b"\x00\x01\x02\xff", 1, r"binary\.csv: binary file"),
-    "latin1.csv": (b"x,y\n0,0\n1,0\n\xe9,1\n", 1,
-                   r"latin1\.csv: line 4: not UTF-8 text \(byte 12\)"),
+    "latin1.csv": (
+        b"x,y\n0,0\n1,0\n\xe9,1\n",
+        1,
+        r"latin1\.csv: line 4: not UTF-8 text \(byte 12\)",
+    ),
     "header.csv": ("a,b\n0,0\n1,0\n0,1\n", 1, r"header\.csv: line 1: header 'a,b' must name"),
     "onecolumn.csv": ("0\n1\n2\n", 1, r"onecolumn\.csv: line 1: expected 2 columns x,y, got 1"),
     "ragged.csv": ("0,0,0\n1,0\n0,1,0\n", 1, r"ragged\.csv: line 2: expected 3 columns, got 2"),
     "word.csv": ("0,0\n1,one\n0,1\n", 1, r"word\.csv: line 2: y value 'one' is not a number"),
-    "nan.csv": ("0,0\n1,0\nnan,1\n", 1, r"nan\.csv: line 3: point 2 has a non-finite "
-                                        r"coordinate \(nan, 1\.0\)"),
+    "nan.csv": (
+        "0,0\n1,0\nnan,1\n",
+        1,
+        r"nan\.csv: line 3: point 2 has a non-finite "
+        r"coordinate \(nan, 1\.0\)",
+    ),
     "inf.csv": ("0,0\n1,-inf\n0,1\n", 1, r"inf\.csv: line 2: point 1 has a non-finite"),
     "two.csv": ("0,0\n1,0\n0,0\n1,0\n", 1, r"two\.csv: .*fewer than 3 distinct points \(2\)"),
-    "repeat.csv": ("0,0\n1,0\n1,0\n1,1\n", 1, r"repeat\.csv: point 2 \(line 3\) at \(1, 0\) "
-                                              r"repeats the previous point"),
+    "repeat.csv": (
+        "0,0\n1,0\n1,0\n1,1\n",
+        1,
+        r"repeat\.csv: point 2 \(line 3\) at \(1, 0\) "
+        r"repeats the previous point",
+    ),
     "collinear.csv": ("0,0\n1,0\n2,0\n3,0\n", 1, r"collinear\.csv: .*encloses no area"),
-    "spike.csv": ("0,0\n2,0\n2,2\n1,2\n1,3\n1,2\n0,2\n", 1,
-                  r"spike\.csv: the contour intersects itself near \(1, [23]\)"),
-    "bowtie.csv": ("0,0\n1,1\n1,0\n0,1\n", 1, r"bowtie\.csv: the contour intersects itself "
-                                              r"near \(0\.5, 0\.5\): edge from point 0 \(line 1\)"),
-    "touching.csv": ("x,y,ring\n0,0,0\n4,0,0\n4,4,0\n0,4,0\n1,1,1\n4,2,1\n1,3,1\n", 1,
-                     r"touching\.csv: ring 1 touches or crosses ring 0 near \(4, 2\)"),
-    "split.csv": ("x,y,ring\n0,0,0\n4,0,0\n1,1,1\n2,1,1\n1,2,1\n4,4,0\n", 1,
-                  r"split\.csv: line 7: ring 0 starts again"),
+    "spike.csv": (
+        "0,0\n2,0\n2,2\n1,2\n1,3\n1,2\n0,2\n",
+        1,
+        r"spike\.csv: the contour intersects itself near \(1, [23]\)",
+    ),
+    "bowtie.csv": (
+        "0,0\n1,1\n1,0\n0,1\n",
+        1,
+        r"bowtie\.csv: the contour intersects itself "
+        r"near \(0\.5, 0\.5\): edge from point 0 \(line 1\)",
+    ),
+    "touching.csv": (
+        "x,y,ring\n0,0,0\n4,0,0\n4,4,0\n0,4,0\n1,1,1\n4,2,1\n1,3,1\n",
+        1,
+        r"touching\.csv: ring 1 touches or crosses ring 0 near \(4, 2\)",
+    ),
+    "split.csv": (
+        "x,y,ring\n0,0,0\n4,0,0\n1,1,1\n2,1,1\n1,2,1\n4,4,0\n",
+        1,
+        r"split\.csv: line 7: ring 0 starts again",
+    ),
     "noshape.svg": (SVG.format(""), 1, r"noshape\.svg: no filled shape"),
-    "stroked.svg": (SVG.format("<rect width='5' height='5' fill='none' stroke='red'/>"), 1,
-                    r"stroked\.svg: no filled shape in the SVG \(1 unfilled"),
-    "open.svg": (SVG.format("<path id='p' d='M1 1 L8 1 L4 7'/>"), 1,
-                 r"open\.svg: path#p subpath 1 is not closed: it ends at \(4, 2\)"),
+    "stroked.svg": (
+        SVG.format("<rect width='5' height='5' fill='none' stroke='red'/>"),
+        1,
+        r"stroked\.svg: no filled shape in the SVG \(1 unfilled",
+    ),
+    "open.svg": (
+        SVG.format("<path id='p' d='M1 1 L8 1 L4 7'/>"),
+        1,
+        r"open\.svg: path#p subpath 1 is not closed: it ends at \(4, 2\)",
+    ),
     "broken.svg": ("<svg><path d='M0 0", 1, r"broken\.svg: not a readable SVG file"),
     # a slit 1e-7 wide: beyond the adapted grid (its path touches itself) and Appendix A's
-    "slit.csv": ("0,0\n1,0\n1,1\n0.5,1\n0.5,1e-7\n0.4999999,1\n0,1\n", 1,
-                 r"slit\.csv: the background grid would need .* nodes .*points 3 and 5\)"),
+    "slit.csv": (
+        "0,0\n1,0\n1,1\n0.5,1\n0.5,1e-7\n0.4999999,1\n0,1\n",
+        1,
+        r"slit\.csv: the background grid would need .* nodes .*points 3 and 5\)",
+    ),
 }
 
 
@@ -87,8 +120,9 @@ def _circle_csv(path, scale=1.0, offset=0.0, n=60):
     np.savetxt(path, p, delimiter=",", fmt="%.17g")
 
 
-@pytest.mark.parametrize("scale,offset", [(1e-9, 0.0), (1e-9, 1e-3), (1e9, 0.0), (1.0, 1e9),
-                                          (1e-6, -1e6)])
+@pytest.mark.parametrize(
+    "scale,offset", [(1e-9, 0.0), (1e-9, 1e-3), (1e9, 0.0), (1.0, 1e9), (1e-6, -1e6)]
+)
 def test_tiny_and_huge_coordinates_mesh_with_the_contract(run, tmp_path, scale, offset):
     f = tmp_path / "c.csv"
     _circle_csv(f, scale, offset)
@@ -99,17 +133,24 @@ def test_tiny_and_huge_coordinates_mesh_with_the_contract(run, tmp_path, scale, 
     assert r.exit_code == 0, r.stderr
 
 
-@pytest.mark.parametrize("args,code,pattern", [
-    (["-o", "{tmp}/nofolder/m.msh"], 1, r"nofolder/m\.msh: cannot write: folder .* does not exist"),
-    (["-o", "{tmp}/m.xyz"], 2, r"unknown output format 'xyz'"),
-    (["-o", "{tmp}"], 2, r"is a directory"),
-    (["-o", "-"], 2, r"writing a mesh to stdout needs --format"),
-    (["-o", "{tmp}/m.msh", "--box", "5,5,6,6"], 2, r"box"),
-    (["-o", "{tmp}/m.msh", "--h", "-1"], 2, r"must be > 0"),
-    (["-o", "{tmp}/m.msh", "--out-dir", "{tmp}"], 2, r"not both"),
-    (["--jobs", "2", "-o", "{tmp}/m.msh"], 2, r"apply to batches"),
-    ([], 2, r"give -o FILE"),
-])
+@pytest.mark.parametrize(
+    "args,code,pattern",
+    [
+        (
+            ["-o", "{tmp}/nofolder/m.msh"],
+            1,
+            r"nofolder/m\.msh: cannot write: folder .* does not exist",
+        ),
+        (["-o", "{tmp}/m.xyz"], 2, r"unknown output format 'xyz'"),
+        (["-o", "{tmp}"], 2, r"is a directory"),
+        (["-o", "-"], 2, r"writing a mesh to stdout needs --format"),
+        (["-o", "{tmp}/m.msh", "--box", "5,5,6,6"], 2, r"box"),
+        (["-o", "{tmp}/m.msh", "--h", "-1"], 2, r"must be > 0"),
+        (["-o", "{tmp}/m.msh", "--out-dir", "{tmp}"], 2, r"not both"),
+        (["--jobs", "2", "-o", "{tmp}/m.msh"], 2, r"apply to batches"),
+        ([], 2, r"give -o FILE"),
+    ],
+)
 def test_bad_options_and_outputs(run, tmp_path, args, code, pattern):
     args = [a.format(tmp=tmp_path) for a in args]
     r = run("all", SAMPLES / "circle.csv", *args)
@@ -165,13 +206,15 @@ def test_state_file_of_another_kind(run, tmp_path):
     assert r.stderr.count("\n") == 1 and not (tmp_path / "o.state").exists()
 
 
-@pytest.mark.parametrize("cmd", ["all {c} -o - --format obj -q", "select {c} -o -",
-                                 "all {c} -o m.vtk --json -q"])
+@pytest.mark.parametrize(
+    "cmd", ["all {c} -o - --format obj -q", "select {c} -o -", "all {c} -o m.vtk --json -q"]
+)
 def test_broken_pipe_ends_quietly(sh, tmp_path, cmd):
     """The reader is gone (``true`` reads nothing) long before deformesh writes."""
     c = SAMPLES / "peanut.csv"
-    r = sh(f"deformesh {cmd.format(c=c)} | true; echo ${{PIPESTATUS[0]}}", cwd=tmp_path,
-           check=False)
+    r = sh(
+        f"deformesh {cmd.format(c=c)} | true; echo ${{PIPESTATUS[0]}}", cwd=tmp_path, check=False
+    )
     assert r.stdout.strip() == b"1"
     assert r.stderr == b""
 
@@ -191,8 +234,9 @@ def _mixed_folder(folder: Path):
 def test_batch_meshes_the_good_and_reports_every_bad(run, tmp_path):
     names = _mixed_folder(tmp_path / "in")
     out = tmp_path / "out"
-    r = run("all", tmp_path / "in", "--out-dir", out, "--jobs", "2", "--json",
-            "--max-nodes", "200000")
+    r = run(
+        "all", tmp_path / "in", "--out-dir", out, "--jobs", "2", "--json", "--max-nodes", "200000"
+    )
     assert r.exit_code == 1
     recs = [json.loads(ln) for ln in r.stdout.splitlines()]
     assert [Path(x["input"]).name for x in recs] == names  # input order
@@ -200,8 +244,17 @@ def test_batch_meshes_the_good_and_reports_every_bad(run, tmp_path):
     assert ok == {"circle.csv", "peanut.csv", "bracket.svg"}
     assert sorted(p.name for p in out.iterdir()) == ["bracket.msh", "circle.msh", "peanut.msh"]
     for x in recs:
-        assert set(x) == {"input", "output", "status", "error", "seconds", "nodes",
-                          "triangles", "min_angle", "contract"}
+        assert set(x) == {
+            "input",
+            "output",
+            "status",
+            "error",
+            "seconds",
+            "nodes",
+            "triangles",
+            "min_angle",
+            "contract",
+        }
         if x["status"] != "ok":
             name = Path(x["input"]).name
             assert re.search(CASES[name][2], x["error"]), x["error"]
@@ -210,8 +263,9 @@ def test_batch_meshes_the_good_and_reports_every_bad(run, tmp_path):
     assert f"{len(names)} contour(s): 3 ok, {len(names) - 3} failed" in r.stderr
     # run again into the same folder (one job this time): the same bytes, nothing added
     before = {p.name: p.read_bytes() for p in out.iterdir()}
-    r2 = run("all", tmp_path / "in", "--out-dir", out, "--jobs", "1", "--json",
-             "--max-nodes", "200000")
+    r2 = run(
+        "all", tmp_path / "in", "--out-dir", out, "--jobs", "1", "--json", "--max-nodes", "200000"
+    )
     assert r2.exit_code == 1
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 
@@ -267,11 +321,21 @@ def test_batch_on_a_dask_cluster_gives_the_same_files(run, tmp_path):
     _mixed_folder(src)
     ref = tmp_path / "ref"
     r1 = run("all", src, "--out-dir", ref, "--jobs", "2", "--json", "--max-nodes", "200000")
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster:
         out = tmp_path / "dask"
-        r2 = run("all", src, "--out-dir", out, "--scheduler", cluster.scheduler_address,
-                 "--json", "--max-nodes", "200000")
+        r2 = run(
+            "all",
+            src,
+            "--out-dir",
+            out,
+            "--scheduler",
+            cluster.scheduler_address,
+            "--json",
+            "--max-nodes",
+            "200000",
+        )
     assert r1.exit_code == r2.exit_code == 1
 
     def strip(stdout, folder):
@@ -282,14 +346,21 @@ def test_batch_on_a_dask_cluster_gives_the_same_files(run, tmp_path):
         return recs
 
     assert strip(r1.stdout, ref) == strip(r2.stdout, out)
-    assert {p.name: p.read_bytes() for p in ref.iterdir()} == \
-        {p.name: p.read_bytes() for p in out.iterdir()}
+    assert {p.name: p.read_bytes() for p in ref.iterdir()} == {
+        p.name: p.read_bytes() for p in out.iterdir()
+    }
 
 
 def test_scheduler_unreachable_is_one_line(run, tmp_path):
     pytest.importorskip("distributed")
-    r = run("all", SAMPLES / "circle.csv", "--out-dir", tmp_path / "o",
-            "--scheduler", "tcp://127.0.0.1:9")
+    r = run(
+        "all",
+        SAMPLES / "circle.csv",
+        "--out-dir",
+        tmp_path / "o",
+        "--scheduler",
+        "tcp://127.0.0.1:9",
+    )
     assert r.exit_code == 1 and "cannot connect" in r.stderr
     assert r.stderr.count("\n") == 1
 
@@ -302,8 +373,13 @@ def _on_a_terminal(args, cwd):
     from .conftest import deformesh_exe
 
     main, sub = pty.openpty()
-    p = subprocess.Popen([deformesh_exe(), *map(str, args)], cwd=cwd, stdout=subprocess.PIPE,
-                         stderr=sub, stdin=subprocess.DEVNULL)
+    p = subprocess.Popen(
+        [deformesh_exe(), *map(str, args)],
+        cwd=cwd,
+        stdout=subprocess.PIPE,
+        stderr=sub,
+        stdin=subprocess.DEVNULL,
+    )
     os.close(sub)
     chunks = []
     while True:
@@ -324,8 +400,10 @@ def test_progress_bars_on_a_terminal_only(run, tmp_path):
     assert code == 0 and "deforming" in tty and "100%" in tty
     code, tty = _on_a_terminal(["all", SAMPLES / "peanut.csv", "-o", "m.vtk", "-q"], tmp_path)
     assert code == 0 and tty == ""
-    code, tty = _on_a_terminal(["all", SAMPLES / "circle.csv", SAMPLES / "peanut.csv",
-                                "--out-dir", "o", "--jobs", "1"], tmp_path)
+    code, tty = _on_a_terminal(
+        ["all", SAMPLES / "circle.csv", SAMPLES / "peanut.csv", "--out-dir", "o", "--jobs", "1"],
+        tmp_path,
+    )
     assert code == 0 and "meshing" in tty and "2 contour(s): 2 ok" in tty
     # not a terminal: no bar, just the summary
     r = run("all", SAMPLES / "peanut.csv", "-o", tmp_path / "n.vtk")

@@ -34,8 +34,10 @@ def test_only_the_band_moves():
     # the band's edge ring and everything outside it keep their grid positions, bit for bit
     inner = (np.abs(i - 14.5) < 5) & (np.abs(j - 14.5) < 5)
     assert np.array_equal(out[~inner], pts[~inner])
-    assert not np.array_equal(out[inner & ~np.isin(np.arange(g.n_nodes), path)],
-                              pts[inner & ~np.isin(np.arange(g.n_nodes), path)])
+    assert not np.array_equal(
+        out[inner & ~np.isin(np.arange(g.n_nodes), path)],
+        pts[inner & ~np.isin(np.arange(g.n_nodes), path)],
+    )
     assert st.moved_nodes == active.sum()
 
 
@@ -50,10 +52,21 @@ def test_a_path_node_on_the_band_edge_is_refused():
         deform_band(pts, tri, path, pts[path], g.boundary_nodes(), active)
 
 
-CASES = [SAMPLES / f for f in ("circle.csv", "naca0012.csv", "naca0012_cosine.csv",
-                               "peanut.csv", "half_disk.csv", "bracket.svg")]
-CASES += [contour_file(f) for f in ("bean_100.csv", "star_100.csv", "square_hole_100.csv",
-                              "bean_1000.csv")]
+CASES = [
+    SAMPLES / f
+    for f in (
+        "circle.csv",
+        "naca0012.csv",
+        "naca0012_cosine.csv",
+        "peanut.csv",
+        "half_disk.csv",
+        "bracket.svg",
+    )
+]
+CASES += [
+    contour_file(f)
+    for f in ("bean_100.csv", "star_100.csv", "square_hole_100.csv", "bean_1000.csv")
+]
 
 
 @pytest.mark.parametrize("path", CASES, ids=lambda p: p.name)

@@ -13,8 +13,13 @@ from deformesh_cli.quality import check_contract
 from .conftest import SAMPLES, contour_file
 
 SAMPLE_FILES = sorted(SAMPLES.glob("*.csv"))
-SHARED_DEFAULT = ["circle_100.csv", "circle_1000.csv", "bean_100.csv", "star_100.csv",
-                  "channel_100.csv"]
+SHARED_DEFAULT = [
+    "circle_100.csv",
+    "circle_1000.csv",
+    "bean_100.csv",
+    "star_100.csv",
+    "channel_100.csv",
+]
 
 
 def _mesh_ok(run, contour, out, *opts):
@@ -28,8 +33,13 @@ def _mesh_ok(run, contour, out, *opts):
     c = load_contour(contour)
     from deformesh_cli.mesh import Mesh
 
-    mesh = Mesh(m.points[:, :2], m.cells_dict["triangle"], m.cells_dict["line"], c.n,
-                rec["extra_boundary_nodes"])
+    mesh = Mesh(
+        m.points[:, :2],
+        m.cells_dict["triangle"],
+        m.cells_dict["line"],
+        c.n,
+        rec["extra_boundary_nodes"],
+    )
     check_contract(mesh, c)
     assert rec["nodes"] == len(m.points) and rec["triangles"] == len(mesh.triangles)
     return rec
@@ -47,14 +57,14 @@ def test_reference_contours_meet_the_contract_with_defaults(run, tmp_path, name)
 
 
 def test_half_disk_with_its_flat_side_on_the_background_boundary(run, tmp_path):
-    rec = _mesh_ok(run, SAMPLES / "half_disk.csv", tmp_path / "m.vtk",
-                   "--box", "-1.25,0,1.25,1.25")
+    rec = _mesh_ok(run, SAMPLES / "half_disk.csv", tmp_path / "m.vtk", "--box", "-1.25,0,1.25,1.25")
     assert rec["box"][1] == 0.0
 
 
 def test_paper_example_meshes(run, tmp_path):
-    rec = _mesh_ok(run, SAMPLES / "paper_example.csv", tmp_path / "m.vtk",
-                   "--h", "1", "--box", "1,1,9,12")
+    rec = _mesh_ok(
+        run, SAMPLES / "paper_example.csv", tmp_path / "m.vtk", "--h", "1", "--box", "1,1,9,12"
+    )
     assert rec["extra_boundary_nodes"] == 0 and rec["grid_nodes"] == 9 * 12
 
 
@@ -187,8 +197,11 @@ def test_obj_has_faces_and_boundary_lines(run, tmp_path):
 
 def test_real_pipe_gives_the_same_mesh_as_all(sh, tmp_path):
     c = SAMPLES / "peanut.csv"
-    sh(f"deformesh select {c} -o - | deformesh deform - -o - | "
-       f"deformesh triangulate - -o {tmp_path}/pipe.vtk", cwd=tmp_path)
+    sh(
+        f"deformesh select {c} -o - | deformesh deform - -o - | "
+        f"deformesh triangulate - -o {tmp_path}/pipe.vtk",
+        cwd=tmp_path,
+    )
     sh(f"deformesh all {c} -o {tmp_path}/all.vtk", cwd=tmp_path)
     assert (tmp_path / "pipe.vtk").read_bytes() == (tmp_path / "all.vtk").read_bytes()
 

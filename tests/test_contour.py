@@ -122,7 +122,7 @@ def test_decimal_comma_on_the_command_line(run, tmp_path):
 def test_edge_lengths_stay_on_each_ring():
     text = "x,y,ring\n0,0,0\n4,0,0\n4,4,0\n0,4,0\n1,1,1\n1,2,1\n2,2,1\n"
     c = parse_csv(text, "t.csv")
-    assert c.edge_lengths().tolist() == [4, 4, 4, 4, 1, 1, 2 ** 0.5]
+    assert c.edge_lengths().tolist() == [4, 4, 4, 4, 1, 1, 2**0.5]
 
 
 def test_resample_keeps_corners_and_evens_the_spacing():

@@ -32,8 +32,9 @@ def test_corpus_meshes_or_refuses_with_a_reason(run, tmp_path):
     assert len(files) >= 40
     listed = (CORPUS / "SOURCES.md").read_text()
     assert all(f"| {p.name} |" in listed for p in files)  # every file has its source
-    r = run("all", CORPUS, "--out-dir", tmp_path, "--jobs", "2", "--json", "-q",
-            "--max-nodes", "300000")
+    r = run(
+        "all", CORPUS, "--out-dir", tmp_path, "--jobs", "2", "--json", "-q", "--max-nodes", "300000"
+    )
     recs = [json.loads(ln) for ln in r.stdout.splitlines()]
     assert [Path(x["input"]).name for x in recs] == [p.name for p in files]
     for x in recs:

@@ -20,8 +20,9 @@ def corner_angles(c) -> np.ndarray:
     for r in range(c.n_rings):
         p = c.points[c.ring_order(r)]
         a, b = np.roll(p, 1, axis=0) - p, np.roll(p, -1, axis=0) - p
-        ang = np.mod(np.degrees(np.arctan2(b[:, 0] * a[:, 1] - b[:, 1] * a[:, 0],
-                                           (a * b).sum(axis=1))), 360)
+        ang = np.mod(
+            np.degrees(np.arctan2(b[:, 0] * a[:, 1] - b[:, 1] * a[:, 0], (a * b).sum(axis=1))), 360
+        )
         out.append(360 - ang if c.is_hole(r) else ang)
     return np.concatenate(out)
 
@@ -46,9 +47,10 @@ def test_smooth_contours_get_30_degrees_and_no_worse_radius_ratio(path):
     assert better.report["min_angle"] >= 30
     assert better.report["mean_radius_ratio"] >= plain.report["mean_radius_ratio"]
     assert better.report["improve"]["min_angle_before"] == pytest.approx(
-        plain.report["min_angle"], abs=1e-9)
+        plain.report["min_angle"], abs=1e-9
+    )
     # the boundary nodes are where they were (the interior: the neighbourhood test below)
-    assert np.array_equal(better.mesh.points[:c.n], plain.mesh.points[:c.n])
+    assert np.array_equal(better.mesh.points[: c.n], plain.mesh.points[: c.n])
 
 
 def _grow(mask, tri):
@@ -81,7 +83,8 @@ def test_the_stage_only_touches_the_neighbourhood_of_bad_triangles():
     assert np.array_equal(np.flatnonzero(changed), stats.changed)
     assert np.array_equal(better.lines, plain.lines)
     assert signed_areas(better.points, better.triangles).sum() == pytest.approx(
-        signed_areas(plain.points, plain.triangles).sum(), rel=1e-13)
+        signed_areas(plain.points, plain.triangles).sum(), rel=1e-13
+    )
 
 
 def test_squeezed_cells_of_an_adapted_grid_are_lifted_too():
@@ -132,11 +135,12 @@ def test_never_worse_and_the_contract_holds(pts):
     r = better.report
     assert r["min_angle"] >= r["improve"]["min_angle_before"] - 1e-9
     if r["h"] == plain.report["h"]:  # the same rung of the adapted grid's ladder
-        assert r["improve"]["min_angle_before"] == pytest.approx(plain.report["min_angle"],
-                                                                 abs=1e-9)
+        assert r["improve"]["min_angle_before"] == pytest.approx(
+            plain.report["min_angle"], abs=1e-9
+        )
     # (else the stage lifted a nearly flat rung over the ladder's 1 degree bar, and that
     # rung was kept where without the stage the next one was taken)
-    assert np.array_equal(better.mesh.points[:c.n], c.points)
+    assert np.array_equal(better.mesh.points[: c.n], c.points)
 
 
 def test_patched_edge_uses_equal_a_recount():
@@ -147,8 +151,12 @@ def test_patched_edge_uses_equal_a_recount():
     better, stats = improve.improve(plain)
     assert stats.flips > 0 and len(stats.changed) > 0
     n = len(plain.points)
-    patched = patch_edge_uses(edge_uses(plain.triangles, n), n,
-                              plain.triangles[stats.changed], better.triangles[stats.changed])
+    patched = patch_edge_uses(
+        edge_uses(plain.triangles, n),
+        n,
+        plain.triangles[stats.changed],
+        better.triangles[stats.changed],
+    )
     recount = edge_uses(better.triangles, n)
     for got, want in zip(patched, recount):
         assert np.array_equal(got, want)
@@ -175,9 +183,19 @@ CORPUS = SAMPLES.parent / "tests" / "data" / "corpus"
 #: The 20 airfoils (sharp trailing edges of 3.6-19.6 degrees, blunt ones, graded
 #: spacing), the sharp or thin samples, and a few jagged coastlines and icons.
 SHARP = sorted(CORPUS.glob("airfoil_*.csv")) + [
-    SAMPLES / "naca0012.csv", SAMPLES / "paper_example.csv", contour_file("naca0012_100.csv")]
-SHARP += [CORPUS / f for f in ("coast_ireland.csv", "coast_sri_lanka.csv", "icon_si_apple.svg",
-                               "icon_si_spotify.svg")]
+    SAMPLES / "naca0012.csv",
+    SAMPLES / "paper_example.csv",
+    contour_file("naca0012_100.csv"),
+]
+SHARP += [
+    CORPUS / f
+    for f in (
+        "coast_ireland.csv",
+        "coast_sri_lanka.csv",
+        "icon_si_apple.svg",
+        "icon_si_spotify.svg",
+    )
+]
 
 
 def bound_check(mesh):
@@ -225,8 +243,11 @@ def test_the_forced_angles_bound_every_mesh(path, improve_):
     ang = measures(m.points, m.triangles)[0]
     f = forced.edge_angles(m.points, m.lines, geom)
     # the triangle on each boundary edge
-    key = {(a, b): t for t, tri in enumerate(m.triangles.tolist())
-           for a, b in ((tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0]))}
+    key = {
+        (a, b): t
+        for t, tri in enumerate(m.triangles.tolist())
+        for a, b in ((tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0]))
+    }
     on_edge = np.array([key[(a, b)] for a, b in m.lines.tolist()])
     assert (ang[on_edge] <= f + 1e-6).all()
     # the worst triangle at each boundary node
@@ -266,9 +287,13 @@ def test_uniform_wedges_get_their_corner_angle():
         t = np.radians(degrees)
         s = np.linspace(0, 1, 21)
         arc = np.linspace(-t / 2, t / 2, max(3, int(20 * t)) + 1)[1:-1]
-        pts = np.concatenate([np.column_stack([s, -s * np.tan(t / 2)]),
-                              np.column_stack([np.cos(arc), np.sin(arc)]) / np.cos(t / 2),
-                              np.column_stack([s, s * np.tan(t / 2)])[::-1][:-1]])
+        pts = np.concatenate(
+            [
+                np.column_stack([s, -s * np.tan(t / 2)]),
+                np.column_stack([np.cos(arc), np.sin(arc)]) / np.cos(t / 2),
+                np.column_stack([s, s * np.tan(t / 2)])[::-1][:-1],
+            ]
+        )
         res = pipeline.mesh_contour(make_contour(pts, source="wedge"))
         m = res.mesh
         assert (m.triangles == 0).any(axis=1).sum() == 1
@@ -285,6 +310,6 @@ def test_nodes_are_added_where_only_boundary_nodes_bound_a_triangle():
     assert added > 0
     assert len(better.mesh.points) == len(plain.mesh.points) + added
     assert len(better.mesh.triangles) == len(plain.mesh.triangles) + 2 * added
-    assert np.array_equal(better.mesh.points[:c.n], c.points)
+    assert np.array_equal(better.mesh.points[: c.n], c.points)
     assert better.report["min_angle"] > 18  # measured 18.6
     check_contract(better.mesh, c)

@@ -37,8 +37,14 @@ def _sample(tmp_path_factory, name, contour, frames, *mesh_opts):
 
 @pytest.fixture(scope="module")
 def pitching(tmp_path_factory):
-    return _sample(tmp_path_factory, "pitching", SAMPLES / "pitching" / "naca0012_80.csv",
-                   PITCHING, "--exterior", "--box=-1.5,-1.5,2.5,1.5")
+    return _sample(
+        tmp_path_factory,
+        "pitching",
+        SAMPLES / "pitching" / "naca0012_80.csv",
+        PITCHING,
+        "--exterior",
+        "--box=-1.5,-1.5,2.5,1.5",
+    )
 
 
 @pytest.fixture(scope="module")
@@ -68,7 +74,7 @@ def test_every_frame_keeps_the_triangles_never_folds_and_sits_on_its_contour(cas
         if k == 0:
             continue
         c = load_contour(frames[k - 1])
-        assert np.array_equal(pts[:c.n], c.points)  # exactly, bit for bit
+        assert np.array_equal(pts[: c.n], c.points)  # exactly, bit for bit
         assert c.n == reference.n
         # and the whole contract, against that frame's contour
         mesh, box = _mesh_for(pts, tri0, c)
@@ -88,8 +94,9 @@ def _mesh_for(pts, tri, c):
 
 def test_pitching_min_angle_stays_within_5_degrees_of_the_first_frame(pitching):
     d, summary, err = pitching
-    angles = [measures(m.points[:, :2], m.cells_dict["triangle"])[0].min()
-              for m in _frames(d, summary)]
+    angles = [
+        measures(m.points[:, :2], m.cells_dict["triangle"])[0].min() for m in _frames(d, summary)
+    ]
     # reported as measured, over all frames
     assert summary["min_angle"] == pytest.approx(min(angles), abs=1e-9)
     assert summary["min_angle_first"] == pytest.approx(angles[0], abs=1e-9)
@@ -98,8 +105,12 @@ def test_pitching_min_angle_stays_within_5_degrees_of_the_first_frame(pitching):
     # the box does not move: its nodes are the same bits in every frame
     files = _frames(d, summary)
     x = files[0].points
-    box = (x[:, 0] == x[:, 0].min()) | (x[:, 0] == x[:, 0].max()) | \
-        (x[:, 1] == x[:, 1].min()) | (x[:, 1] == x[:, 1].max())
+    box = (
+        (x[:, 0] == x[:, 0].min())
+        | (x[:, 0] == x[:, 0].max())
+        | (x[:, 1] == x[:, 1].min())
+        | (x[:, 1] == x[:, 1].max())
+    )
     assert box.sum() > 100
     for m in files[1:]:
         assert np.array_equal(m.points[box], x[box])
@@ -139,7 +150,7 @@ def test_extra_boundary_nodes_stay_on_their_edges(tmp_path):
     # advance checks the contract (extra nodes on their edges, to 1e-12 of the size);
     # again here, by their parameter along the edge
     p = step.points
-    ext = motion.moving[c.n:]
+    ext = motion.moving[c.n :]
     t = motion.extra_at[:, None]
     want = (1 - t) * frame.points[motion.extra_from] + t * frame.points[motion.extra_to]
     assert np.allclose(p[ext], want, rtol=0, atol=1e-12)
@@ -172,7 +183,7 @@ def test_each_ring_follows_its_own_rigid_motion():
         assert step.report["rigid_turn"][0] == 0  # the square stays
         pts = step.points
         check_contract(move.frame_mesh(motion, pts), frame, motion.box)
-    assert np.array_equal(pts[:c.starts[1]], c.points[:c.starts[1]])
+    assert np.array_equal(pts[: c.starts[1]], c.points[: c.starts[1]])
     assert measures(pts, m.triangles)[0].min() >= first - 5  # measured 35.4 -> 32.3
 
 
@@ -218,22 +229,30 @@ def test_bad_frames_are_refused_before_any_work(tmp_path):
     np.savetxt(d / "ok.csv", c.points, delimiter=",", header="x,y", comments="")
     np.savetxt(d / "short.csv", c.points[:-1], delimiter=",", header="x,y", comments="")
     np.savetxt(d / "turned.csv", c.points[::-1], delimiter=",", header="x,y", comments="")
-    for name, text in (("short.csv", "has 119 points, the mesh's contour has 120"),
-                       ("turned.csv", "runs the other way round")):
+    for name, text in (
+        ("short.csv", "has 119 points, the mesh's contour has 120"),
+        ("turned.csv", "runs the other way round"),
+    ):
         r = _invoke("move", d / "m.vtu", d / "ok.csv", d / name, "--out-dir", d / "out")
         assert r.exit_code == 1, r.stderr
         assert name in r.stderr and text in r.stderr
         assert not (d / "out").exists()  # nothing written, not even the folder
     # a mesh that is not deformesh's for these points
-    np.savetxt(d / "other.csv", load_contour(SAMPLES / "circle.csv").points, delimiter=",",
-               header="x,y", comments="")
+    np.savetxt(
+        d / "other.csv",
+        load_contour(SAMPLES / "circle.csv").points,
+        delimiter=",",
+        header="x,y",
+        comments="",
+    )
     r = _invoke("move", d / "m.vtu", d / "other.csv", "--out-dir", d / "out")
     assert r.exit_code == 1 and "m.vtu" in r.stderr
     # usage errors: exit 2
     assert _invoke("move", d / "m.vtu", d / "ok.csv").exit_code == 2  # no --out-dir
     assert _invoke("move", d / "m.vtu", "--out-dir", d / "out").exit_code == 2  # no frame
-    assert _invoke("move", d / "m.vtu", d / "ok.csv", "--out-dir", d / "o",
-                   "--dt", "0").exit_code == 2
+    assert (
+        _invoke("move", d / "m.vtu", d / "ok.csv", "--out-dir", d / "o", "--dt", "0").exit_code == 2
+    )
 
 
 @st.composite
@@ -243,15 +262,21 @@ def motions(draw):
     gaps = np.array(draw(st.lists(st.floats(0.4, 1.0), min_size=n, max_size=n)))
     theta = 2 * np.pi * np.cumsum(gaps) / gaps.sum()
     r = np.array(draw(st.lists(st.floats(0.6, 1.0), min_size=n, max_size=n)))
-    steps = draw(st.lists(st.tuples(st.floats(-0.2, 0.2), st.floats(-0.1, 0.1),
-                                    st.floats(-0.05, 0.05)), min_size=1, max_size=4))
+    steps = draw(
+        st.lists(
+            st.tuples(st.floats(-0.2, 0.2), st.floats(-0.1, 0.1), st.floats(-0.05, 0.05)),
+            min_size=1,
+            max_size=4,
+        )
+    )
     frames, angle, shift, bulge = [], 0.0, 0.0, np.zeros(n)
     for a, s, b in steps:
         angle, shift = angle + a, shift + s
         bulge = bulge + b * np.cos(3 * theta)
         rr = r * (1 + bulge)
-        frames.append(np.column_stack([rr * np.cos(theta + angle) + shift,
-                                       rr * np.sin(theta + angle)]))
+        frames.append(
+            np.column_stack([rr * np.cos(theta + angle) + shift, rr * np.sin(theta + angle)])
+        )
     return np.column_stack([r * np.cos(theta), r * np.sin(theta)]), frames
 
 
@@ -261,8 +286,9 @@ def test_random_motions_keep_the_contract_or_say_which_frame_folds(case, exterio
     base, frames = case
     c = make_contour(base, source="base")
     try:
-        res = pipeline.mesh_contour(c, max_nodes=40_000, exterior=exterior,
-                                    box=(-3, -3, 3, 3) if exterior else None)
+        res = pipeline.mesh_contour(
+            c, max_nodes=40_000, exterior=exterior, box=(-3, -3, 3, 3) if exterior else None
+        )
     except DeformeshError:  # refused, as meshing says why
         return
     m = res.mesh
@@ -278,6 +304,6 @@ def test_random_motions_keep_the_contract_or_say_which_frame_folds(case, exterio
         except FoldError:
             return  # said plainly (the CLI names the frame)
         pts = step.points
-        assert np.array_equal(pts[:c.n], frame.points)
+        assert np.array_equal(pts[: c.n], frame.points)
         assert (signed_areas(pts, m.triangles) > 0).all()
         check_contract(move.frame_mesh(motion, pts), frame, motion.box)

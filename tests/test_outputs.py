@@ -44,10 +44,15 @@ def test_su2_has_a_marker_per_boundary_and_meshio_reads_it(run, tmp_path, bracke
 
 def test_exterior_su2_has_the_box_sides(run, tmp_path):
     out = tmp_path / "n.su2"
-    r = run("all", contour_file("naca0012_100.csv"), "--exterior", "--box=-2,-2,3,2", "-o", out, "-q")
+    r = run(
+        "all", contour_file("naca0012_100.csv"), "--exterior", "--box=-2,-2,3,2", "-o", out, "-q"
+    )
     assert r.exit_code == 0, r.stderr
-    tags = [ln.split("=")[1].strip() for ln in out.read_text().splitlines()
-            if ln.startswith("MARKER_TAG=")]
+    tags = [
+        ln.split("=")[1].strip()
+        for ln in out.read_text().splitlines()
+        if ln.startswith("MARKER_TAG=")
+    ]
     assert tags == ["contour", "bottom", "right", "top", "left"]
 
 
@@ -153,13 +158,15 @@ def test_quality_text_report(run, bracket):
     assert r.exit_code == 0
     lines = r.stdout.splitlines()
     assert lines[0].startswith(f"{bracket[0]}: {bracket[1]['nodes']} nodes")
-    assert sum(int(ln.split()[1]) for ln in lines if ln.startswith("  0.")) \
-        == bracket[1]["triangles"]
+    assert (
+        sum(int(ln.split()[1]) for ln in lines if ln.startswith("  0.")) == bracket[1]["triangles"]
+    )
     assert lines[-1] == "contract: unchecked (no --contour)"
 
 
-@pytest.mark.parametrize("content,text", [(b"garbage", "cannot read mesh|not a mesh"),
-                                          (None, "no such file")])
+@pytest.mark.parametrize(
+    "content,text", [(b"garbage", "cannot read mesh|not a mesh"), (None, "no such file")]
+)
 def test_quality_bad_mesh_file(run, tmp_path, content, text):
     f = tmp_path / "m.vtk"
     if content is not None:
@@ -200,7 +207,7 @@ def test_plot_and_png_draw_the_mesh(run, tmp_path, bracket):
     assert img.shape[0] > 500 and img.shape[1] > 800
     # the boundary colour and the quality shades are there, not just a blank canvas
     rgb = (img[..., :3] * 255).round().astype(int)
-    blue = np.all(np.abs(rgb - [0x1f, 0x3f, 0xbf]) < 8, axis=-1).sum()
+    blue = np.all(np.abs(rgb - [0x1F, 0x3F, 0xBF]) < 8, axis=-1).sum()
     greens = (rgb[..., 1] > rgb[..., 0] + 40).sum()
     assert blue > 500 and greens > 50_000
     png = tmp_path / "all.png"
@@ -224,11 +231,23 @@ def test_plot_errors(run, tmp_path, bracket):
 
 def test_batch_xdmf_writes_each_sidecar_under_its_own_name(run, tmp_path):
     out = tmp_path / "out"
-    r = run("all", SAMPLES / "circle.csv", SAMPLES / "peanut.csv", "--out-dir", out,
-            "--format", "xdmf", "-q")
+    r = run(
+        "all",
+        SAMPLES / "circle.csv",
+        SAMPLES / "peanut.csv",
+        "--out-dir",
+        out,
+        "--format",
+        "xdmf",
+        "-q",
+    )
     assert r.exit_code == 0, r.stderr
-    assert sorted(p.name for p in out.iterdir()) == ["circle.h5", "circle.xdmf", "peanut.h5",
-                                                     "peanut.xdmf"]
+    assert sorted(p.name for p in out.iterdir()) == [
+        "circle.h5",
+        "circle.xdmf",
+        "peanut.h5",
+        "peanut.xdmf",
+    ]
     assert "peanut.h5:/" in (out / "peanut.xdmf").read_text()
     m = meshio.read(out / "peanut.xdmf")
     assert len(m.cells_dict["triangle"]) > 1000
@@ -273,13 +292,15 @@ def test_edge_uses_counts_each_undirected_edge():
     rng = np.random.default_rng(3)
     tri = rng.integers(0, 15, (40, 3))
     tri = tri[(tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 0] != tri[:, 2])]
-    directed = Counter(map(tuple, np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]],
-                                                  tri[:, [2, 0]]]).tolist()))
+    directed = Counter(
+        map(tuple, np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]).tolist())
+    )
     lo, hi, fwd, rev = edge_uses(tri, 15)
     assert (lo < hi).all()
     assert len(set(zip(lo.tolist(), hi.tolist()))) == len(lo)  # each edge once
-    assert {(a, b) for a, b in directed} | {(b, a) for a, b in directed} == \
-        set(zip(lo.tolist(), hi.tolist())) | set(zip(hi.tolist(), lo.tolist()))
+    assert {(a, b) for a, b in directed} | {(b, a) for a, b in directed} == set(
+        zip(lo.tolist(), hi.tolist())
+    ) | set(zip(hi.tolist(), lo.tolist()))
     assert fwd.tolist() == [directed[(a, b)] for a, b in zip(lo.tolist(), hi.tolist())]
     assert rev.tolist() == [directed[(b, a)] for a, b in zip(lo.tolist(), hi.tolist())]
     assert {1, 2}.issubset(set((fwd + rev).tolist())) and (fwd + rev).max() > 2
@@ -304,8 +325,11 @@ def test_measures_match_the_angles_at_every_corner():
     for k in range(3):
         u = corners[:, (k + 1) % 3] - corners[:, k]
         v = corners[:, (k + 2) % 3] - corners[:, k]
-        ang.append(np.degrees(np.arctan2(np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]),
-                                         (u * v).sum(axis=1))))
+        ang.append(
+            np.degrees(
+                np.arctan2(np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]), (u * v).sum(axis=1))
+            )
+        )
     ang = np.column_stack(ang)
     smallest, largest, _, rr = measures(pts, tri)
     assert np.allclose(smallest, ang.min(axis=1), rtol=1e-9, atol=1e-12)

@@ -9,13 +9,18 @@ from .conftest import ROOT
 
 README = (ROOT / "README.md").read_text()
 BLOCKS = re.findall(r"```sh\n(.*?)```", README, flags=re.S)
-COMMANDS = [ln.split("  #")[0].strip() for b in BLOCKS for ln in b.splitlines()
-            if ln.startswith("deformesh ")]
+COMMANDS = [
+    ln.split("  #")[0].strip()
+    for b in BLOCKS
+    for ln in b.splitlines()
+    if ln.startswith("deformesh ")
+]
 
 
 def test_readme_has_exactly_the_two_setup_commands():
-    setup = [ln.split("#")[0].strip() for b in BLOCKS for ln in b.splitlines()
-             if ln.startswith("make ")]
+    setup = [
+        ln.split("#")[0].strip() for b in BLOCKS for ln in b.splitlines() if ln.startswith("make ")
+    ]
     assert setup == ["make demo", "make test"]
 
 

@@ -9,8 +9,13 @@ from hypothesis import strategies as st
 from deformesh_cli import respace
 from deformesh_cli.contour import load_contour, make_contour
 from deformesh_cli.errors import LimitError
-from deformesh_cli.pipeline import (MIN_ADAPTED_ANGLE, candidate_selections, grid_mode,
-                                    mesh_contour, run_select)
+from deformesh_cli.pipeline import (
+    MIN_ADAPTED_ANGLE,
+    candidate_selections,
+    grid_mode,
+    mesh_contour,
+    run_select,
+)
 from deformesh_cli.quality import check_contract
 
 from .conftest import ROOT, contour_file
@@ -29,8 +34,12 @@ def _on_polygon(p, q):
 def _cosine_airfoil(n=200, clockwise=False):
     th = np.linspace(0, 2 * np.pi, n, endpoint=False)
     x = (1 + np.cos(th)) / 2
-    y = 0.12 / 0.2 * np.sign(np.sin(th)) * (0.2969 * np.sqrt(x) - 0.126 * x - 0.3516 * x**2
-                                             + 0.2843 * x**3 - 0.1036 * x**4)
+    y = (
+        0.12
+        / 0.2
+        * np.sign(np.sin(th))
+        * (0.2969 * np.sqrt(x) - 0.126 * x - 0.3516 * x**2 + 0.2843 * x**3 - 0.1036 * x**4)
+    )
     p = np.column_stack([x, y])
     return make_contour(p[::-1] if clockwise else p)
 
@@ -65,7 +74,7 @@ def test_copy_lies_on_the_contour_evenly_spaced_between_corners(clockwise):
     ends = np.union1d([0, c.n], corners)
     for i, j in zip(ends[:-1], ends[1:]):
         step = (rs.s_real[j] if j < c.n else rs.lengths[0]) - rs.s_real[i]
-        chords = e_copy[i:j - 1]
+        chords = e_copy[i : j - 1]
         assert np.all(chords <= step / (j - i) * (1 + 1e-9))
         assert np.all(chords >= 0.9 * step / (j - i))
     assert np.all(np.diff(rs.s_copy) > 0) and np.all(np.diff(rs.s_real) > 0)
@@ -101,15 +110,21 @@ def test_extra_nodes_end_on_their_contour_edge(shape):
     assert len(extra) > 10
     for r in range(c.n_rings):  # each extra node lies on an edge of its own ring
         mine = extra[sel.path_ring[extra] == r]
-        ring = c.points[c.starts[r]:c.starts[r + 1]]
+        ring = c.points[c.starts[r] : c.starts[r + 1]]
         assert _on_polygon(sel.path_targets[mine], ring).max() < 1e-12 if len(mine) else True
     res = mesh_contour(c, h=float(np.median(c.edge_lengths())) / 4, grid="adapt")
     check_contract(res.mesh, c)
 
 
 def test_grid_mode_rules():
-    even = make_contour(np.column_stack([np.cos(np.linspace(0, 6.28, 50, endpoint=False)),
-                                         np.sin(np.linspace(0, 6.28, 50, endpoint=False))]))
+    even = make_contour(
+        np.column_stack(
+            [
+                np.cos(np.linspace(0, 6.28, 50, endpoint=False)),
+                np.sin(np.linspace(0, 6.28, 50, endpoint=False)),
+            ]
+        )
+    )
     uneven = _cosine_airfoil()
     assert grid_mode(even) == "uniform"
     assert grid_mode(uneven) == "adapt"
@@ -129,8 +144,9 @@ def test_when_no_rung_selects_the_uniform_grid_meshes_and_says_so(monkeypatch):
 def test_a_slit_meshes_on_a_rung_or_is_refused_by_the_uniform_grid():
     # a slit 1e-7 wide; the uniform grid (what auto picks: the median spacing is only twice
     # the smallest) is out of reach, and its refusal names the two close points
-    c = make_contour(np.array([[0, 0], [1, 0], [1, 1], [0.5, 1], [0.5, 1e-7],
-                               [0.4999999, 1], [0, 1]]))
+    c = make_contour(
+        np.array([[0, 0], [1, 0], [1, 1], [0.5, 1], [0.5, 1e-7], [0.4999999, 1], [0, 1]])
+    )
     assert grid_mode(c) == "uniform"
     with pytest.raises(LimitError, match=r"points 3 and 5"):
         mesh_contour(c, max_nodes=200_000)

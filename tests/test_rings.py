@@ -28,9 +28,16 @@ def _reread(path, contour, rec, box=None):
     names = {int(v[0]): k for k, v in m.field_data.items() if int(v[1]) == 1}
     tags = m.cell_data_dict["gmsh:physical"]["line"]
     groups = tuple(names[t] for t in sorted(names))
-    mesh = Mesh(m.points[:, :2], m.cells_dict["triangle"], m.cells_dict["line"], contour.n,
-                rec["extra_boundary_nodes"], line_group=tags - 1, groups=groups,
-                n_box=0)
+    mesh = Mesh(
+        m.points[:, :2],
+        m.cells_dict["triangle"],
+        m.cells_dict["line"],
+        contour.n,
+        rec["extra_boundary_nodes"],
+        line_group=tags - 1,
+        groups=groups,
+        n_box=0,
+    )
     check_contract(mesh, contour, box)
     return m, groups
 
@@ -48,7 +55,7 @@ def test_square_with_hole_keeps_both_rings(run, tmp_path):
     assert "domain" in m.field_data
     # every point of both rings is a node at its exact coordinates
     assert np.array_equal(m.points[: c.n, :2], c.points)
-    hole = abs(signed_area(c.points[c.starts[1]:]))
+    hole = abs(signed_area(c.points[c.starts[1] :]))
     assert rec["area"] == pytest.approx(4 - hole, rel=1e-12)
 
 
@@ -61,8 +68,7 @@ def test_islands_and_separate_parts_mesh_on_one_grid():
     starts = np.cumsum([0, 48, 36, 24])
     c = make_contour(pts, source="parts", ring_starts=starts)
     assert c.depth == (0, 1, 2, 0)
-    assert [c.ring_name(r) for r in range(4)] == ["contour", "hole_1", "contour_2",
-                                                  "contour_3"]
+    assert [c.ring_name(r) for r in range(4)] == ["contour", "hole_1", "contour_2", "contour_3"]
     res = mesh_contour(c)
     check_contract(res.mesh, c)
     expected = np.pi * (1 - 0.36 + 0.09 + 0.25)
@@ -124,8 +130,14 @@ def test_exterior_airfoil_in_a_far_field_box(run, tmp_path):
 
 
 def test_exterior_needs_room_around_the_contour(run, tmp_path):
-    r = run("all", contour_file("circle_100.csv"), "--exterior", "--box=-1,-1,1,1",
-            "-o", tmp_path / "m.vtk")
+    r = run(
+        "all",
+        contour_file("circle_100.csv"),
+        "--exterior",
+        "--box=-1,-1,1,1",
+        "-o",
+        tmp_path / "m.vtk",
+    )
     assert r.exit_code == 2 and "exterior mesh needs room" in r.stderr
     assert list(tmp_path.iterdir()) == []
 

@@ -5,8 +5,8 @@ import pytest
 
 from deformesh_cli import state
 from deformesh_cli.contour import load_contour, make_contour
-from deformesh_cli.quality import signed_areas
 from deformesh_cli.errors import LimitError, OptionError, SelectionError
+from deformesh_cli.quality import signed_areas
 from deformesh_cli.select import (
     DIAG_BACKSLASH,
     DIAG_SLASH,
@@ -21,8 +21,26 @@ from deformesh_cli.select import (
 
 from .conftest import SAMPLES, contour_file
 
-PAPER_P = [(1, 4), (1, 3), (2, 2), (3, 2), (4, 2), (4, 3), (5, 3), (6, 4), (7, 4), (8, 5),
-           (7, 6), (6, 7), (5, 8), (4, 8), (4, 9), (3, 9), (2, 10), (1, 11)]
+PAPER_P = [
+    (1, 4),
+    (1, 3),
+    (2, 2),
+    (3, 2),
+    (4, 2),
+    (4, 3),
+    (5, 3),
+    (6, 4),
+    (7, 4),
+    (8, 5),
+    (7, 6),
+    (6, 7),
+    (5, 8),
+    (4, 8),
+    (4, 9),
+    (3, 9),
+    (2, 10),
+    (1, 11),
+]
 
 
 def test_paper_example_selects_exactly_p1_to_p18(run, tmp_path):
@@ -152,8 +170,13 @@ def test_touching_path_with_given_h_fails_clearly():
     # a slot narrower than h whose sides carry more points than the grid has
     # nodes there: neither Appendix A's choice nor the traced outline fits
     ys = np.arange(3.0, 0.15, -0.1)
-    pts = ([(0, 0), (3, 0), (3, 3)] + [(1.6, y) for y in ys] + [(1.6, 0.1), (1.5, 0.1)]
-           + [(1.5, y) for y in ys[::-1]] + [(0, 3)])
+    pts = (
+        [(0, 0), (3, 0), (3, 3)]
+        + [(1.6, y) for y in ys]
+        + [(1.6, 0.1), (1.5, 0.1)]
+        + [(1.5, y) for y in ys[::-1]]
+        + [(0, 3)]
+    )
     c = make_contour(np.array(pts), source="slot.csv")
     for h in (0.5, 0.2):
         with pytest.raises(SelectionError) as e:
@@ -182,6 +205,7 @@ def test_grid_triangles_cover_each_cell_by_its_split():
     want = np.array(want)
     assert np.array_equal(grid_triangles(g, diag), want)
     cells = np.array([7, 0, 19, 3])
-    assert np.array_equal(grid_triangles(g, diag, cells),
-                          want.reshape(-1, 2, 3)[cells].reshape(-1, 3))
+    assert np.array_equal(
+        grid_triangles(g, diag, cells), want.reshape(-1, 2, 3)[cells].reshape(-1, 3)
+    )
     assert (signed_areas(g.coords(), want) > 0).all()

@@ -45,11 +45,14 @@ def test_readme_size_example_areas_follow_f(run, tmp_path):
     assert abs(rho0) < 0.5
 
 
-@pytest.mark.parametrize("expr,fn", [
-    ("0.1 + d", None),
-    ("1 + x**2", lambda x, y: 1 + x**2),
-    ("exp(-y)", lambda x, y: np.exp(-y)),
-])
+@pytest.mark.parametrize(
+    "expr,fn",
+    [
+        ("0.1 + d", None),
+        ("1 + x**2", lambda x, y: 1 + x**2),
+        ("exp(-y)", lambda x, y: np.exp(-y)),
+    ],
+)
 def test_areas_follow_f_on_other_shapes(run, tmp_path, expr, fn):
     out = tmp_path / "m.vtk"
     r = run("all", SAMPLES / "peanut.csv", "-o", out, "--size", expr, "--json")
@@ -113,16 +116,24 @@ def test_size_field_matches_the_expression(run, tmp_path):
     assert np.abs(outs[0] - outs[2]).max() < 1e-3
 
 
-@pytest.mark.parametrize("opts,code,text", [
-    (["--size", "1 +"], 2, "is not an expression"),
-    (["--size", "__import__('os')"], 2, "unknown name(s) __import__"),
-    (["--size", "x"], 2, "must be finite and > 0 over the whole background box"),
-    (["--size", "1", "--size-field", "f.csv"], 2, "not both"),
-    (["--size-field", "missing.csv"], 1, "missing.csv: no such file"),
-])
+@pytest.mark.parametrize(
+    "opts,code,text",
+    [
+        (["--size", "1 +"], 2, "is not an expression"),
+        (["--size", "__import__('os')"], 2, "unknown name(s) __import__"),
+        (["--size", "x"], 2, "must be finite and > 0 over the whole background box"),
+        (["--size", "1", "--size-field", "f.csv"], 2, "not both"),
+        (["--size-field", "missing.csv"], 1, "missing.csv: no such file"),
+    ],
+)
 def test_size_errors(run, tmp_path, opts, code, text):
-    r = run("all", SAMPLES / "circle.csv", "-o", tmp_path / "m.vtk",
-            *[str(tmp_path / o) if o.endswith(".csv") else o for o in opts])
+    r = run(
+        "all",
+        SAMPLES / "circle.csv",
+        "-o",
+        tmp_path / "m.vtk",
+        *[str(tmp_path / o) if o.endswith(".csv") else o for o in opts],
+    )
     assert r.exit_code == code, r.stderr
     assert text in r.stderr
     assert not (tmp_path / "m.vtk").exists()
@@ -152,8 +163,11 @@ def test_contour_distance_is_exact_enough():
 
 def test_pipe_carries_the_size_function_to_triangulate(sh, tmp_path):
     c = SAMPLES / "circle.csv"
-    r = sh(f"deformesh select {c} -o - | deformesh deform - -o - --size 'exp(x)' | "
-           f"deformesh triangulate - -o {tmp_path}/p.vtk --json", cwd=tmp_path)
+    r = sh(
+        f"deformesh select {c} -o - | deformesh deform - -o - --size 'exp(x)' | "
+        f"deformesh triangulate - -o {tmp_path}/p.vtk --json",
+        cwd=tmp_path,
+    )
     rec = json.loads(r.stdout)
     assert rec["size"] == "'exp(x)'" and rec["size_correlation"] >= 0.9
 
@@ -199,8 +213,14 @@ def test_the_papers_printed_sign_grows_the_cells_it_should_shrink():
 
     rho = {}
     for name, path in (("ours", ours), ("printed", Printed())):
-        pos, _ = deform(grid.coords(), tri, np.array([], int), np.zeros((0, 2)),
-                        grid.boundary_nodes(), size=path)
+        pos, _ = deform(
+            grid.coords(),
+            tri,
+            np.array([], int),
+            np.zeros((0, 2)),
+            grid.boundary_nodes(),
+            size=path,
+        )
         f = size.values(pos[tri].mean(axis=1))
         rho[name] = spearmanr(signed_areas(pos, tri), f).statistic
     assert rho["ours"] > 0.85 and rho["printed"] < 0, rho  # measured 0.91 and -0.71

@@ -23,7 +23,7 @@ def svg(body, w=100, h=100, extra=""):
 
 
 def ring_points(c, r):
-    return c.points[c.starts[r]:c.starts[r + 1]]
+    return c.points[c.starts[r] : c.starts[r + 1]]
 
 
 def test_polygon_is_flipped_and_keeps_its_vertices():
@@ -35,15 +35,19 @@ def test_polygon_is_flipped_and_keeps_its_vertices():
 
 def test_without_height_or_viewbox_y_is_negated():
     body = '<polygon points="0,0 10,0 0,10"/>'
-    c = parse_svg(SVG.format(w=0, h=0, extra="", body=body).replace(
-        'width="0" height="0" ', "").encode(), "n.svg")
+    c = parse_svg(
+        SVG.format(w=0, h=0, extra="", body=body).replace('width="0" height="0" ', "").encode(),
+        "n.svg",
+    )
     assert c.points.tolist() == [[0, 0], [10, 0], [0, -10]]
 
 
 def test_transforms_and_viewbox_are_applied():
     # viewBox 0 0 50 50 in a 100x100 viewport: everything doubles
-    body = '<g transform="translate(5 5)"><rect x="0" y="0" width="10" height="20" ' \
-           'transform="scale(2 1)"/></g>'
+    body = (
+        '<g transform="translate(5 5)"><rect x="0" y="0" width="10" height="20" '
+        'transform="scale(2 1)"/></g>'
+    )
     c = parse_svg(svg(body, extra='viewBox="0 0 50 50"'), "t.svg")
     xy = c.points
     # user box x 5..25, y 5..25 -> viewport x 10..50, y 10..50 -> flipped y 50..90
@@ -52,18 +56,27 @@ def test_transforms_and_viewbox_are_applied():
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.floats(-180, 180), st.floats(0.2, 3), st.floats(-50, 50), st.floats(-50, 50),
-       st.integers(3, 12), st.integers(0, 10_000))
+@given(
+    st.floats(-180, 180),
+    st.floats(0.2, 3),
+    st.floats(-50, 50),
+    st.floats(-50, 50),
+    st.integers(3, 12),
+    st.integers(0, 10_000),
+)
 def test_random_polygon_under_random_transform_lands_where_the_matrix_says(
-        angle, scale, tx, ty, n, seed):
+    angle, scale, tx, ty, n, seed
+):
     rng = np.random.default_rng(seed)
     t = np.sort(rng.uniform(0, 2 * np.pi, n))
     assume(np.diff(np.concatenate([t, [t[0] + 2 * np.pi]])).min() > 1e-3)
     rad = rng.uniform(5, 20, n)
     pts = np.column_stack([50 + rad * np.cos(t), 50 + rad * np.sin(t)])
     assume(shapely.is_simple(shapely.LinearRing(pts)))
-    body = (f'<polygon transform="translate({tx} {ty}) rotate({angle}) scale({scale})" '
-            f'points="{" ".join(f"{float(x)!r},{float(y)!r}" for x, y in pts)}"/>')
+    body = (
+        f'<polygon transform="translate({tx} {ty}) rotate({angle}) scale({scale})" '
+        f'points="{" ".join(f"{float(x)!r},{float(y)!r}" for x, y in pts)}"/>'
+    )
     c = parse_svg(svg(body, w=200, h=150), "r.svg")
     a = math.radians(angle)
     rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
@@ -111,12 +124,15 @@ INNER_SAME = "M 30 30 H 70 V 70 H 30 Z"  # same direction as SQUARE
 INNER_OPPOSITE = "M 30 30 V 70 H 70 V 30 Z"
 
 
-@pytest.mark.parametrize("rule,inner,holes", [
-    ("evenodd", INNER_SAME, 1),
-    ("evenodd", INNER_OPPOSITE, 1),
-    ("nonzero", INNER_SAME, 0),  # winding 2 inside: filled, the inner ring is no boundary
-    ("nonzero", INNER_OPPOSITE, 1),
-])
+@pytest.mark.parametrize(
+    "rule,inner,holes",
+    [
+        ("evenodd", INNER_SAME, 1),
+        ("evenodd", INNER_OPPOSITE, 1),
+        ("nonzero", INNER_SAME, 0),  # winding 2 inside: filled, the inner ring is no boundary
+        ("nonzero", INNER_OPPOSITE, 1),
+    ],
+)
 def test_fill_rule_decides_holes(rule, inner, holes):
     c = parse_svg(svg(f'<path fill-rule="{rule}" d="{SQUARE} {inner}"/>'), "f.svg")
     assert c.n_rings == 1 + holes
@@ -131,16 +147,19 @@ def test_fill_rule_is_inherited_from_a_group():
 
 
 def test_island_in_a_hole_of_another_element_is_a_part():
-    body = (f'<path id="frame" fill-rule="evenodd" d="{SQUARE} {INNER_SAME}"/>'
-            '<circle id="dot" cx="50" cy="50" r="10"/>')
+    body = (
+        f'<path id="frame" fill-rule="evenodd" d="{SQUARE} {INNER_SAME}"/>'
+        '<circle id="dot" cx="50" cy="50" r="10"/>'
+    )
     c = parse_svg(svg(body), "i.svg")
     assert [c.is_hole(r) for r in range(c.n_rings)] == [False, True, False]
     assert c.ring_labels[2] == "circle#dot subpath 1"
 
 
 def test_overlapping_elements_are_refused_naming_both():
-    body = '<rect id="a" x="10" y="10" width="50" height="50"/>' \
-           '<circle id="b" cx="35" cy="35" r="10"/>'
+    body = (
+        '<rect id="a" x="10" y="10" width="50" height="50"/><circle id="b" cx="35" cy="35" r="10"/>'
+    )
     with pytest.raises(InputError, match=r"rect#a and circle#b overlap near .*--id"):
         parse_svg(svg(body), "o.svg")
     # --id picks one of them
@@ -148,20 +167,25 @@ def test_overlapping_elements_are_refused_naming_both():
 
 
 def test_unfilled_and_hidden_shapes_are_skipped():
-    body = ('<rect x="10" y="10" width="20" height="20" fill="none" stroke="black"/>'
-            '<defs><circle id="c" cx="5" cy="5" r="3"/></defs>'
-            '<polygon points="50,50 90,50 70,90"/>')
+    body = (
+        '<rect x="10" y="10" width="20" height="20" fill="none" stroke="black"/>'
+        '<defs><circle id="c" cx="5" cy="5" r="3"/></defs>'
+        '<polygon points="50,50 90,50 70,90"/>'
+    )
     c = parse_svg(svg(body), "u.svg")
     assert c.n_rings == 1 and c.n == 3
     with pytest.raises(InputError, match="no filled shape"):
         parse_svg(svg('<rect width="5" height="5" fill="none"/>'), "u.svg")
 
 
-@pytest.mark.parametrize("data,text", [
-    (b"<svg><polygon points='0,0 1,0", "not a readable SVG file"),
-    (svg('<polygon points="0,0 10,10 10,0 0,10"/>'), r"intersects itself near \(5, 95\)"),
-    (svg('<polygon points="0,0 10,0 20,0"/>'), "skipped|no filled area"),
-])
+@pytest.mark.parametrize(
+    "data,text",
+    [
+        (b"<svg><polygon points='0,0 1,0", "not a readable SVG file"),
+        (svg('<polygon points="0,0 10,10 10,0 0,10"/>'), r"intersects itself near \(5, 95\)"),
+        (svg('<polygon points="0,0 10,0 20,0"/>'), "skipped|no filled area"),
+    ],
+)
 def test_bad_svg_is_one_line(data, text):
     with pytest.raises(InputError, match=text) as e:
         parse_svg(data, "bad.svg")
@@ -230,7 +254,7 @@ def test_sample_svg_mesh_covers_what_resvg_paints(run, tmp_path):
     m = meshio.read(out)
     domain = shapely.union_all(shapely.polygons(m.points[:, :2][m.cells_dict["triangle"]]))
     height = img.shape[0] / zoom  # the viewport height, which the y flip used
-    i, j = np.mgrid[:img.shape[0], :img.shape[1]]
+    i, j = np.mgrid[: img.shape[0], : img.shape[1]]
     ours = shapely.contains_xy(domain, (j + 0.5) / zoom, height - (i + 0.5) / zoom)
     iou = (painted & ours).sum() / (painted | ours).sum()
     assert painted.sum() > 0.2 * painted.size

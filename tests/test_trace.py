@@ -20,9 +20,11 @@ from .test_properties import star_polygons
 def _is_simple_ccw_cycle(grid, path):
     i, j = grid.node_ij(path)
     di, dj = np.roll(i, -1) - i, np.roll(j, -1) - j
-    return (len(np.unique(path)) == len(path)
-            and np.all(np.abs(di) + np.abs(dj) == 1)
-            and signed_area(grid.coords(path)) > 0)
+    return (
+        len(np.unique(path)) == len(path)
+        and np.all(np.abs(di) + np.abs(dj) == 1)
+        and signed_area(grid.coords(path)) > 0
+    )
 
 
 def test_region_of_a_diagonal_sliver_is_closed_and_its_outline_simple():
@@ -150,12 +152,23 @@ def _side(a, b, n):
 def _comb(w, n=3):
     """A 10 x 10 square with an inlet ``w`` wide and 6 deep cut in from below and a
     peninsula ``w`` wide and 5 long on top, ``n`` points on each of their sides."""
-    return make_contour(np.vstack([
-        _side((0, 0), (4, 0), 4), _side((4, 0), (4 + w / 2, 6), n),
-        _side((4 + w / 2, 6), (4 + w, 0), n), _side((4 + w, 0), (10, 0), 6),
-        _side((10, 0), (10, 10), 10), _side((10, 10), (6 + w, 10), 4),
-        _side((6 + w, 10), (6 + w / 2, 15), n), _side((6 + w / 2, 15), (6, 10), n),
-        _side((6, 10), (0, 10), 6), _side((0, 10), (0, 0), 10)]), source="comb")
+    return make_contour(
+        np.vstack(
+            [
+                _side((0, 0), (4, 0), 4),
+                _side((4, 0), (4 + w / 2, 6), n),
+                _side((4 + w / 2, 6), (4 + w, 0), n),
+                _side((4 + w, 0), (10, 0), 6),
+                _side((10, 0), (10, 10), 10),
+                _side((10, 10), (6 + w, 10), 4),
+                _side((6 + w, 10), (6 + w / 2, 15), n),
+                _side((6 + w / 2, 15), (6, 10), n),
+                _side((6, 10), (0, 10), 6),
+                _side((0, 10), (0, 0), 10),
+            ]
+        ),
+        source="comb",
+    )
 
 
 def test_thin_rule_keeps_an_inlet_and_a_peninsula_thinner_than_a_cell():
@@ -178,8 +191,14 @@ def test_thin_rule_keeps_an_inlet_and_a_peninsula_thinner_than_a_cell():
 def test_corners_are_not_thin_features():
     # a square at 1/4-cell spacing: its sides meet at right angles, none faces another
     grid = Grid(-1.0, -1.0, 0.5, 0.5, 8, 8)
-    q = np.vstack([_side((0, 0), (2, 0), 8), _side((2, 0), (2, 2), 8),
-                   _side((2, 2), (0, 2), 8), _side((0, 2), (0, 0), 8)])
+    q = np.vstack(
+        [
+            _side((0, 0), (2, 0), 8),
+            _side((2, 0), (2, 2), 8),
+            _side((2, 2), (0, 2), 8),
+            _side((0, 2), (0, 0), 8),
+        ]
+    )
     strips, channels = thin_features(grid, q)
     assert not strips.any() and not channels.any()
 

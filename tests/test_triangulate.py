@@ -24,14 +24,23 @@ def _by_shapely(sel, contour, exterior):
 
 
 def _by_topology(sel, contour, exterior):
-    got = triangulate.topology_inside(sel.grid, sel.diagonals, sel.path_nodes, sel.path_ring,
-                                      contour.n_rings)
+    got = triangulate.topology_inside(
+        sel.grid, sel.diagonals, sel.path_nodes, sel.path_ring, contour.n_rings
+    )
     return ~got if exterior else got
 
 
-@pytest.mark.parametrize("path", [SAMPLES / "peanut.csv", SAMPLES / "naca0012.csv",
-                                  contour_file("square_hole_100.csv"), contour_file("star_100.csv"),
-                                  contour_file("channel_100.csv")], ids=lambda p: p.stem)
+@pytest.mark.parametrize(
+    "path",
+    [
+        SAMPLES / "peanut.csv",
+        SAMPLES / "naca0012.csv",
+        contour_file("square_hole_100.csv"),
+        contour_file("star_100.csv"),
+        contour_file("channel_100.csv"),
+    ],
+    ids=lambda p: p.stem,
+)
 @pytest.mark.parametrize("exterior", [False, True])
 def test_topology_agrees_with_shapely(path, exterior):
     c = load_contour(path)
@@ -72,8 +81,9 @@ def _square_path(grid):
 def test_parity_on_a_hand_made_path():
     g = Grid(0, 0, 1, 1, 4, 4)
     nodes = _square_path(g)
-    inside = triangulate.topology_inside(g, np.zeros(16, np.uint8), nodes,
-                                         np.zeros(len(nodes), int), 1)
+    inside = triangulate.topology_inside(
+        g, np.zeros(16, np.uint8), nodes, np.zeros(len(nodes), int), 1
+    )
     cells_inside = inside.reshape(-1, 2).all(axis=1)
     want = np.zeros((4, 4), bool)
     want[1:3, 1:3] = True
@@ -124,8 +134,12 @@ def test_the_contract_names_each_broken_clause(peanut):
     with pytest.raises(ContractError, match="signed area"):
         check_contract(_with(mesh, triangles=tri), c)
     with pytest.raises(ContractError, match="more than two triangles"):
-        check_contract(_with(mesh, triangles=np.vstack([tri[:7], mesh.triangles[7:],
-                                                        mesh.triangles[100:101]])), c)
+        check_contract(
+            _with(
+                mesh, triangles=np.vstack([tri[:7], mesh.triangles[7:], mesh.triangles[100:101]])
+            ),
+            c,
+        )
     # a second triangle on the inner side of boundary edge a -> b: overlap (its third
     # node is not a neighbour of a or b, so its other two edges are new)
     from deformesh_cli.quality import signed_areas
@@ -134,13 +148,16 @@ def test_the_contract_names_each_broken_clause(peanut):
     t = mesh.triangles
     near = np.unique(t[(t == a).any(axis=1) | (t == b).any(axis=1)])
     cand = np.setdiff1d(np.arange(len(mesh.points)), near)
-    left = signed_areas(mesh.points, np.column_stack([np.full(len(cand), a),
-                                                      np.full(len(cand), b), cand])) > 0
+    left = (
+        signed_areas(
+            mesh.points, np.column_stack([np.full(len(cand), a), np.full(len(cand), b), cand])
+        )
+        > 0
+    )
     mid = mesh.points[[a, b]].mean(axis=0)
     y = cand[left][np.argmin(np.hypot(*(mesh.points[cand[left]] - mid).T))]
     with pytest.raises(ContractError, match="overlap along the edge"):
         check_contract(_with(mesh, triangles=np.vstack([t, [[a, b, y]]])), c)
     # a hole punched inside: the boundary is no longer the contour
     with pytest.raises(ContractError, match="is not the contour's boundary chain"):
-        check_contract(_with(mesh, triangles=np.delete(mesh.triangles, len(tri) // 2, axis=0)),
-                       c)
+        check_contract(_with(mesh, triangles=np.delete(mesh.triangles, len(tri) // 2, axis=0)), c)

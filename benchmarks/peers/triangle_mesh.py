@@ -19,8 +19,13 @@ def main(src, h, out):
     n = len(pts)
     seg = np.column_stack([np.arange(n), (np.arange(n) + 1) % n])
     res = triangle.triangulate({"vertices": pts, "segments": seg}, f"pq30a{h * h / 2:.15f}Y")
-    meshio.write(out, meshio.Mesh(np.column_stack([res["vertices"], np.zeros(len(res["vertices"]))]),
-                                  [("triangle", res["triangles"])]))
+    meshio.write(
+        out,
+        meshio.Mesh(
+            np.column_stack([res["vertices"], np.zeros(len(res["vertices"]))]),
+            [("triangle", res["triangles"])],
+        ),
+    )
 
 
 if __name__ == "__main__":
