@@ -22,6 +22,7 @@ import shapely
 
 from . import io
 from .errors import InputError, OptionError
+from .geometry import next_on_ring, signed_area
 
 _DELIMITERS = (",", ";", "\t")
 
@@ -157,25 +158,6 @@ class Contour:
         )
         k = int(np.argmin(dist))
         return float(dist[k]), int(src[k]), int(dst[k])
-
-
-def next_on_ring(ring: np.ndarray) -> np.ndarray:
-    """Index of the next entry on the same closed ring (each ring's entries contiguous)."""
-    idx = np.arange(len(ring))
-    change = np.flatnonzero(np.diff(ring)) + 1
-    starts = np.concatenate([[0], change])
-    sizes = np.diff(np.concatenate([starts, [len(ring)]]))
-    start = np.repeat(starts, sizes)
-    return start + (idx - start + 1) % np.repeat(sizes, sizes)
-
-
-def signed_area(p: np.ndarray) -> float:
-    """Shoelace area of a closed polygon given without its closing point."""
-    x, y = p[:, 0], p[:, 1]
-    # subtract a reference point: keeps precision for large offsets
-    x = x - x[0]
-    y = y - y[0]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
 
 
 def load_contour(

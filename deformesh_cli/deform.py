@@ -23,7 +23,7 @@ import numpy as np
 
 from .divcurl import Assembler
 from .errors import FoldError
-from .quality import signed_areas
+from .geometry import signed_areas
 
 #: Default number of pseudo-time steps (the paper's example uses 10).
 DEFAULT_STEPS = 10

@@ -143,7 +143,7 @@ def weakest_bound(
     ring of the triangles ``weak`` (60 if none): no mesh with these boundary nodes
     has a larger smallest angle.  Only near the weak triangles, because that is
     where it matters and a whole fine boundary costs (5,045 edges: 0.7 s)."""
-    from .mesh import touching
+    from .geometry import touching
 
     near = np.zeros(len(points), dtype=bool)
     near[tri[weak].ravel()] = True

@@ -34,7 +34,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .forced import corner_angles
-from .mesh import Mesh, touching
+from .geometry import touching
+from .mesh import Mesh
 
 #: Rounds of (flips, smoothing, cavities) at most; a round that changes nothing ends it.
 ROUNDS = 8

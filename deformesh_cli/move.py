@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import quality
+from . import geometry, quality
 from .contour import Contour, make_contour
 from .deform import ADVICE, DEFAULT_STEPS, DeformStats, deform, deform_band
 from .errors import ContractError, DeformeshError, FoldError, InputError
@@ -53,7 +53,7 @@ class Motion:
     extra_at: np.ndarray  # and how far along that edge it sits (0..1)
     rings: list[np.ndarray]  # per ring: positions in ``moving`` of its nodes
     weights: list[np.ndarray]  # per ring, per node: how much of its rigid motion it follows
-    edges: tuple  # quality.edge_uses of the triangles: the same in every frame
+    edges: tuple  # geometry.edge_uses of the triangles: the same in every frame
 
 
 @dataclass
@@ -92,7 +92,7 @@ def prepare(points: np.ndarray, tri: np.ndarray, first: Contour, source: str) ->
             f"{first.source}'s ({exc}); was it written by deformesh from "
             f"{m} points?"
         ) from None
-    edges = quality.edge_uses(tri, len(points))
+    edges = geometry.edge_uses(tri, len(points))
     try:
         mesh, box = quality.mesh_for_contour(points, tri, own)
         quality.check_contract(mesh, own, box, edges)
@@ -260,7 +260,7 @@ def advance(
         for w, (cp, cq, theta) in zip(motion.weights, fits):
             if theta != 0 or (cq != cp).any():  # (a ring at rest: not a bit moves)
                 start = carry(start, w, cp, cp + share * (cq - cp), share * theta)
-        if (quality.signed_areas(start, mesh.triangles) > 0).all():
+        if (geometry.signed_areas(start, mesh.triangles) > 0).all():
             break
         share /= 2
     else:
@@ -280,7 +280,7 @@ def advance(
         new = start.copy()
         new[motion.moving] = goal
         stats = DeformStats(steps=0, solver="none", moved_nodes=0)
-        if not (quality.signed_areas(new, mesh.triangles) > 0).all():
+        if not (geometry.signed_areas(new, mesh.triangles) > 0).all():
             new = None  # (the last nudge folds: leave it to the solve)
     if new is None and solve == "band" and len(motion.held):
         band = _band(start, motion, goal)

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import deform as _deform
-from . import forced, quality, triangulate
+from . import forced, geometry, quality, triangulate
 from . import improve as _improve
 from . import respace as _respace
 from . import size as _size
@@ -229,7 +229,7 @@ def run_triangulate(
         mesh, better = _improve.improve(mesh)
         if len(better.changed) and edges is not None:  # the changed triangles' edges
             old = len(before.triangles)
-            edges = quality.patch_edge_uses(
+            edges = geometry.patch_edge_uses(
                 edges,
                 mesh.n_nodes,
                 before.triangles[better.changed],

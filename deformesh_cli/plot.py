@@ -10,7 +10,7 @@ import io as _io
 
 import numpy as np
 
-from . import io, quality
+from . import geometry, io, quality
 from .errors import DeformeshError
 
 #: Colour map of the radius ratio: red = poor (sliver), green = equilateral.
@@ -51,7 +51,7 @@ def render(
 
     smallest, largest, _, rr = quality.measures(points, tri)
     if boundary is None:
-        boundary = quality.boundary_edges(tri, len(points))
+        boundary = geometry.boundary_edges(tri, len(points))
     span = np.ptp(points, axis=0)
     height = float(np.clip(7.5 * span[1] / max(span[0], 1e-300), 3.5, 9.0))  # follow the shape
     fig, (ax, axh) = plt.subplots(

@@ -17,17 +17,11 @@ import numpy as np
 
 from .contour import Contour
 from .errors import ContractError
+from .geometry import boundary_edges, directed_boundary, edge_uses, signed_areas
 from .mesh import Mesh
 
 #: Relative tolerance on area conservation (measured: ~1e-15).
 AREA_RTOL = 1e-10
-
-
-def signed_areas(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    x, y = points[tri, 0], points[tri, 1]  # (t, 3) each
-    return 0.5 * (
-        (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
-    )
 
 
 def measures(points: np.ndarray, tri: np.ndarray):
@@ -156,7 +150,7 @@ def _check_boundary(mesh: Mesh, contour: Contour, box, edges=None) -> None:
             f"node {hi[k]} (both on the same side of it)"
         )
     # directed boundary edges (domain on the left) must equal the line cells
-    directed = _directed_boundary(lo, hi, fwd, rev)
+    directed = directed_boundary(lo, hi, fwd, rev)
     lines = mesh.lines
     if len(directed) != len(lines) or not np.array_equal(
         np.unique(directed[:, 0] * n + directed[:, 1]), np.unique(lines[:, 0] * n + lines[:, 1])
@@ -285,76 +279,6 @@ def report(points: np.ndarray, tri: np.ndarray) -> dict:
             "counts": [int(k) for k in counts],
         },
     }
-
-
-#: One use of an edge from its higher node to its lower counts this much in
-#: :func:`edge_uses`' sums (a use the other way counts 1); int32 sums hold up to
-#: 2047 uses of an edge.
-_REVERSE = 1 << 20
-
-
-def edge_uses(tri: np.ndarray, n: int):
-    """Each undirected edge once: ``(lo, hi, fwd, rev)``, nodes ``lo < hi`` and how many
-    triangles walk it ``lo -> hi`` and ``hi -> lo``.
-
-    By a sparse matrix build (scipy sums the duplicate entries while it sorts by
-    row, in linear time): 0.07 s for 1e6 triangles, where sorting the 3e6 edge
-    keys took 0.25-0.6 s.  In a conforming counter-clockwise mesh an inner edge
-    has ``fwd = rev = 1`` and a boundary edge one use.
-    """
-    import scipy.sparse as sp
-
-    index = np.int32 if n < 2**31 else np.int64  # halves the temporaries
-    a = tri.astype(index).ravel()
-    b = tri[:, [1, 2, 0]].astype(index).ravel()
-    up = a < b
-    w = np.where(up, np.int32(1), np.int32(_REVERSE))
-    m = sp.csr_matrix((w, (np.where(up, a, b), np.where(up, b, a))), shape=(n, n))
-    m.sum_duplicates()
-    lo = np.repeat(np.arange(n), np.diff(m.indptr))
-    return lo, m.indices.astype(np.int64), m.data % _REVERSE, m.data // _REVERSE
-
-
-def patch_edge_uses(edges, n: int, removed: np.ndarray, added: np.ndarray):
-    """:func:`edge_uses` after replacing triangles ``removed`` by ``added``, from the
-    table ``edges`` of the mesh before: the same table a recount would give (tested),
-    at the cost of the changed triangles only."""
-    lo, hi, fwd, rev = edges
-    key = lo * n + hi  # sorted: scipy's CSR rows, then sorted columns
-    r_lo, r_hi, r_f, r_r = edge_uses(removed, n)
-    a_lo, a_hi, a_f, a_r = edge_uses(added, n)
-    dkey = np.concatenate([r_lo * n + r_hi, a_lo * n + a_hi])
-    df = np.concatenate([-r_f, a_f])
-    dr = np.concatenate([-r_r, a_r])
-    ukey, inv = np.unique(dkey, return_inverse=True)
-    df = np.bincount(inv, weights=df, minlength=len(ukey)).astype(np.int64)
-    dr = np.bincount(inv, weights=dr, minlength=len(ukey)).astype(np.int64)
-    pos = np.searchsorted(key, ukey)
-    found = (pos < len(key)) & (key[np.minimum(pos, len(key) - 1)] == ukey)
-    fwd, rev = fwd.astype(np.int64), rev.astype(np.int64)  # copies
-    fwd[pos[found]] += df[found]
-    rev[pos[found]] += dr[found]
-    new = ~found
-    key = np.insert(key, pos[new], ukey[new])
-    fwd = np.insert(fwd, pos[new], df[new])
-    rev = np.insert(rev, pos[new], dr[new])
-    keep = (fwd != 0) | (rev != 0)
-    key, fwd, rev = key[keep], fwd[keep], rev[keep]
-    return key // n, key % n, fwd, rev
-
-
-def _directed_boundary(lo, hi, fwd, rev) -> np.ndarray:
-    one = fwd + rev == 1
-    return np.where(
-        (fwd[one] == 1)[:, None],
-        np.column_stack([lo[one], hi[one]]),
-        np.column_stack([hi[one], lo[one]]),
-    )
-
-
-def boundary_edges(tri: np.ndarray, n: int) -> np.ndarray:
-    """Directed edges used by one triangle only (domain on their left for CCW triangles)."""
-    return _directed_boundary(*edge_uses(tri, n))
 
 
 def mesh_for_contour(points: np.ndarray, tri: np.ndarray, contour: Contour):

@@ -18,8 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .contour import Contour, next_on_ring
+from .contour import Contour
 from .errors import InputError, OptionError
+from .geometry import next_on_ring, signed_areas
 
 #: Names an expression may use besides x, y and d.
 _NAMESPACE = {
@@ -239,8 +240,6 @@ def spearman(
     """Rank correlation of triangle areas with ``f`` at their centroids (``exclude``:
     node ids whose triangles are left out, e.g. the boundary nodes)."""
     from scipy.stats import spearmanr
-
-    from .quality import signed_areas
 
     keep = np.ones(len(tri), dtype=bool)
     if exclude is not None and len(exclude):

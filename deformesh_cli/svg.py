@@ -23,8 +23,9 @@ import numpy as np
 import shapely
 import svgelements as se
 
-from .contour import Contour, make_contour, signed_area
+from .contour import Contour, make_contour
 from .errors import InputError, OptionError
+from .geometry import signed_area
 
 #: Default chord tolerance, as a fraction of the drawing's bounding-box diagonal.
 DEFAULT_RELATIVE_TOLERANCE = 1e-3

@@ -24,7 +24,8 @@ import shapely
 
 from .contour import Contour
 from .errors import ContractError
-from .mesh import Mesh, touching
+from .geometry import edge_uses, touching
+from .mesh import Mesh
 from .select import DIAG_SLASH
 
 BOX_SIDES = ("bottom", "right", "top", "left")
@@ -53,7 +54,7 @@ class Cut:
     n_contour: int
     n_extra: int
     n_box: int
-    edges: tuple | None = None  # quality.edge_uses(triangles, nodes), when computed
+    edges: tuple | None = None  # geometry.edge_uses(triangles, nodes), when computed
 
 
 def extract(contour: Contour, sel, points: np.ndarray) -> Mesh:
@@ -69,7 +70,7 @@ def extract(contour: Contour, sel, points: np.ndarray) -> Mesh:
 def cut(contour: Contour, sel, edges: bool = False) -> Cut:
     """The topological half of :func:`extract`: it needs only the selection, so it can
     run while the deformation does.  ``edges``: also count the edge uses of the kept
-    triangles (:func:`~.quality.edge_uses`, what the contract check needs most)."""
+    triangles (:func:`~.geometry.edge_uses`, what the contract check needs most)."""
     grid = sel.grid
     tri = sel.triangles()
     path_nodes, path_source, path_ring = sel.path_nodes, sel.path_source, sel.path_ring
@@ -125,8 +126,6 @@ def cut(contour: Contour, sel, edges: bool = False) -> Cut:
         len(box_ring),
     )
     if edges:
-        from .quality import edge_uses
-
         out.edges = edge_uses(triangles, n_total)
     return out
 

@@ -51,7 +51,7 @@ KAPPA = float(__import__("os").environ.get("KAPPA", 0.9 / np.sqrt(2)))
 def spacing_field(c, gamma):
     e = c.edge_lengths()
     prev = np.empty_like(e)
-    from deformesh_cli.contour import next_on_ring
+    from deformesh_cli.geometry import next_on_ring
 
     nxt = next_on_ring(c.ring)
     prev[nxt] = e

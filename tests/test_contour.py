@@ -1,8 +1,9 @@
 import numpy as np
 import pytest
 
-from deformesh_cli.contour import load_contour, make_contour, parse_csv, signed_area
+from deformesh_cli.contour import load_contour, make_contour, parse_csv
 from deformesh_cli.errors import InputError
+from deformesh_cli.geometry import signed_area
 
 SQUARE = [(0, 0), (1, 0), (1, 1), (0, 1)]
 

@@ -1,8 +1,9 @@
 import numpy as np
 import pytest
 
-from deformesh_cli.deform import deform, signed_areas
+from deformesh_cli.deform import deform
 from deformesh_cli.errors import FoldError
+from deformesh_cli.geometry import signed_areas
 from deformesh_cli.select import Grid, grid_triangles
 
 

@@ -7,8 +7,8 @@ from hypothesis import HealthCheck, given, settings
 from deformesh_cli import forced, improve, pipeline
 from deformesh_cli.contour import load_contour, make_contour
 from deformesh_cli.errors import FoldError, LimitError, SelectionError
-from deformesh_cli.mesh import touching
-from deformesh_cli.quality import check_contract, measures, signed_areas
+from deformesh_cli.geometry import signed_areas, touching
+from deformesh_cli.quality import check_contract, measures
 
 from .conftest import SAMPLES, contour_file
 from .test_properties import star_polygons
@@ -144,7 +144,7 @@ def test_never_worse_and_the_contract_holds(pts):
 
 
 def test_patched_edge_uses_equal_a_recount():
-    from deformesh_cli.quality import edge_uses, patch_edge_uses
+    from deformesh_cli.geometry import edge_uses, patch_edge_uses
 
     c = load_contour(contour_file("bean_1000.csv"))
     plain = pipeline.mesh_contour(c, improve=False).mesh

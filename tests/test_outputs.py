@@ -287,7 +287,7 @@ def test_edge_uses_counts_each_undirected_edge():
     # against a plain dictionary count, on a soup with shared, repeated and lone edges
     from collections import Counter
 
-    from deformesh_cli.quality import boundary_edges, edge_uses
+    from deformesh_cli.geometry import boundary_edges, edge_uses
 
     rng = np.random.default_rng(3)
     tri = rng.integers(0, 15, (40, 3))

@@ -10,9 +10,10 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from deformesh_cli import mesh_contour
-from deformesh_cli.contour import make_contour, signed_area
+from deformesh_cli.contour import make_contour
 from deformesh_cli.errors import FoldError, LimitError, SelectionError
-from deformesh_cli.quality import check_contract, signed_areas
+from deformesh_cli.geometry import signed_area, signed_areas
+from deformesh_cli.quality import check_contract
 
 REFUSALS = (LimitError, SelectionError, FoldError)
 MAX_NODES = 60_000  # keeps each example well under a second

@@ -6,7 +6,7 @@ import pytest
 from deformesh_cli import state
 from deformesh_cli.contour import load_contour, make_contour
 from deformesh_cli.errors import LimitError, OptionError, SelectionError
-from deformesh_cli.quality import signed_areas
+from deformesh_cli.geometry import signed_areas
 from deformesh_cli.select import (
     DIAG_BACKSLASH,
     DIAG_SLASH,

@@ -142,7 +142,7 @@ def test_the_contract_names_each_broken_clause(peanut):
         )
     # a second triangle on the inner side of boundary edge a -> b: overlap (its third
     # node is not a neighbour of a or b, so its other two edges are new)
-    from deformesh_cli.quality import signed_areas
+    from deformesh_cli.geometry import signed_areas
 
     a, b = mesh.lines[0]
     t = mesh.triangles

@@ -1,0 +1,115 @@
+"""Geometry helpers the stages share: areas, rings, edge tables, node masks.
+
+Pure functions over numpy arrays: points ``(n, 2)`` float64, triangles
+``(t, 3)`` int64 node indices.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def next_on_ring(ring: np.ndarray) -> np.ndarray:
+    """Index of the next entry on the same closed ring (each ring's entries contiguous)."""
+    idx = np.arange(len(ring))
+    change = np.flatnonzero(np.diff(ring)) + 1
+    starts = np.concatenate([[0], change])
+    sizes = np.diff(np.concatenate([starts, [len(ring)]]))
+    start = np.repeat(starts, sizes)
+    return start + (idx - start + 1) % np.repeat(sizes, sizes)
+
+
+def signed_area(p: np.ndarray) -> float:
+    """Shoelace area of a closed polygon given without its closing point."""
+    x, y = p[:, 0], p[:, 1]
+    # subtract a reference point: keeps precision for large offsets
+    x = x - x[0]
+    y = y - y[0]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+
+
+def signed_areas(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Signed area of every triangle: positive when its corners run counter-clockwise."""
+    x, y = points[tri, 0], points[tri, 1]  # (t, 3) each
+    return 0.5 * (
+        (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
+    )
+
+
+#: One use of an edge from its higher node to its lower counts this much in
+#: :func:`edge_uses`' sums (a use the other way counts 1); int32 sums hold up to
+#: 2047 uses of an edge.
+_REVERSE = 1 << 20
+
+
+def edge_uses(tri: np.ndarray, n: int):
+    """Each undirected edge once: ``(lo, hi, fwd, rev)``, nodes ``lo < hi`` and how many
+    triangles walk it ``lo -> hi`` and ``hi -> lo``.
+
+    By a sparse matrix build (scipy sums the duplicate entries while it sorts by
+    row, in linear time): 0.07 s for 1e6 triangles, where sorting the 3e6 edge
+    keys took 0.25-0.6 s.  In a conforming counter-clockwise mesh an inner edge
+    has ``fwd = rev = 1`` and a boundary edge one use.
+    """
+    import scipy.sparse as sp
+
+    index = np.int32 if n < 2**31 else np.int64  # halves the temporaries
+    a = tri.astype(index).ravel()
+    b = tri[:, [1, 2, 0]].astype(index).ravel()
+    up = a < b
+    w = np.where(up, np.int32(1), np.int32(_REVERSE))
+    m = sp.csr_matrix((w, (np.where(up, a, b), np.where(up, b, a))), shape=(n, n))
+    m.sum_duplicates()
+    lo = np.repeat(np.arange(n), np.diff(m.indptr))
+    return lo, m.indices.astype(np.int64), m.data % _REVERSE, m.data // _REVERSE
+
+
+def patch_edge_uses(edges, n: int, removed: np.ndarray, added: np.ndarray):
+    """:func:`edge_uses` after replacing triangles ``removed`` by ``added``, from the
+    table ``edges`` of the mesh before: the same table a recount would give (tested),
+    at the cost of the changed triangles only."""
+    lo, hi, fwd, rev = edges
+    key = lo * n + hi  # sorted: scipy's CSR rows, then sorted columns
+    r_lo, r_hi, r_f, r_r = edge_uses(removed, n)
+    a_lo, a_hi, a_f, a_r = edge_uses(added, n)
+    dkey = np.concatenate([r_lo * n + r_hi, a_lo * n + a_hi])
+    df = np.concatenate([-r_f, a_f])
+    dr = np.concatenate([-r_r, a_r])
+    ukey, inv = np.unique(dkey, return_inverse=True)
+    df = np.bincount(inv, weights=df, minlength=len(ukey)).astype(np.int64)
+    dr = np.bincount(inv, weights=dr, minlength=len(ukey)).astype(np.int64)
+    pos = np.searchsorted(key, ukey)
+    found = (pos < len(key)) & (key[np.minimum(pos, len(key) - 1)] == ukey)
+    fwd, rev = fwd.astype(np.int64), rev.astype(np.int64)  # copies
+    fwd[pos[found]] += df[found]
+    rev[pos[found]] += dr[found]
+    new = ~found
+    key = np.insert(key, pos[new], ukey[new])
+    fwd = np.insert(fwd, pos[new], df[new])
+    rev = np.insert(rev, pos[new], dr[new])
+    keep = (fwd != 0) | (rev != 0)
+    key, fwd, rev = key[keep], fwd[keep], rev[keep]
+    return key // n, key % n, fwd, rev
+
+
+def directed_boundary(lo, hi, fwd, rev) -> np.ndarray:
+    one = fwd + rev == 1
+    return np.where(
+        (fwd[one] == 1)[:, None],
+        np.column_stack([lo[one], hi[one]]),
+        np.column_stack([hi[one], lo[one]]),
+    )
+
+
+def boundary_edges(tri: np.ndarray, n: int) -> np.ndarray:
+    """Directed edges used by one triangle only (domain on their left for CCW triangles)."""
+    return directed_boundary(*edge_uses(tri, n))
+
+
+def touching(mask: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Triangles with a corner in the node mask ``mask``.
+
+    Column by column: ``mask[tri].any(axis=1)`` is several times slower on a
+    million triangles (a reduction over a length-3 axis).
+    """
+    return mask[tri[:, 0]] | mask[tri[:, 1]] | mask[tri[:, 2]]
