@@ -17,7 +17,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from . import io
+from . import files, formats
 from .contour import load_contour
 from .deform import DEFAULT_STEPS
 from .errors import DeformeshError, OptionError
@@ -99,7 +99,7 @@ def make_tasks(inputs: list[str], out_dir: str, fmt: str, options: dict) -> list
         outputs[out] = src
         data, error = None, None
         try:
-            data = io.read_bytes(src)
+            data = files.read_bytes(src)
         except DeformeshError as exc:
             error = str(exc)
         tasks.append(Task(k, src, out, data, error, dict(options, fmt=fmt)))
@@ -140,7 +140,7 @@ def run_task(task: Task) -> tuple[dict, list[tuple[str, bytes]]]:
             solve=o.get("solve", "band"),
             improve=o.get("improve", True),
         )
-        files = io.mesh_files(
+        files = formats.mesh_files(
             res.mesh, Path(task.output).name, o["fmt"], o.get("msh_version", "2.2")
         )
         r = res.report

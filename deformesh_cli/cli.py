@@ -15,7 +15,7 @@ import time
 
 import click
 
-from . import __version__, batch, io, pipeline, quality, state
+from . import __version__, batch, files, formats, pipeline, quality, state
 from . import size as _size
 from .contour import load_contour
 from .deform import DEFAULT_STEPS, SOLVERS
@@ -219,13 +219,13 @@ improve_option = click.option(
 format_option = click.option(
     "--format",
     "fmt",
-    type=click.Choice(sorted(io.FORMATS), case_sensitive=False),
+    type=click.Choice(sorted(formats.FORMATS), case_sensitive=False),
     default=None,
     help="Mesh format. Default: from the output file's extension.",
 )
 msh_option = click.option(
     "--msh-version",
-    type=click.Choice(sorted(io.MSH_VERSIONS)),
+    type=click.Choice(sorted(formats.MSH_VERSIONS)),
     default="2.2",
     show_default=True,
     help="Gmsh file version for .msh output (ASCII either way).",
@@ -290,7 +290,7 @@ def select_cmd(
     _check_binary_stdout(output)
     c = _read_contour(contour, decimal, tolerance, element_id, resample)
     sel = pipeline.run_select(c, h, box, margin, strict, max_nodes, exterior, grid)
-    io.write_bytes(state.dumps(state.State("selected", c, sel)), output)
+    files.write_bytes(state.dumps(state.State("selected", c, sel)), output)
     g = sel.grid
     _say(
         quiet,
@@ -318,7 +318,7 @@ def deform_cmd(state_in, output, steps, solver, solve, size_expr, size_field, qu
     """Move the selected nodes onto the contour without folding (stage 2)."""
     _check_binary_stdout(output)
     name = "<stdin>" if state_in == "-" else state_in
-    st = state.loads(io.read_bytes(state_in), name, want="selected")
+    st = state.loads(files.read_bytes(state_in), name, want="selected")
     size = _size.make(size_expr, size_field, st.contour)
     with _steps_bar(steps, quiet) as progress:
         d = pipeline.run_deform(
@@ -334,7 +334,7 @@ def deform_cmd(state_in, output, steps, solver, solve, size_expr, size_field, qu
     if size is not None:
         meta.update(size=size_expr, size_field=size_field)
     out = state.State("deformed", st.contour, st.selection, d.points, meta)
-    io.write_bytes(state.dumps(out), output)
+    files.write_bytes(state.dumps(out), output)
     _say(
         quiet,
         f"{st.contour.source}: deformed in {d.stats.solves} solves "
@@ -363,7 +363,7 @@ def triangulate_cmd(state_in, output, improve, fmt, msh_version, png, as_json, q
     t0 = time.perf_counter()
     fmt = _check_mesh_output(output, fmt, as_json)
     name = "<stdin>" if state_in == "-" else state_in
-    st = state.loads(io.read_bytes(state_in), name, want="deformed")
+    st = state.loads(files.read_bytes(state_in), name, want="deformed")
     size = (
         _size.make(st.meta.get("size"), st.meta.get("size_field"), st.contour) if st.meta else None
     )
@@ -377,7 +377,7 @@ def triangulate_cmd(state_in, output, improve, fmt, msh_version, png, as_json, q
 def _check_mesh_output(output, fmt, as_json):
     if as_json and output == "-":
         raise click.UsageError("--json and -o - both use stdout; write the mesh to a file")
-    return io.format_for(output, fmt)  # an OptionError is a usage error (_handle_errors)
+    return formats.format_for(output, fmt)  # an OptionError is a usage error (_handle_errors)
 
 
 def _finish(contour, mesh, report, output, fmt, as_json, quiet, t0, msh_version="2.2", png=None):
@@ -385,7 +385,7 @@ def _finish(contour, mesh, report, output, fmt, as_json, quiet, t0, msh_version=
     if png is not None:  # drawn first: a failure here leaves no mesh file either
         from . import plot
 
-        io.check_folder(png)
+        files.check_folder(png)
         picture = plot.render(
             mesh.points,
             mesh.triangles,
@@ -393,9 +393,9 @@ def _finish(contour, mesh, report, output, fmt, as_json, quiet, t0, msh_version=
             contour_points=mesh.points[: mesh.n_contour],
             title=_title(output, mesh),
         )
-    io.write_mesh(mesh, output, fmt, msh_version)
+    formats.write_mesh(mesh, output, fmt, msh_version)
     if picture is not None:
-        io.write_bytes(picture, png)
+        files.write_bytes(picture, png)
     report = {
         "input": contour.source,
         "output": output,
@@ -581,7 +581,7 @@ def _steps_bar(steps: int, quiet: bool):
 
 
 def _batch(contours, out_dir, fmt, options, jobs, scheduler, fail_fast, as_json, quiet, t0):
-    fmt = io.format_for(f"x.{fmt or 'msh'}", None)
+    fmt = formats.format_for(f"x.{fmt or 'msh'}", None)
     # usage errors before any work, not once per input
     _size.check_options(options.get("size"), options.get("size_field"))
     tasks = batch.make_tasks(batch.expand_inputs(contours), out_dir, fmt, options)
@@ -598,10 +598,12 @@ def _batch(contours, out_dir, fmt, options, jobs, scheduler, fail_fast, as_json,
         bar = click.progressbar(length=len(tasks), label="meshing", file=sys.stderr)
         bar.__enter__()
     try:
-        for task, rec, files in batch.run(tasks, jobs or os.cpu_count() or 1, scheduler, fail_fast):
+        for task, rec, outputs in batch.run(
+            tasks, jobs or os.cpu_count() or 1, scheduler, fail_fast
+        ):
             if rec["status"] == "ok":
                 try:
-                    _write_files(out_dir, files)
+                    files.write_files(out_dir, outputs)
                 except DeformeshError as exc:
                     rec.update(status="failed", error=str(exc))
             if rec["status"] == "failed":  # over the progress bar's line, if one is drawn
@@ -621,21 +623,6 @@ def _batch(contours, out_dir, fmt, options, jobs, scheduler, fail_fast, as_json,
         click.echo(batch_table(records, time.perf_counter() - t0), err=True)
     if any(r["status"] != "ok" for r in records):
         sys.exit(1)
-
-
-def _write_files(out_dir: str, files) -> None:
-    """One input's files, each atomically; if one fails, none of them stays."""
-    written = []
-    try:
-        for name, data in files:
-            path = os.path.join(out_dir, name)
-            io.write_bytes(data, path)
-            written.append(path)
-    except BaseException:
-        for path in written:
-            with contextlib.suppress(OSError):
-                os.unlink(path)
-        raise
 
 
 def batch_table(records: list[dict], seconds: float) -> str:
@@ -703,7 +690,7 @@ def _title(name, mesh) -> str:
 @click.option(
     "--format",
     "fmt",
-    type=click.Choice(sorted(io.FORMATS), case_sensitive=False),
+    type=click.Choice(sorted(formats.FORMATS), case_sensitive=False),
     default="vtu",
     show_default=True,
     help="Frame format.  Velocity is written where the format has point data (vtu, vtk, xdmf).",
@@ -737,7 +724,7 @@ def move_cmd(
     t0 = time.perf_counter()
     fmt = fmt.lower()
     stem = name or os.path.splitext(os.path.basename(mesh_path))[0]
-    points, tri = io.read_mesh(mesh_path)
+    points, tri = formats.read_mesh(mesh_path)
     contours = [_read_contour(f, decimal) for f in frames]  # every frame read first:
     motion = move.prepare(points, tri, contours[0], mesh_path)
     for c in contours[1:]:  # a bad one fails before any work
@@ -755,13 +742,13 @@ def move_cmd(
     def write(k, pts, velocity, source, report):
         mesh = move.frame_mesh(motion, pts, {"velocity": velocity})
         file = f"{stem}_{k:0{width}d}.{fmt}"
-        io.write_mesh(mesh, os.path.join(out_dir, file), fmt)
+        formats.write_mesh(mesh, os.path.join(out_dir, file), fmt)
         written.append((k * dt, file))
         records.append({"frame": k, "input": source, "output": file, **report})
 
     def finish():  # the time series of the frames written so far
         if fmt == "vtu" and written:
-            io.write_bytes(io.pvd_bytes(written), os.path.join(out_dir, f"{stem}.pvd"))
+            files.write_bytes(formats.pvd_bytes(written), os.path.join(out_dir, f"{stem}.pvd"))
 
     zero = np.zeros((len(points), 3))
     write(0, motion.mesh.points, zero, mesh_path, quality.stats(motion.mesh))
@@ -810,7 +797,7 @@ def move_cmd(
     }
     if as_json:
         click.echo(json.dumps(summary))
-    if fmt not in io.POINT_DATA_FORMATS:
+    if fmt not in formats.POINT_DATA_FORMATS:
         _say(quiet, f"note: .{fmt} has no point data: the velocity is not written")
     _say(
         quiet,
@@ -838,7 +825,7 @@ def quality_cmd(mesh_path, contour_path, decimal, tolerance, element_id, resampl
 
     Exit 1 if a triangle is folded or (with --contour) the contract is broken.
     """
-    points, tri = io.read_mesh(mesh_path)
+    points, tri = formats.read_mesh(mesh_path)
     c = None
     if contour_path is not None:
         c = _read_contour(contour_path, decimal, tolerance, element_id, resample)
@@ -894,7 +881,7 @@ def plot_cmd(mesh_path, output, contour_path, decimal, tolerance, element_id, re
     from . import plot
 
     _check_binary_stdout(output)
-    points, tri = io.read_mesh(mesh_path)
+    points, tri = formats.read_mesh(mesh_path)
     cpts = None
     if contour_path is not None:
         cpts = _read_contour(contour_path, decimal, tolerance, element_id, resample).points

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import shapely
 
-from . import io
+from . import files
 from .errors import InputError, OptionError
 from .geometry import next_on_ring, signed_area
 
@@ -185,7 +185,7 @@ def load_contour(
 def _read(path, data, decimal, tolerance, element_id) -> Contour:
     name = "<stdin>" if str(path) == "-" else str(path)
     if data is None:
-        data = io.read_bytes(str(path))
+        data = files.read_bytes(str(path))
     suffix = Path(name).suffix.lower()
     if suffix in (".svg", ".svgz") or data.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"<"):
         if suffix == ".svgz" or data[:2] == b"\x1f\x8b":

@@ -1,9 +1,10 @@
 """Exceptions raised by the deformesh core.
 
 Every failure a user can act on is a :class:`DeformeshError` whose message is
-one line naming the file, the problem and where.  The command-line layer turns
-them into exit codes: :class:`OptionError` is a usage error (exit 2), every
-other subclass a processing failure (exit 1).
+one line naming the file, the problem and where.  The command-line layer
+(:mod:`deformesh_cli.cli.errors`) turns them into exit codes:
+:class:`OptionError` is a usage error (exit 2), every other subclass a
+processing failure (exit 1).  Nothing else is meant to reach it.
 """
 
 
@@ -12,11 +13,23 @@ class DeformeshError(Exception):
 
 
 class InputError(DeformeshError):
-    """The contour or state file cannot be used (unreadable, malformed, invalid)."""
+    """The contour, mesh or state file cannot be used (malformed, invalid)."""
+
+
+class ReadError(InputError):
+    """A file cannot be read at all (missing, a folder, no permission, not a mesh)."""
+
+
+class WriteError(DeformeshError):
+    """An output file cannot be written (no folder, no permission, disk full, writer failed)."""
 
 
 class OptionError(DeformeshError):
     """An option value is inconsistent with the input (for example a box that misses it)."""
+
+
+class DependencyError(DeformeshError):
+    """An optional dependency the request needs is not installed (the message names the extra)."""
 
 
 class LimitError(DeformeshError):
@@ -31,5 +44,13 @@ class FoldError(DeformeshError):
     """The deformation could not proceed without folding a triangle."""
 
 
+class BandError(DeformeshError):
+    """A node that must move lies on the edge of the narrow band: the band is too narrow."""
+
+
+class SolverError(DeformeshError):
+    """A linear solve of the deformation failed (an iterative solver did not converge)."""
+
+
 class ContractError(DeformeshError):
-    """A mesh does not meet the mesh contract (see README, 'The contract')."""
+    """A mesh does not meet the mesh contract (see docs/contract.md)."""

@@ -10,7 +10,7 @@ import io as _io
 
 import numpy as np
 
-from . import geometry, io, quality
+from . import files, geometry, quality
 from .errors import DeformeshError
 
 #: Colour map of the radius ratio: red = poor (sliver), green = equilateral.
@@ -31,7 +31,7 @@ def _pyplot():
 
 def draw(points: np.ndarray, tri: np.ndarray, path: str, **kw) -> None:
     """Write :func:`render`'s PNG to ``path`` (``-`` = stdout), atomically."""
-    io.write_bytes(render(points, tri, **kw), path)
+    files.write_bytes(render(points, tri, **kw), path)
 
 
 def render(

@@ -186,13 +186,17 @@ def test_unreadable_input_and_unwritable_output(run, tmp_path, monkeypatch):
 
 
 def test_failure_while_writing_leaves_no_file(run, tmp_path, monkeypatch):
-    from deformesh_cli import io
+    import dataclasses
 
-    def boom(mesh, path):
+    from deformesh_cli import formats
+
+    def boom(mesh, path, version):
         Path(path).write_text("half a mesh")
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setitem(io.FORMATS, "obj", ("obj", boom))
+    monkeypatch.setitem(
+        formats.FORMATS, "obj", dataclasses.replace(formats.FORMATS["obj"], write=boom)
+    )
     r = run("all", SAMPLES / "circle.csv", "-o", tmp_path / "m.obj")
     assert r.exit_code == 1 and "No space left on device" in r.stderr
     assert list(tmp_path.iterdir()) == []

@@ -256,26 +256,28 @@ def test_batch_xdmf_writes_each_sidecar_under_its_own_name(run, tmp_path):
 @pytest.mark.parametrize("exterior", [False, True])
 def test_msh22_is_byte_identical_to_meshios_writer(tmp_path, exterior):
     # our writer formats the whole table at once (12 s -> 2 s at a million triangles)
-    from deformesh_cli import io, pipeline
+    from deformesh_cli import formats, pipeline
 
     mesh = pipeline.mesh_contour(load_contour(SAMPLES / "bracket.svg"), exterior=exterior).mesh
     assert len(set(mesh.line_group.tolist())) > 1  # several boundary groups
-    io.write_mesh(mesh, str(tmp_path / "ours.msh"))
-    io._write_gmsh_meshio(mesh, str(tmp_path / "meshio.msh"), "2.2")  # meshio's own writer
+    formats.write_mesh(mesh, str(tmp_path / "ours.msh"))
+    formats.gmsh.write_meshio(mesh, str(tmp_path / "meshio.msh"), "2.2")  # meshio's own writer
     assert (tmp_path / "ours.msh").read_bytes() == (tmp_path / "meshio.msh").read_bytes()
 
 
 @pytest.mark.parametrize("exterior", [False, True])
 def test_vtk_is_meshios_file_but_the_title(tmp_path, exterior):
     # our writer skips meshio's import (0.15 s); the bytes are meshio's, title line aside
-    from deformesh_cli import io, pipeline
+    from deformesh_cli import formats, pipeline
 
     mesh = pipeline.mesh_contour(load_contour(SAMPLES / "bracket.svg"), exterior=exterior).mesh
-    io.write_mesh(mesh, str(tmp_path / "ours.vtk"))
-    io._write_meshio("vtk", dim3=True)(mesh, str(tmp_path / "meshio.vtk"))
+    formats.write_mesh(mesh, str(tmp_path / "ours.vtk"))
+    meshio.write(
+        tmp_path / "meshio.vtk", formats._common.meshio_mesh(mesh, dim3=True), file_format="vtk"
+    )
     ours = (tmp_path / "ours.vtk").read_bytes().split(b"\n", 2)
     theirs = (tmp_path / "meshio.vtk").read_bytes().split(b"\n", 2)
-    assert ours[1] == io.VTK_TITLE.encode() and theirs[1].startswith(b"written by meshio")
+    assert ours[1] == formats.vtk.TITLE.encode() and theirs[1].startswith(b"written by meshio")
     assert ours[0] == theirs[0] and ours[2] == theirs[2]
     back = meshio.read(tmp_path / "ours.vtk")
     assert np.array_equal(back.points[:, :2], mesh.points)

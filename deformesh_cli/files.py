@@ -1,0 +1,104 @@
+"""Reading and writing whole files, atomically.
+
+Every file is written to a temporary file in the target's folder, then moved
+into place with ``os.replace``: a failure leaves no partial file behind.
+``-`` is stdin or stdout.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+from .errors import ReadError, WriteError
+
+
+def check_folder(path: str) -> Path:
+    """The folder ``path`` would be written in; :class:`WriteError` if it does not exist."""
+    folder = Path(path).parent
+    if not folder.is_dir():
+        raise WriteError(f"{path}: cannot write: folder {folder} does not exist")
+    return folder
+
+
+@contextlib.contextmanager
+def atomic_path(path: str) -> Iterator[str]:
+    """Yield a temporary path next to ``path``; move it into place on success only."""
+    target = Path(path)
+    folder = check_folder(path)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
+    except OSError as exc:
+        raise WriteError(f"{path}: cannot write: {exc.strerror}") from None
+    os.close(fd)
+    try:
+        yield tmp
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def write_bytes(data: bytes, path: str) -> None:
+    """Write bytes to a file atomically, or to stdout for ``-``."""
+    if path == "-":
+        out = sys.stdout.buffer
+        out.write(data)
+        out.flush()
+        return
+    with atomic_path(path) as tmp:
+        try:
+            with open(tmp, "wb") as f:
+                f.write(data)
+        except OSError as exc:
+            raise WriteError(f"{path}: cannot write: {exc.strerror}") from None
+
+
+def write_files(folder: str, files: list[tuple[str, bytes]]) -> None:
+    """Several files into ``folder``, each atomically; if one fails, none of them stays."""
+    written = []
+    try:
+        for name, data in files:
+            path = os.path.join(folder, name)
+            write_bytes(data, path)
+            written.append(path)
+    except BaseException:
+        for path in written:
+            with contextlib.suppress(OSError):
+                os.unlink(path)
+        raise
+
+
+def make_folder(path: str) -> None:
+    """Create an output folder (and its parents) if missing."""
+    try:
+        os.makedirs(path, exist_ok=True)
+    except OSError as exc:
+        raise WriteError(f"{path}: cannot create the output folder: {exc.strerror}") from None
+
+
+def existing_file(path: str) -> Path:
+    """``path`` as a Path, or a :class:`ReadError` if it is missing or a folder."""
+    p = Path(path)
+    if not p.exists():
+        raise ReadError(f"{path}: no such file")
+    if p.is_dir():
+        raise ReadError(f"{path}: is a directory")
+    return p
+
+
+def read_bytes(path: str) -> bytes:
+    """Read a whole file, or all of stdin for ``-`` (works on non-seekable pipes)."""
+    if path == "-":
+        return sys.stdin.buffer.read()
+    p = existing_file(path)
+    try:
+        return p.read_bytes()
+    except OSError as exc:
+        raise ReadError(f"{path}: cannot read: {exc.strerror}") from None

@@ -1,0 +1,47 @@
+"""What the format modules share: physical groups, the contour-point array, meshio meshes."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..mesh import Mesh
+
+
+def groups(mesh: Mesh) -> dict[str, tuple[int, int]]:
+    """Physical groups (name -> (tag, dimension)): the boundary groups 1, 2, ... then ``domain``."""
+    out = {name: (k + 1, 1) for k, name in enumerate(mesh.groups)}
+    out["domain"] = (len(mesh.groups) + 1, 2)
+    return out
+
+
+def contour_point(mesh: Mesh) -> np.ndarray:
+    """Per node: its contour point index (``k`` for node ``k < n_contour``), else -1."""
+    k = np.arange(mesh.n_nodes)
+    return np.where(k < mesh.n_contour, k, -1).astype(np.int32)
+
+
+def meshio_mesh(mesh: Mesh, dim3: bool = False, cell_data: dict | None = None):
+    """The mesh as a ``meshio.Mesh``: triangles, then the boundary lines; point data
+    ``contour_point`` and the mesh's own; ``dim3`` pads z = 0."""
+    import meshio
+
+    pts = mesh.points
+    if dim3:
+        pts = np.column_stack([pts, np.zeros(len(pts))])
+    return meshio.Mesh(
+        pts,
+        [("triangle", mesh.triangles.astype(np.int64)), ("line", mesh.lines.astype(np.int64))],
+        point_data={"contour_point": contour_point(mesh), **mesh.point_data},
+        cell_data=cell_data or {},
+    )
+
+
+def rows(fmt: str, table: np.ndarray) -> str:
+    """``fmt`` (one row's %-format, ending in a newline) applied to every row of ``table``.
+
+    One %-operation over the whole table, where meshio's ASCII writers format
+    row by row in Python (``benchmarks/RESULTS.md`` has the cost of each).
+    """
+    if len(table) == 0:
+        return ""
+    return (fmt * len(table)) % tuple(table.ravel().tolist())

@@ -1,0 +1,47 @@
+"""Reading a mesh file back (any format meshio reads): its 2D points and triangles."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+
+import numpy as np
+
+from ..errors import InputError, ReadError
+from ..files import existing_file
+
+
+def read_mesh(path: str, fmt: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """A mesh file's 2D points and triangles.
+
+    z must be 0 (the meshes are planar).  meshio prints and exits on some bad
+    files; both become one-line :class:`~deformesh_cli.errors.ReadError` messages.
+    """
+    import meshio
+
+    existing_file(path)
+    try:
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            m = meshio.read(path, file_format=fmt)
+    except SystemExit:
+        raise ReadError(f"{path}: not a mesh file meshio can read") from None
+    except meshio.ReadError as exc:
+        raise ReadError(f"{path}: cannot read mesh: {exc}") from None
+    except Exception as exc:  # parsers of malformed files raise anything
+        raise ReadError(f"{path}: cannot read mesh: {type(exc).__name__}: {exc}") from None
+    tri = [c.data for c in m.cells if c.type == "triangle"]
+    if not tri:
+        kinds = sorted({c.type for c in m.cells}) or ["none"]
+        raise InputError(f"{path}: no triangles in the mesh (cells: {', '.join(kinds)})")
+    pts = np.asarray(m.points, dtype=np.float64)
+    if pts.shape[1] == 3:
+        if np.any(pts[:, 2] != 0):
+            k = int(np.argmax(pts[:, 2] != 0))
+            raise InputError(
+                f"{path}: node {k} has z = {pts[k, 2]:g}; only planar meshes (z = 0) are supported"
+            )
+        pts = pts[:, :2]
+    tri = np.concatenate(tri).astype(np.int64)
+    if tri.min() < 0 or tri.max() >= len(pts):
+        raise InputError(f"{path}: a triangle refers to a node that does not exist")
+    return np.ascontiguousarray(pts), tri

@@ -1,0 +1,40 @@
+"""SU2 native mesh: triangles (VTK type 5), nodes, one ``MARKER_TAG`` per boundary group.
+
+Our own writer: meshio's su2 writer fails on boundary line cells.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..mesh import Mesh
+from .format import Format
+
+
+def write(mesh: Mesh, path: str, version: str | None = None) -> None:
+    with open(path, "w", encoding="ascii", newline="\n") as f:
+        f.write(f"% deformesh mesh: points 0..{mesh.n_contour - 1} are the contour points\n")
+        f.write(f"NDIME= 2\nNELEM= {len(mesh.triangles)}\n")
+        tri = np.column_stack(
+            [np.full(len(mesh.triangles), 5), mesh.triangles, np.arange(len(mesh.triangles))]
+        )
+        np.savetxt(f, tri, fmt="%d")
+        f.write(f"NPOIN= {mesh.n_nodes}\n")
+        for k, (x, y) in enumerate(mesh.points.tolist()):
+            f.write(f"{x!r} {y!r} {k}\n")
+        f.write(f"NMARK= {len(np.unique(mesh.line_group))}\n")
+        for g, name in enumerate(mesh.groups):
+            lines = mesh.lines[mesh.line_group == g]
+            if len(lines) == 0:
+                continue
+            f.write(f"MARKER_TAG= {name}\nMARKER_ELEMS= {len(lines)}\n")
+            np.savetxt(f, np.column_stack([np.full(len(lines), 3), lines]), fmt="%d")
+
+
+FORMAT = Format(
+    name="su2",
+    description="SU2 native, one MARKER_TAG per boundary",
+    write=write,
+    boundary_groups=True,
+    meshio_format="su2",
+)

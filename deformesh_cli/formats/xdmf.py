@@ -1,0 +1,43 @@
+"""XDMF 3 with an HDF5 sidecar (meshio; needs h5py): triangles and boundary lines with
+``group`` tags, point data.
+
+The tags are those of the .msh physical groups (boundaries 1.., domain
+last).  The sidecar is named after the file (``mesh.xdmf`` -> ``mesh.h5``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import DependencyError
+from ..mesh import Mesh
+from ._common import groups, meshio_mesh
+from .format import Format
+
+
+def write(mesh: Mesh, path: str, version: str | None = None) -> None:
+    try:
+        import h5py  # noqa: F401
+    except ImportError:
+        raise DependencyError(
+            f"{path}: writing .xdmf needs h5py: pip install 'deformesh[all]'"
+        ) from None
+    import meshio
+
+    tag = groups(mesh)["domain"][0]
+    group = [
+        np.full(len(mesh.triangles), tag, np.int32),
+        (mesh.line_group + 1).astype(np.int32),
+    ]
+    meshio.write(path, meshio_mesh(mesh, dim3=True, cell_data={"group": group}), file_format="xdmf")
+
+
+FORMAT = Format(
+    name="xdmf",
+    description="XDMF 3 with an HDF5 sidecar (.h5; needs h5py)",
+    write=write,
+    boundary_groups=True,
+    point_data=True,
+    sidecar=".h5",
+    meshio_format="xdmf",
+)
