@@ -51,7 +51,7 @@ def points(src: str, out: str) -> dict:
     """Write the points deformesh reads from ``src`` as a plain x,y CSV."""
     import numpy as np
 
-    from deformesh_cli.contour import load_contour
+    from deformesh_cli.readers import load_contour
 
     c = load_contour(src)
     np.savetxt(out, c.points, delimiter=",", header="x,y", comments="", fmt="%.17g")

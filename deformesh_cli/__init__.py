@@ -16,7 +16,7 @@ Public API::
 
 __version__ = "0.1.0"
 
-from .contour import Contour, load_contour, parse_csv
+from .contour import Contour
 from .errors import (
     ContractError,
     DeformeshError,
@@ -27,6 +27,7 @@ from .errors import (
     SelectionError,
 )
 from .pipeline import MeshResult, mesh_contour
+from .readers import load_contour, parse_csv
 
 __all__ = [
     "__version__",

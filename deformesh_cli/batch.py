@@ -18,9 +18,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from . import files, formats
-from .contour import load_contour
 from .deform import DEFAULT_STEPS
 from .errors import DeformeshError, OptionError
+from .readers import load_contour
 from .select import DEFAULT_MAX_NODES
 from .size import make as size_make
 

@@ -17,9 +17,9 @@ import click
 
 from . import __version__, batch, files, formats, pipeline, quality, state
 from . import size as _size
-from .contour import load_contour
 from .deform import DEFAULT_STEPS, SOLVERS
 from .errors import DeformeshError, OptionError
+from .readers import load_contour
 from .select import DEFAULT_MAX_NODES
 
 

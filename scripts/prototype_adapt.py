@@ -39,9 +39,10 @@ from scipy.spatial import cKDTree
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from deformesh_cli import triangulate
-from deformesh_cli.contour import load_contour, make_contour
+from deformesh_cli.contour import make_contour
 from deformesh_cli.deform import deform
 from deformesh_cli.quality import check_contract, stats
+from deformesh_cli.readers import load_contour
 from deformesh_cli.select import DIAG_SLASH, Grid, grid_triangles, select
 from deformesh_cli.size import SizeFunction, SizePath
 

@@ -12,7 +12,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import meshio
 
-from deformesh_cli.contour import load_contour
+from deformesh_cli.readers import load_contour
 
 
 def main(out, mesh_path, contour_path, *windows):

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from deformesh_cli import pipeline
-from deformesh_cli.contour import load_contour
 from deformesh_cli.deform import deform_band
 from deformesh_cli.geometry import signed_areas
 from deformesh_cli.quality import check_contract
+from deformesh_cli.readers import load_contour
 from deformesh_cli.select import Grid, grid_triangles
 
 from .conftest import SAMPLES, contour_file

@@ -1,9 +1,10 @@
 import numpy as np
 import pytest
 
-from deformesh_cli.contour import load_contour, make_contour, parse_csv
+from deformesh_cli.contour import make_contour
 from deformesh_cli.errors import InputError
 from deformesh_cli.geometry import signed_area
+from deformesh_cli.readers import load_contour, parse_csv
 
 SQUARE = [(0, 0), (1, 0), (1, 1), (0, 1)]
 

@@ -5,10 +5,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 
 from deformesh_cli import forced, improve, pipeline
-from deformesh_cli.contour import load_contour, make_contour
+from deformesh_cli.contour import make_contour
 from deformesh_cli.errors import FoldError, LimitError, SelectionError
 from deformesh_cli.geometry import signed_areas, touching
 from deformesh_cli.quality import check_contract, measures
+from deformesh_cli.readers import load_contour
 
 from .conftest import SAMPLES, contour_file
 from .test_properties import star_polygons

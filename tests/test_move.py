@@ -12,10 +12,11 @@ from hypothesis import strategies as st
 
 from deformesh_cli import move, pipeline
 from deformesh_cli.cli import cli
-from deformesh_cli.contour import load_contour, make_contour
+from deformesh_cli.contour import make_contour
 from deformesh_cli.errors import DeformeshError, FoldError
 from deformesh_cli.geometry import signed_areas
 from deformesh_cli.quality import check_contract, measures
+from deformesh_cli.readers import load_contour
 
 from .conftest import SAMPLES, contour_file
 

@@ -7,8 +7,8 @@ import meshio
 import numpy as np
 import pytest
 
-from deformesh_cli.contour import load_contour
 from deformesh_cli.quality import mesh_for_contour
+from deformesh_cli.readers import load_contour
 
 from .conftest import SAMPLES, contour_file
 

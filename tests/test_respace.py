@@ -7,7 +7,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from deformesh_cli import respace
-from deformesh_cli.contour import load_contour, make_contour
+from deformesh_cli.contour import make_contour
 from deformesh_cli.errors import LimitError
 from deformesh_cli.pipeline import (
     MIN_ADAPTED_ANGLE,
@@ -17,6 +17,7 @@ from deformesh_cli.pipeline import (
     run_select,
 )
 from deformesh_cli.quality import check_contract
+from deformesh_cli.readers import load_contour
 
 from .conftest import ROOT, contour_file
 

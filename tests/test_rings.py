@@ -7,11 +7,12 @@ import numpy as np
 import pytest
 
 from deformesh_cli import mesh_contour
-from deformesh_cli.contour import load_contour, make_contour, parse_csv
+from deformesh_cli.contour import make_contour
 from deformesh_cli.errors import InputError
 from deformesh_cli.geometry import signed_area
 from deformesh_cli.mesh import Mesh
 from deformesh_cli.quality import check_contract
+from deformesh_cli.readers import load_contour, parse_csv
 
 from .conftest import contour_file
 

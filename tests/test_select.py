@@ -4,9 +4,10 @@ import numpy as np
 import pytest
 
 from deformesh_cli import state
-from deformesh_cli.contour import load_contour, make_contour
+from deformesh_cli.contour import make_contour
 from deformesh_cli.errors import LimitError, OptionError, SelectionError
 from deformesh_cli.geometry import signed_areas
+from deformesh_cli.readers import load_contour
 from deformesh_cli.select import (
     DIAG_BACKSLASH,
     DIAG_SLASH,

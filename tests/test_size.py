@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from scipy.stats import spearmanr
 
-from deformesh_cli.contour import load_contour
 from deformesh_cli.errors import InputError
 from deformesh_cli.geometry import signed_areas
+from deformesh_cli.readers import load_contour
 from deformesh_cli.size import ContourDistance, SizeFunction, from_expression, from_field
 
 from .conftest import SAMPLES

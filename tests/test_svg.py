@@ -11,7 +11,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from deformesh_cli.errors import InputError, OptionError
-from deformesh_cli.svg import parse_svg
+from deformesh_cli.readers.svg import parse_svg
 
 from .conftest import SAMPLES
 

@@ -220,7 +220,7 @@ def test_comb_is_traced_only_with_the_thin_rule(monkeypatch, w, h):
 def test_coast_india_is_traced_at_half_its_median_spacing():
     # real data: the Mumbai harbour inlet and a peninsula near point 1140 are both
     # under a cell wide here; the first two rules fail on every shift (measured)
-    from deformesh_cli.contour import load_contour
+    from deformesh_cli.readers import load_contour
 
     from .conftest import ROOT
 

@@ -6,8 +6,9 @@ import shapely
 from hypothesis import given, settings
 
 from deformesh_cli import pipeline, triangulate
-from deformesh_cli.contour import load_contour, make_contour
+from deformesh_cli.contour import make_contour
 from deformesh_cli.errors import ContractError, LimitError, SelectionError
+from deformesh_cli.readers import load_contour
 from deformesh_cli.select import DIAG_BACKSLASH, DIAG_SLASH, Grid
 
 from .conftest import SAMPLES, contour_file

@@ -23,9 +23,9 @@ import numpy as np
 import shapely
 import svgelements as se
 
-from .contour import Contour, make_contour
-from .errors import InputError, OptionError
-from .geometry import signed_area
+from ..contour import Contour, make_contour
+from ..errors import InputError, OptionError
+from ..geometry import signed_area
 
 #: Default chord tolerance, as a fraction of the drawing's bounding-box diagonal.
 DEFAULT_RELATIVE_TOLERANCE = 1e-3
@@ -49,6 +49,20 @@ def parse_tolerance(value: str | float | None) -> tuple[float, bool] | None:
     if not (math.isfinite(tol) and tol > 0):
         raise OptionError(f"--tolerance must be > 0, got {value!r}")
     return tol, rel
+
+
+def read_svg(
+    data: bytes, source: str, tolerance=None, element_id: str | None = None, gzipped=False
+) -> Contour:
+    """An SVG or gzip-compressed SVG file's bytes as a :class:`Contour` (:func:`parse_svg`)."""
+    if gzipped or data[:2] == b"\x1f\x8b":
+        import gzip
+
+        try:
+            data = gzip.decompress(data)
+        except OSError as exc:
+            raise InputError(f"{source}: not a readable gzip-compressed SVG: {exc}") from None
+    return parse_svg(data, source, tolerance, element_id)
 
 
 def parse_svg(
