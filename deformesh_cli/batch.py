@@ -18,11 +18,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from . import files, formats
-from .deform import DEFAULT_STEPS
-from .errors import DeformeshError, OptionError
+from . import size as _size
+from .errors import OUT_OF_MEMORY, DeformeshError, OptionError
+from .options import MeshOptions
 from .readers import load_contour
-from .select import DEFAULT_MAX_NODES
-from .size import make as size_make
 
 #: What a folder given as input contributes: files with these extensions.
 CONTOUR_SUFFIXES = (".csv", ".txt", ".svg", ".svgz")
@@ -50,7 +49,7 @@ class Task:
     output: str
     data: bytes | None = None
     error: str | None = None  # reading failed: nothing to run
-    options: dict = field(default_factory=dict)
+    options: MeshOptions = field(default_factory=MeshOptions)
 
 
 def expand_inputs(args: list[str]) -> list[str]:
@@ -81,8 +80,20 @@ def expand_inputs(args: list[str]) -> list[str]:
     return out
 
 
-def make_tasks(inputs: list[str], out_dir: str, fmt: str, options: dict) -> list[Task]:
-    """Read every input (a failure becomes the task's error) and name its output.
+def prepare(inputs: list[str], out_dir: str, options: MeshOptions) -> list[Task]:
+    """Everything before the work: the inputs expanded and read, the output format and
+    size function checked (usage errors before any work, not once per input), then the
+    output folder created."""
+    fmt = formats.format_for(f"x.{options.fmt or 'msh'}", None)
+    _size.check_options(options.size, options.size_field)
+    tasks = make_tasks(expand_inputs(inputs), out_dir, options.replace(fmt=fmt))
+    files.make_folder(out_dir)
+    return tasks
+
+
+def make_tasks(inputs: list[str], out_dir: str, options: MeshOptions) -> list[Task]:
+    """Read every input (a failure becomes the task's error) and name its output
+    ``out_dir/NAME.FORMAT`` (``options.fmt``).
 
     Two inputs that would write the same output file are a usage error.
     """
@@ -90,7 +101,7 @@ def make_tasks(inputs: list[str], out_dir: str, fmt: str, options: dict) -> list
     tasks = []
     for k, src in enumerate(inputs):
         stem = "stdin" if src == "-" else Path(src).name.split(".")[0] or f"input_{k}"
-        out = str(Path(out_dir) / f"{stem}.{fmt}")
+        out = str(Path(out_dir) / f"{stem}.{options.fmt}")
         if out in outputs:
             raise OptionError(
                 f"{outputs[out]} and {src} would both write {out}; "
@@ -102,7 +113,7 @@ def make_tasks(inputs: list[str], out_dir: str, fmt: str, options: dict) -> list
             data = files.read_bytes(src)
         except DeformeshError as exc:
             error = str(exc)
-        tasks.append(Task(k, src, out, data, error, dict(options, fmt=fmt)))
+        tasks.append(Task(k, src, out, data, error, options))
     return tasks
 
 
@@ -113,36 +124,13 @@ def run_task(task: Task) -> tuple[dict, list[tuple[str, bytes]]]:
     t0 = time.perf_counter()
     o = task.options
     rec = _record(task, "failed")
-    files: list[tuple[str, bytes]] = []
+    outputs: list[tuple[str, bytes]] = []
     try:
         if task.error is not None:
             raise DeformeshError(task.error)
-        c = load_contour(
-            task.source,
-            task.data,
-            o.get("decimal", "."),
-            o.get("tolerance"),
-            o.get("element_id"),
-            o.get("resample"),
-        )
-        res = mesh_contour(
-            c,
-            o.get("h"),
-            o.get("box"),
-            o.get("margin"),
-            o.get("strict", False),
-            o.get("max_nodes", DEFAULT_MAX_NODES),
-            o.get("steps", DEFAULT_STEPS),
-            solver=o.get("solver", "auto"),
-            exterior=o.get("exterior", False),
-            size=size_make(o.get("size"), o.get("size_field"), c),
-            grid=o.get("grid", "auto"),
-            solve=o.get("solve", "band"),
-            improve=o.get("improve", True),
-        )
-        files = formats.mesh_files(
-            res.mesh, Path(task.output).name, o["fmt"], o.get("msh_version", "2.2")
-        )
+        c = load_contour(task.source, task.data, o.decimal, o.tolerance, o.element_id, o.resample)
+        res = mesh_contour(c, o)
+        outputs = formats.mesh_files(res.mesh, Path(task.output).name, o.fmt, o.msh_version)
         r = res.report
         rec.update(
             status="ok",
@@ -154,11 +142,29 @@ def run_task(task: Task) -> tuple[dict, list[tuple[str, bytes]]]:
     except DeformeshError as exc:
         rec["error"] = str(exc)
     except MemoryError:
-        rec["error"] = f"{task.source}: out of memory; lower --max-nodes or give a larger --h"
+        rec["error"] = f"{task.source}: {OUT_OF_MEMORY}"
     except Exception as exc:  # a bug of ours: report it and keep the batch going
         rec["error"] = f"{task.source}: internal error: {type(exc).__name__}: {exc}"
     rec["seconds"] = round(time.perf_counter() - t0, 3)
-    return rec, files
+    return rec, outputs
+
+
+def run_and_write(
+    tasks: list[Task],
+    out_dir: str,
+    jobs: int = 1,
+    scheduler: str | None = None,
+    fail_fast: bool = False,
+) -> Iterator[tuple[Task, dict]]:
+    """:func:`run`, writing each input's files into ``out_dir`` as they arrive (atomically;
+    if one cannot be written, none of that input's stays and its record says why)."""
+    for task, rec, outputs in run(tasks, jobs, scheduler, fail_fast):
+        if rec["status"] == "ok":
+            try:
+                files.write_files(out_dir, outputs)
+            except DeformeshError as exc:
+                rec.update(status="failed", error=str(exc))
+        yield task, rec
 
 
 def run(

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .divcurl import Assembler
-from .errors import FoldError
+from .errors import BandError, FoldError, OptionError, SolverError
 from .geometry import signed_areas
 
 #: Default number of pseudo-time steps (the paper's example uses 10).
@@ -54,6 +54,11 @@ class DeformStats:
 SOLVERS = ("auto", "direct", "amg")
 AUTO_DIRECT_MAX = 60_000
 
+#: ``--solve`` choices: ``band`` deforms only the cells near the path
+#: (:func:`deformesh_cli.pipeline.band_nodes`), ``full`` the whole background grid
+#: (the paper's form).
+SOLVES = ("band", "full")
+
 
 class LinearSolver:
     """Solves the per-step scalar systems ``K X = rhs`` (two right-hand sides).
@@ -72,7 +77,7 @@ class LinearSolver:
 
     def __init__(self, method: str = "auto", rtol: float = 1e-8, rebuild_after: int = 40):
         if method not in SOLVERS:
-            raise ValueError(f"unknown solver {method!r}")
+            raise OptionError(f"--solver must be one of {', '.join(SOLVERS)}, got {method!r}")
         self.method = method
         self.rtol = rtol
         self.rebuild_after = rebuild_after
@@ -131,7 +136,10 @@ class LinearSolver:
                     K, rhs[:, k], x0=guess, rtol=self.rtol, atol=0.0, M=M, maxiter=2000, callback=cb
                 )
                 if info != 0:
-                    raise RuntimeError("conjugate gradients did not converge")
+                    raise SolverError(
+                        f"conjugate gradients did not converge in 2,000 iterations on "
+                        f"{K.shape[0]} unknowns; try --solver direct"
+                    )
             out[:, k] = x
             worst = max(worst, count[0])
         self.iterations.append(worst)
@@ -202,7 +210,7 @@ def deform_band(
     edge[fixed_nodes] = True
     held = nodes[edge[nodes]]
     if edge[path_nodes].any():
-        raise ValueError("a path node lies on the band's edge: widen the band")
+        raise BandError("a path node lies on the band's edge: widen the band")
     remap = np.full(len(points), -1, dtype=np.int64)
     remap[nodes] = np.arange(len(nodes))
     sub_describe = None if describe is None else (lambda t: describe(nodes[t]))
@@ -269,7 +277,7 @@ def deform_(
     Returns the new coordinates and :class:`DeformStats`.
     """
     if steps < 1:
-        raise ValueError("steps must be >= 1")
+        raise OptionError(f"--steps must be >= 1, got {steps}")
     n = len(points)
     pos = np.array(points, dtype=np.float64, copy=True)
     dirichlet = np.zeros(n, dtype=bool)

@@ -7,6 +7,9 @@ one line naming the file, the problem and where.  The command-line layer
 processing failure (exit 1).  Nothing else is meant to reach it.
 """
 
+#: What a run that ran out of memory is told.
+OUT_OF_MEMORY = "out of memory; lower --max-nodes or give a larger --h"
+
 
 class DeformeshError(Exception):
     """Base class of every error the core raises on purpose."""

@@ -1,4 +1,4 @@
-"""Moving boundaries (issue 8): one connectivity for every frame, never tangled.
+"""Moving boundaries: one connectivity for every frame, never tangled.
 
 The paper's section 3.2: a mesh on a moving domain is carried along by the
 deformation.  Frame ``k``'s mesh is frame ``k - 1``'s deformed by the
@@ -22,21 +22,27 @@ Data flow::
     Motion, points of frame k-1, contour of frame k
       --advance--> rigid part (carry), rest (div-curl) --> points of frame k
                    (or FoldError), contract checked
+    mesh file + frame files --move_frames--> one mesh file per frame (+ .pvd)
 
 Nothing here prints or exits.
 """
 
 from __future__ import annotations
 
+import os
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-from . import geometry, quality
+from . import files, formats, geometry, quality
 from .contour import Contour, make_contour
 from .deform import ADVICE, DEFAULT_STEPS, DeformStats, deform, deform_band
-from .errors import ContractError, DeformeshError, FoldError, InputError
+from .errors import BandError, ContractError, FoldError, InputError
 from .mesh import Mesh
+from .options import MoveOptions
+from .readers import load_contour
 
 
 @dataclass
@@ -75,7 +81,7 @@ def prepare(points: np.ndarray, tri: np.ndarray, first: Contour, source: str) ->
     """
     m = first.n
     if len(points) < m:
-        raise DeformeshError(
+        raise InputError(
             f"{source}: the mesh has {len(points)} nodes, fewer than the "
             f"{m} points of {first.source}"
         )
@@ -87,7 +93,7 @@ def prepare(points: np.ndarray, tri: np.ndarray, first: Contour, source: str) ->
             ring_labels=first.ring_labels or None,
         )
     except InputError as exc:
-        raise DeformeshError(
+        raise InputError(
             f"{source}: its first {m} nodes are not a valid contour like "
             f"{first.source}'s ({exc}); was it written by deformesh from "
             f"{m} points?"
@@ -97,7 +103,7 @@ def prepare(points: np.ndarray, tri: np.ndarray, first: Contour, source: str) ->
         mesh, box = quality.mesh_for_contour(points, tri, own)
         quality.check_contract(mesh, own, box, edges)
     except ContractError as exc:
-        raise DeformeshError(
+        raise InputError(
             f"{source}: not a deformesh mesh of {m} contour points in order "
             f"({str(exc).removeprefix(source + ': ')})"
         ) from None
@@ -195,23 +201,23 @@ def _same_rings(own: Contour, frame: Contour, source: str) -> None:
     """A frame must have the mesh's rings: as many points each, the same way round,
     holes where holes were."""
     if frame.n != own.n:
-        raise DeformeshError(
+        raise InputError(
             f"{source}: has {frame.n} points, the mesh's contour has "
             f"{own.n} (point k of each frame follows contour point k)"
         )
     if frame.starts != own.starts:
-        raise DeformeshError(
+        raise InputError(
             f"{source}: its rings start at points {list(frame.starts[:-1])}, "
             f"the mesh's at {list(own.starts[:-1])}"
         )
     for r in range(own.n_rings):
         if frame.ring_clockwise[r] != own.ring_clockwise[r]:
-            raise DeformeshError(
+            raise InputError(
                 f"{source}: {frame.ring_labels[r]} runs the other way round "
                 "from the mesh's (a frame cannot turn a ring inside out)"
             )
         if frame.is_hole(r) != own.is_hole(r):
-            raise DeformeshError(
+            raise InputError(
                 f"{source}: {frame.ring_labels[r]} is "
                 f"{'a hole' if frame.is_hole(r) else 'not a hole'}, "
                 "unlike in the mesh"
@@ -289,7 +295,7 @@ def advance(
                 new, stats = deform_band(
                     start, mesh.triangles, motion.moving, goal, motion.held, band, **kwargs
                 )
-            except (FoldError, ValueError):  # folds in the band, or a moving node on its edge
+            except (FoldError, BandError):  # folds in the band, or a moving node on its edge
                 new = None
     if new is None:
         new, stats = deform(start, mesh.triangles, motion.moving, goal, motion.held, **kwargs)
@@ -351,3 +357,88 @@ def frame_mesh(motion: Motion, points: np.ndarray, point_data: dict | None = Non
         n_box=m.n_box,
         point_data=point_data or {},
     )
+
+
+#: What a fold message advises when a frame cannot be reached: at the last pseudo-time
+#: step, and before it.
+FRAME_ADVICE = (
+    "the frame's points cannot be reached from the previous frame's without folding",
+    "use more --steps, or frames closer together",
+)
+
+
+def move_frames(
+    mesh_path: str,
+    frame_paths: list[str],
+    out_dir: str,
+    options: MoveOptions | None = None,
+    *,
+    name: str | None = None,
+    on_frame: Callable[[int, int, Contour, dict], None] | None = None,
+) -> dict:
+    """What ``deformesh move`` does: carry the mesh in ``mesh_path`` along the frames.
+
+    Every frame is read and checked before any work.  Frame ``k``'s mesh is written
+    to ``out_dir/NAME_000k.FORMAT`` (``NAME`` is ``name`` or the mesh file's stem;
+    frame 0 is the mesh itself), with ``velocity`` point data where the format has
+    point data, and for ``.vtu`` the time series ``NAME.pvd`` of the frames written
+    so far, even when a later frame fails.  ``on_frame(k, count, contour, record)``
+    is called after each frame.  Returns the summary (``per_frame``: one record a
+    frame).  Raises :class:`.errors.FoldError` naming the frame that cannot be
+    reached, and the frames already written.
+    """
+    o = MoveOptions() if options is None else options
+    t0 = time.perf_counter()
+    fmt = o.fmt.lower()
+    stem = name or os.path.splitext(os.path.basename(mesh_path))[0]
+    points, tri = formats.read_mesh(mesh_path)
+    contours = [load_contour(f, None, o.decimal) for f in frame_paths]
+    motion = prepare(points, tri, contours[0], mesh_path)
+    for c in contours[1:]:  # a bad frame fails before any work
+        check_frame(motion, c)
+    files.make_folder(out_dir)
+    width = max(4, len(str(len(frame_paths))))
+    written: list[tuple[float, str]] = []
+    records: list[dict] = []
+
+    def write(k, pts, velocity, source, report):
+        mesh = frame_mesh(motion, pts, {"velocity": velocity})
+        file = f"{stem}_{k:0{width}d}.{fmt}"
+        formats.write_mesh(mesh, os.path.join(out_dir, file), fmt)
+        written.append((k * o.dt, file))
+        records.append({"frame": k, "input": source, "output": file, **report})
+
+    write(0, motion.mesh.points, np.zeros((len(points), 3)), mesh_path, quality.stats(motion.mesh))
+    pts = motion.mesh.points
+    try:
+        for k, c in enumerate(contours, start=1):
+            try:
+                step = advance(motion, pts, c, o.steps, o.solver, o.solve, advice=FRAME_ADVICE)
+            except FoldError as exc:
+                raise FoldError(
+                    f"{c.source}: frame {k} of {len(contours)} cannot be reached without "
+                    f"folding: {exc}; frames 0-{k - 1} are in {out_dir}"
+                ) from None
+            velocity = np.column_stack([(step.points - pts) / o.dt, np.zeros(len(pts))])
+            write(k, step.points, velocity, c.source, step.report)
+            pts = step.points
+            if on_frame is not None:
+                on_frame(k, len(contours), c, records[-1])
+    finally:  # the time series of the frames written so far
+        if fmt == "vtu" and written:
+            files.write_bytes(formats.pvd_bytes(written), os.path.join(out_dir, f"{stem}.pvd"))
+    lowest = min(records, key=lambda r: r["min_angle"])
+    return {
+        "mesh": mesh_path,
+        "out_dir": out_dir,
+        "format": fmt,
+        "pvd": f"{stem}.pvd" if fmt == "vtu" else None,
+        "frames": len(records),
+        "nodes": records[0]["nodes"],
+        "triangles": records[0]["triangles"],
+        "min_angle": lowest["min_angle"],
+        "min_angle_first": records[0]["min_angle"],
+        "min_angle_frame": int(lowest["frame"]),
+        "seconds": round(time.perf_counter() - t0, 3),
+        "per_frame": records,
+    }

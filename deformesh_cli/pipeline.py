@@ -17,10 +17,11 @@ from . import improve as _improve
 from . import respace as _respace
 from . import size as _size
 from .contour import Contour
-from .deform import DEFAULT_STEPS, DeformStats
+from .deform import SOLVES, DeformStats
 from .errors import FoldError, LimitError, OptionError, SelectionError
 from .mesh import Mesh
-from .select import DEFAULT_MAX_NODES, EVEN_SPACING_RATIO, Selection, select
+from .options import MeshOptions
+from .select import EVEN_SPACING_RATIO, GRIDS, Selection, select
 from .size import SizeFunction
 
 
@@ -41,15 +42,6 @@ class MeshResult:
     report: dict = field(default_factory=dict)
 
 
-#: ``--grid`` choices: ``adapt`` selects on the evenly re-spaced contour and slides
-#: (:mod:`.respace`); ``uniform`` is Appendix A's grid; ``auto`` adapts when the
-#: median spacing is over :data:`~.select.EVEN_SPACING_RATIO` times the smallest
-#: (Appendix A's grid would be that squared times bigger), ``--h`` is not given
-#: and the mesh is not exterior.  Icons (long edges, even small spacing: median
-#: / smallest 1.1-2) keep Appendix A's grid, which gave them 15-21 degrees.
-GRIDS = ("auto", "adapt", "uniform")
-
-
 def grid_mode(contour: Contour, grid: str = "auto", h=None, exterior: bool = False) -> str:
     if grid not in GRIDS:
         raise OptionError(f"--grid must be one of {', '.join(GRIDS)}, got {grid!r}")
@@ -60,29 +52,33 @@ def grid_mode(contour: Contour, grid: str = "auto", h=None, exterior: bool = Fal
     return "adapt" if _respace.spacing_ratio(contour) > EVEN_SPACING_RATIO else "uniform"
 
 
-def candidate_selections(
-    contour: Contour,
-    h=None,
-    box=None,
-    margin=None,
-    strict=False,
-    max_nodes=DEFAULT_MAX_NODES,
-    exterior=False,
-    grid: str = "auto",
-):
+def _options(options: MeshOptions | None, changes: dict) -> MeshOptions:
+    """``options`` (default: :class:`MeshOptions`'s defaults) with ``changes`` applied."""
+    options = MeshOptions() if options is None else options
+    return options.replace(**changes) if changes else options
+
+
+def candidate_selections(contour: Contour, options: MeshOptions | None = None, **changes):
     """The selections ``all`` tries in turn.
 
     On an adapted grid: the re-spaced ones (:func:`.respace.candidate_selections`),
     then, if none could be selected or all of them folded, Appendix A's uniform grid
-    (whose errors are the ones reported).
+    (whose errors are the ones reported).  ``changes``: :class:`MeshOptions` fields.
     """
-    mode = grid_mode(contour, grid, h, exterior)
+    o = _options(options, changes)
+    mode = grid_mode(contour, o.grid, o.h, o.exterior)
     if mode == "adapt":
         yield from _respace.candidate_selections(
-            contour, h, box, margin, strict, max_nodes, exterior
+            contour, o.h, o.box, o.margin, o.strict, o.max_nodes, o.exterior
         )
     sel = select(
-        contour, h=h, box=box, margin=margin, strict=strict, max_nodes=max_nodes, exterior=exterior
+        contour,
+        h=o.h,
+        box=o.box,
+        margin=o.margin,
+        strict=o.strict,
+        max_nodes=o.max_nodes,
+        exterior=o.exterior,
     )
     if mode == "adapt":
         sel.notes.insert(
@@ -94,22 +90,10 @@ def candidate_selections(
     yield sel
 
 
-def run_select(
-    contour: Contour,
-    h=None,
-    box=None,
-    margin=None,
-    strict=False,
-    max_nodes=DEFAULT_MAX_NODES,
-    exterior=False,
-    grid: str = "auto",
-) -> Selection:
-    return next(candidate_selections(contour, h, box, margin, strict, max_nodes, exterior, grid))
+def run_select(contour: Contour, options: MeshOptions | None = None, **changes) -> Selection:
+    """Stage 1: the first of :func:`candidate_selections` (the options' select fields)."""
+    return next(candidate_selections(contour, options, **changes))
 
-
-#: ``--solve`` choices: ``band`` deforms only the cells near the path
-#: (:func:`band_nodes`), ``full`` the whole background grid (the paper's form).
-SOLVES = ("band", "full")
 
 #: The narrow band reaches this many cells (grid steps, in i or j) past the
 #: nearest path node, and at least :data:`BAND_REACH` times the largest distance a
@@ -153,31 +137,37 @@ def _dilate(on: np.ndarray, reach: int, axis: int) -> np.ndarray:
 def run_deform(
     contour: Contour,
     sel: Selection,
-    steps: int = DEFAULT_STEPS,
+    options: MeshOptions | None = None,
+    *,
     callback=None,
-    solver: str = "auto",
-    size: SizeFunction | None = None,
-    solve: str = "band",
+    size_function: SizeFunction | None = None,
+    **changes,
 ) -> Deformed:
-    """Stage 2.  ``size`` (as given; normalised here over the grid's box) shapes the cells.
+    """Stage 2 (the options' deform fields).  The size function (``size_function``, else
+    the one the options' ``size`` or ``size_field`` give; normalised here over the
+    grid's box) shapes the cells.
 
     ``solve="band"`` moves only the cells near the path (:func:`band_nodes`),
     unless a size function is given (it shapes every cell) or the band would
     cover half the grid; ``"full"`` solves on the whole grid.
     """
-    if solve not in SOLVES:
-        raise OptionError(f"--solve must be one of {', '.join(SOLVES)}, got {solve!r}")
+    o = _options(options, changes)
+    if o.solve not in SOLVES:
+        raise OptionError(f"--solve must be one of {', '.join(SOLVES)}, got {o.solve!r}")
+    size = size_function
+    if size is None:
+        size = _size.make(o.size, o.size_field, contour)
     grid = sel.grid
     pts0 = grid.coords()
     tri = sel.triangles()
     if size is not None:
         size.normalise(grid.box)
-    band = band_nodes(sel) if solve == "band" and size is None else None
+    band = band_nodes(sel) if o.solve == "band" and size is None else None
     kwargs = {
-        "steps": steps,
+        "steps": o.steps,
         "callback": callback,
         "describe": _describer(contour, sel),
-        "solver": solver,
+        "solver": o.solver,
         "size": None if size is None else _size.SizePath(size.g1, grid.box),
         "slide": None
         if sel.path_slide is None
@@ -212,19 +202,26 @@ def _describer(contour: Contour, sel: Selection):
 def run_triangulate(
     contour: Contour,
     d: Deformed,
-    size: SizeFunction | None = None,
+    options: MeshOptions | None = None,
+    *,
+    size_function: SizeFunction | None = None,
     cut: triangulate.Cut | None = None,
-    improve: bool = True,
+    **changes,
 ) -> tuple[Mesh, dict]:
-    """Stage 3.  ``cut``: :func:`.triangulate.cut` of this selection, if already made.
-    ``improve``: run the quality stage (:mod:`.improve`) on the mesh."""
+    """Stage 3: the mesh and its summary.  ``cut``: :func:`.triangulate.cut` of this
+    selection, if already made.  The options' ``improve`` runs the quality stage
+    (:mod:`.improve`); their size function (or ``size_function``) is reported on."""
+    o = _options(options, changes)
+    size = size_function
+    if size is None:
+        size = _size.make(o.size, o.size_field, contour)
     sel = d.selection
     if cut is None:
         cut = triangulate.cut(contour, sel)
     mesh = triangulate.place(contour, sel, cut, d.points)
     edges = cut.edges
     better = None
-    if improve:
+    if o.improve:
         before = mesh
         mesh, better = _improve.improve(mesh)
         if len(better.changed) and edges is not None:  # the changed triangles' edges
@@ -280,30 +277,31 @@ MIN_ADAPTED_ANGLE = 1.0
 
 def mesh_contour(
     contour: Contour,
-    h=None,
-    box=None,
-    margin=None,
-    strict=False,
-    max_nodes=DEFAULT_MAX_NODES,
-    steps=DEFAULT_STEPS,
+    options: MeshOptions | None = None,
+    *,
     callback=None,
-    solver: str = "auto",
-    exterior: bool = False,
-    size: SizeFunction | None = None,
-    grid: str = "auto",
-    solve: str = "band",
-    improve: bool = True,
+    size_function: SizeFunction | None = None,
+    **changes,
 ) -> MeshResult:
     """Mesh the inside of ``contour`` (or the box minus it, ``exterior``).
+
+    ``options`` (default: :class:`~.options.MeshOptions`' defaults) with
+    ``changes`` (its field names: ``mesh_contour(c, exterior=True)``);
+    ``callback(done, stats)`` follows the deformation; ``size_function`` replaces
+    the options' ``size`` and ``size_field``.
 
     On an adapted grid, a rung whose deformation folds, or whose mesh has an
     angle under :data:`MIN_ADAPTED_ANGLE`, gives way to the next one (the
     nearly flat mesh is kept if nothing later meshes).  The result meets the
     contract or this raises.
     """
+    o = _options(options, changes)
+    size = size_function
+    if size is None:
+        size = _size.make(o.size, o.size_field, contour)
     fold = flat = None
     try:
-        for sel in candidate_selections(contour, h, box, margin, strict, max_nodes, exterior, grid):
+        for sel in candidate_selections(contour, o):
             # stage 3's topology (which triangles, numbered how, and their edges) needs
             # only the selection: it runs on the second core while the deformation runs
             # (1e6 triangles, 7 alternating runs: 1.79 s in turn, 1.56 s alongside; peak
@@ -312,11 +310,11 @@ def mesh_contour(
             with ThreadPoolExecutor(max_workers=1) as pool:
                 cut = pool.submit(triangulate.cut, contour, sel, edges=True)
                 try:
-                    d = run_deform(contour, sel, steps, callback, solver, size, solve)
+                    d = run_deform(contour, sel, o, callback=callback, size_function=size)
                 except FoldError as exc:
                     fold = exc  # the last one: the uniform grid's, when every rung folded
                     continue
-                mesh, report = run_triangulate(contour, d, size, cut.result(), improve)
+                mesh, report = run_triangulate(contour, d, o, size_function=size, cut=cut.result())
             if sel.h_rule != "typical-spacing" or report["min_angle"] >= MIN_ADAPTED_ANGLE:
                 break
             flat = flat or (sel, d, mesh, report)  # nearly flat: try the next rung first

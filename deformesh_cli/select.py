@@ -29,6 +29,14 @@ from .geometry import next_on_ring, signed_area, signed_areas
 #: this machine's 24 GiB while leaving room for the rest of the pipeline.
 DEFAULT_MAX_NODES = 8_000_000
 
+#: ``--grid`` choices: ``adapt`` selects on the evenly re-spaced contour and slides
+#: (:mod:`.respace`); ``uniform`` is Appendix A's grid; ``auto`` adapts when the
+#: median spacing is over :data:`EVEN_SPACING_RATIO` times the smallest
+#: (Appendix A's grid would be that squared times bigger), ``--h`` is not given
+#: and the mesh is not exterior.  Icons (long edges, even small spacing: median
+#: / smallest 1.1-2) keep Appendix A's grid, which gave them 15-21 degrees.
+GRIDS = ("auto", "adapt", "uniform")
+
 #: Default margin between the contour's bounding box and the background box, in cells.
 DEFAULT_MARGIN_CELLS = 3
 

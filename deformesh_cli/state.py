@@ -12,7 +12,7 @@ from __future__ import annotations
 import io
 import json
 import zipfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -22,7 +22,7 @@ from .errors import InputError
 from .select import Grid, Selection
 
 FORMAT = "deformesh-state"
-VERSION = 2
+VERSION = 3
 STAGES = ("selected", "deformed")
 
 _ARRAYS = {
@@ -45,7 +45,8 @@ class State:
     contour: Contour
     selection: Selection
     points: np.ndarray | None = None  # deformed coordinates, stage "deformed"
-    meta: dict | None = None
+    #: the :class:`~.options.MeshOptions` fields of the stages run so far (their values)
+    options: dict = field(default_factory=dict)
 
 
 def dumps(state: State) -> bytes:
@@ -66,9 +67,8 @@ def dumps(state: State) -> bytes:
         "exterior": bool(sel.exterior),
         "notes": list(sel.notes),
         "ring_labels": list(state.contour.ring_labels),
+        "options": {k: list(v) if isinstance(v, tuple) else v for k, v in state.options.items()},
     }
-    if state.meta:
-        meta.update({k: v for k, v in state.meta.items() if k not in meta})
     arrays = {
         "contour_points": state.contour.points,
         "contour_lines": state.contour.lines,
@@ -204,4 +204,7 @@ def loads(data: bytes, name: str = "<state>", want: str | None = None) -> State:
         exterior=bool(meta.get("exterior", False)),
         path_slide=arrays.get("path_slide"),
     )
-    return State(stage, contour, sel, arrays.get("points"), meta)
+    options = meta.get("options", {})
+    if not isinstance(options, dict):
+        raise InputError(f"{name}: inconsistent state file (options is not a mapping)")
+    return State(stage, contour, sel, arrays.get("points"), options)

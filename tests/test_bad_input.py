@@ -417,12 +417,14 @@ def test_progress_bars_on_a_terminal_only(run, tmp_path):
 def test_a_dying_worker_fails_its_input_only(tmp_path, monkeypatch):
     """A worker killed mid-task (out of memory, say) is one failed record, not a crash."""
     from deformesh_cli import batch
+    from deformesh_cli.options import MeshOptions
 
     src = tmp_path / "in"
     src.mkdir()
     for name in ("a.csv", "b.csv"):
         (src / name).write_bytes((SAMPLES / "circle.csv").read_bytes())
-    tasks = batch.make_tasks(batch.expand_inputs([str(src)]), str(tmp_path / "o"), "msh", {})
+    inputs = batch.expand_inputs([str(src)])
+    tasks = batch.make_tasks(inputs, str(tmp_path / "o"), MeshOptions(fmt="msh"))
     monkeypatch.setattr(batch, "run_task", _die_on_b)
     recs = {Path(t.source).name: r for t, r, _ in batch.run(tasks, jobs=2)}
     assert recs["a.csv"]["status"] == "ok"

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from deformesh_cli import pipeline
-from deformesh_cli.deform import deform_band
+from deformesh_cli.deform import SOLVES, deform_band
+from deformesh_cli.errors import BandError
 from deformesh_cli.geometry import signed_areas
 from deformesh_cli.quality import check_contract
 from deformesh_cli.readers import load_contour
@@ -49,7 +50,7 @@ def test_a_path_node_on_the_band_edge_is_refused():
     path = g.node_id([4, 5, 5, 4], [4, 4, 5, 5])
     active = np.zeros(g.n_nodes, dtype=bool)
     active[g.node_id([4, 5, 5, 4, 3], [4, 4, 5, 5, 3])] = True
-    with pytest.raises(ValueError):
+    with pytest.raises(BandError, match="band.s edge"):
         deform_band(pts, tri, path, pts[path], g.boundary_nodes(), active)
 
 
@@ -75,7 +76,7 @@ def test_band_keeps_the_contract_and_the_smallest_angle(path):
     c = load_contour(path)
     sel = pipeline.run_select(c)
     out = {}
-    for solve in pipeline.SOLVES:
+    for solve in SOLVES:
         d = pipeline.run_deform(c, sel, solve=solve)
         mesh, report = pipeline.run_triangulate(c, d, improve=False)
         check_contract(mesh, c)

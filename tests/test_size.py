@@ -68,7 +68,7 @@ def test_cell_areas_match_the_normalised_f(tmp_path):
 
     c = load_contour(SAMPLES / "circle.csv")
     size = from_expression("0.3 + x + 2", c)
-    res = mesh_contour(c, size=size)
+    res = mesh_contour(c, size_function=size)
     m = res.mesh
     g = res.selection.grid
     boundary = np.zeros(m.n_nodes, dtype=bool)

@@ -1,0 +1,43 @@
+"""The command line: click only.
+
+One module per subcommand (a command parses, calls the core, reports);
+:mod:`.options` builds the click options from :mod:`deformesh_cli.options`;
+:mod:`.errors` is the one place where core errors become exit codes.
+stdout carries data only (a state file, a mesh, ``--json``); messages go to
+stderr.  Exit codes: 0 ok, 1 processing failure, 2 usage error.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+import click
+
+from .. import __version__
+from . import all as all_command
+from . import deform, move, plot, quality, select, triangulate
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="deformesh")
+def cli():
+    """Triangle meshes whose boundary nodes are exactly your contour's points.
+
+    A Cartesian grid is deformed onto the contour by a div-curl system
+    (Liao et al.), so the interior stays structured and never folds.
+    """
+
+
+for _module in (select, deform, triangulate, all_command, move, quality, plot):
+    cli.add_command(_module.command)
+
+
+def main() -> None:
+    """Entry point: run the CLI; a closed downstream pipe ends quietly."""
+    try:
+        cli.main(prog_name="deformesh", standalone_mode=True)
+    except BrokenPipeError:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        sys.exit(1)

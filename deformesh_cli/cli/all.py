@@ -1,0 +1,154 @@
+"""``deformesh all CONTOUR -o MESH`` and ``deformesh all CONTOUR... --out-dir DIR``."""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+
+import click
+
+from .. import batch, pipeline
+from ..options import MeshOptions
+from ..readers import load_contour
+from .errors import handle_errors
+from .options import (
+    json_option,
+    output_option,
+    png_option,
+    quiet_option,
+    show_progress,
+    stages,
+    steps_bar,
+    take,
+)
+from .report import check_mesh_output, finish
+
+
+@click.command("all")
+@click.argument(
+    "contours", metavar="CONTOUR...", nargs=-1, required=True, type=click.Path(allow_dash=True)
+)
+@output_option(
+    "Mesh file to write (one contour); the format follows the extension.", required=False
+)
+@click.option(
+    "--out-dir",
+    default=None,
+    type=click.Path(file_okay=False),
+    help="Batch: write each contour's mesh here as NAME.FORMAT (created if missing). "
+    "CONTOUR may then be several files, folders and glob patterns.",
+)
+@click.option(
+    "-j",
+    "--jobs",
+    type=click.IntRange(min=1),
+    default=None,
+    help="Batch: processes to run at once. Default: the number of cores.",
+)
+@click.option(
+    "--scheduler",
+    default=None,
+    metavar="ADDRESS",
+    help="Batch: run on a Dask distributed cluster (e.g. tcp://host:8786); needs deformesh[dask].",
+)
+@click.option("--fail-fast", is_flag=True, help="Batch: stop at the first failure.")
+@stages("select", "read", "deform", "triangulate", "write")
+@png_option
+@json_option("Print the summary as JSON on stdout (a batch: one record per contour).")
+@quiet_option
+@handle_errors
+def command(contours, output, out_dir, jobs, scheduler, fail_fast, png, as_json, quiet, **kw):
+    """Run select, deform and triangulate in one process, for one contour or a batch."""
+    t0 = time.perf_counter()
+    o = take(MeshOptions, kw)
+    if out_dir is not None:
+        if output is not None:
+            raise click.UsageError(
+                "give -o FILE (one contour) or --out-dir DIR (a batch), not both"
+            )
+        if png is not None:
+            raise click.UsageError("--png names one file; it does not apply to a batch")
+        tasks = batch.prepare(list(contours), out_dir, o)
+        _batch(tasks, out_dir, jobs, scheduler, fail_fast, as_json, quiet, t0)
+        return
+    if output is None:
+        raise click.UsageError("give -o FILE (one contour) or --out-dir DIR (a batch)")
+    if len(contours) != 1 or (contours[0] != "-" and os.path.isdir(contours[0])):
+        raise click.UsageError("several contours or a folder need --out-dir DIR instead of -o")
+    if jobs is not None or scheduler is not None or fail_fast:
+        raise click.UsageError("--jobs, --scheduler and --fail-fast apply to batches (--out-dir)")
+    fmt = check_mesh_output(output, o.fmt, as_json)
+    c = load_contour(contours[0], None, o.decimal, o.tolerance, o.element_id, o.resample)
+    with steps_bar(quiet) as progress:
+        res = pipeline.mesh_contour(c, o, callback=progress)
+    finish(
+        c,
+        res.mesh,
+        res.report,
+        output,
+        fmt,
+        as_json=as_json,
+        quiet=quiet,
+        t0=t0,
+        msh_version=o.msh_version,
+        png=png,
+    )
+
+
+def _batch(tasks, out_dir, jobs, scheduler, fail_fast, as_json, quiet, t0) -> None:
+    """Run a batch: each failure on stderr as it happens, the records in input order on
+    stdout (``--json``), the table at the end; exit 1 if any input failed."""
+    records: list[dict | None] = [None] * len(tasks)
+    printed = 0
+    bar = None
+    if show_progress(quiet) and len(tasks) > 1:
+        bar = click.progressbar(length=len(tasks), label="meshing", file=sys.stderr)
+        bar.__enter__()
+    try:
+        jobs = jobs or os.cpu_count() or 1
+        for task, rec in batch.run_and_write(tasks, out_dir, jobs, scheduler, fail_fast):
+            if rec["status"] == "failed":  # over the progress bar's line, if one is drawn
+                clear = "\r\033[K" if bar is not None else ""
+                click.echo(f"{clear}deformesh: error: {rec['error']}", err=True)
+            records[task.index] = rec
+            while printed < len(records) and records[printed] is not None:
+                if as_json:
+                    click.echo(json.dumps(records[printed]))
+                printed += 1
+            if bar is not None:
+                bar.update(1)
+    finally:
+        if bar is not None:
+            bar.__exit__(None, None, None)
+    if not quiet:
+        click.echo(batch_table(records, time.perf_counter() - t0), err=True)
+    if any(r["status"] != "ok" for r in records):
+        sys.exit(1)
+
+
+def batch_table(records: list[dict], seconds: float) -> str:
+    """The end-of-batch summary: a count line, then one row per input."""
+    ok = sum(r["status"] == "ok" for r in records)
+    failed = sum(r["status"] == "failed" for r in records)
+    skipped = len(records) - ok - failed
+    head = f"deformesh: {len(records)} contour(s): {ok} ok, {failed} failed"
+    head += f", {skipped} skipped" if skipped else ""
+    rows = [
+        head + f" ({seconds:.2f} s)",
+        f"  {'status':8} {'nodes':>8} {'triangles':>9} {'min angle':>9} {'seconds':>8}  input",
+    ]
+    for r in records:
+        if r["status"] == "ok":
+            nums = (
+                f"{r['nodes']:>8} {r['triangles']:>9} {r['min_angle']:>9.1f} {r['seconds']:>8.2f}"
+            )
+            rows.append(f"  {'ok':8} {nums}  {r['input']}")
+        else:
+            why = r["error"].removeprefix(f"{r['input']}: ")
+            rows.append(
+                f"  {r['status']:8} {'-':>8} {'-':>9} {'-':>9} {r['seconds']:>8.2f}  "
+                f"{r['input']}: {why}"
+            )
+    return "\n".join(rows)

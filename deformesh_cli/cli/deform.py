@@ -1,0 +1,42 @@
+"""``deformesh deform STATE -o STATE2``: stage 2."""
+
+from __future__ import annotations
+
+import click
+
+from .. import files, pipeline, state
+from ..options import MeshOptions, from_record
+from .errors import handle_errors
+from .options import (
+    check_binary_stdout,
+    output_option,
+    quiet_option,
+    say,
+    stages,
+    steps_bar,
+    take,
+)
+
+
+@click.command("deform")
+@click.argument("state_in", metavar="STATE", type=click.Path(dir_okay=False, allow_dash=True))
+@output_option("Deformed state file to write ('-' for stdout).")
+@stages("deform")
+@quiet_option
+@handle_errors
+def command(state_in: str, output: str, quiet: bool, **kwargs) -> None:
+    """Move the selected nodes onto the contour without folding (stage 2)."""
+    check_binary_stdout(output)
+    name = "<stdin>" if state_in == "-" else state_in
+    st = state.loads(files.read_bytes(state_in), name, want="selected")
+    o = from_record(MeshOptions, st.options).replace(**take(MeshOptions, kwargs).stage("deform"))
+    with steps_bar(quiet) as progress:
+        d = pipeline.run_deform(st.contour, st.selection, o, callback=progress)
+    options = {**st.options, **o.stage("deform")}
+    out = state.State("deformed", st.contour, st.selection, d.points, options)
+    files.write_bytes(state.dumps(out), output)
+    say(
+        quiet,
+        f"{st.contour.source}: deformed in {d.stats.solves} solves "
+        f"({d.stats.halvings} step halvings)",
+    )

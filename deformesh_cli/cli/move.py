@@ -1,0 +1,62 @@
+"""``deformesh move MESH FRAME... --out-dir DIR``: a mesh carried along moving contours."""
+
+from __future__ import annotations
+
+import json
+
+import click
+
+from .. import formats
+from ..move import move_frames
+from ..options import MoveOptions
+from .errors import handle_errors
+from .options import fields, json_option, quiet_option, say, take
+
+
+@click.command("move")
+@click.argument("mesh_path", metavar="MESH", type=click.Path(dir_okay=False))
+@click.argument(
+    "frames", metavar="FRAME...", nargs=-1, required=True, type=click.Path(dir_okay=False)
+)
+@click.option(
+    "--out-dir",
+    required=True,
+    type=click.Path(file_okay=False),
+    help="Write the frames here as NAME_0000.FORMAT, ... (created if missing), "
+    "and NAME.pvd, the time series ParaView opens (.vtu only).",
+)
+@click.option("--name", default=None, help="File name stem.  Default: MESH's.")
+@fields(MoveOptions, "dt", "steps", "solver", "solve", "fmt", "decimal")
+@json_option()
+@quiet_option
+@handle_errors
+def command(mesh_path, frames, out_dir, name, as_json, quiet, **kwargs) -> None:
+    """Carry a mesh along as its contour moves: one file per FRAME, same triangles.
+
+    MESH is a mesh deformesh wrote (its nodes 0..m-1 are the contour points in
+    order); each FRAME is a contour of the same m points, point k following
+    point k.  Each frame's mesh is the previous one deformed (the div-curl
+    scheme over pseudo-time, contour nodes to the frame's points, box nodes
+    held), checked for folds at every step.  Frame 0 is MESH itself.
+    """
+    o = take(MoveOptions, kwargs)
+
+    def progress(k, count, contour, r):
+        say(
+            quiet,
+            f"frame {k}/{count} {contour.source}: min angle {r['min_angle']:.1f} deg, "
+            f"{r['solves']} solves, {r['halvings']} step halvings",
+        )
+
+    s = move_frames(mesh_path, list(frames), out_dir, o, name=name, on_frame=progress)
+    if as_json:
+        click.echo(json.dumps(s))
+    if s["format"] not in formats.POINT_DATA_FORMATS:
+        say(quiet, f"note: .{s['format']} has no point data: the velocity is not written")
+    say(
+        quiet,
+        f"{s['frames']} frames -> {out_dir}"
+        f"{'/' + s['pvd'] if s['pvd'] else ''}: same {s['triangles']} triangles "
+        f"in every frame, min angle {s['min_angle']:.1f} deg over all frames (frame 0: "
+        f"{s['min_angle_first']:.1f}) ({s['seconds']:.2f} s)",
+    )

@@ -1,0 +1,147 @@
+"""Click options built from :mod:`deformesh_cli.options`, and what the commands share.
+
+A command declares its options by field name (``@fields(MeshOptions, "h",
+"box")``) and gets them back as one options object (:func:`take`): the flag,
+default, choices and help text all come from the options class.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import sys
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import click
+
+from ..options import STAGES, MeshOptions, flag
+from ..options import fields as option_fields
+
+
+class BoxType(click.ParamType):
+    """XMIN,YMIN,XMAX,YMAX as a tuple of four floats."""
+
+    name = "XMIN,YMIN,XMAX,YMAX"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple):
+            return value
+        try:
+            v = tuple(float(s) for s in value.split(","))
+        except ValueError:
+            self.fail(f"{value!r} is not four numbers XMIN,YMIN,XMAX,YMAX", param, ctx)
+        if len(v) != 4:
+            self.fail(f"{value!r} has {len(v)} numbers, expected XMIN,YMIN,XMAX,YMAX", param, ctx)
+        return v
+
+
+def _positive(ctx, param, value):
+    if value is not None and not value > 0:
+        raise click.BadParameter("must be > 0")
+    return value
+
+
+def click_option(f: dataclasses.Field) -> Callable:
+    """The click option of one options field."""
+    meta = f.metadata
+    kind = meta["kind"]
+    kw: dict[str, Any] = {"default": f.default, "help": meta["help"]}
+    if "metavar" in meta:
+        kw["metavar"] = meta["metavar"]
+    decls = [flag(f), f.name]
+    if kind == "flag":
+        kw["is_flag"] = True
+    elif kind == "switch":
+        decls[0] = f"{flag(f)}/--no-{flag(f)[2:]}"
+        kw["show_default"] = True
+    elif kind == "choice":
+        kw["type"] = click.Choice(meta["choices"], case_sensitive=f.name != "fmt")
+        kw["show_default"] = f.default is not None
+    elif kind == "positive":
+        kw.update(type=float, callback=_positive, show_default=f.default is not None)
+    elif kind == "float":
+        kw["type"] = float
+    elif kind == "count":
+        kw.update(type=click.IntRange(min=meta["min"]), show_default=True)
+    elif kind == "box":
+        kw["type"] = BoxType()
+    elif kind == "path":
+        kw["type"] = click.Path(dir_okay=False)
+    return click.option(*decls, **kw)
+
+
+def fields(cls: type, *names: str) -> Callable:
+    """Decorator: the click options of these fields of ``cls``, in this order."""
+    by_name = option_fields(cls)
+
+    def deco(fn):
+        for name in reversed(names):
+            fn = click_option(by_name[name])(fn)
+        return fn
+
+    return deco
+
+
+def stages(*names: str) -> Callable:
+    """Decorator: the click options of every :class:`MeshOptions` field these stages read."""
+    return fields(MeshOptions, *(f for s in names for f in STAGES[s]))
+
+
+def take(cls: type, kwargs: dict) -> Any:
+    """Pop the fields of ``cls`` out of a command's keyword arguments; the options object."""
+    return cls(**{name: kwargs.pop(name) for name in option_fields(cls) if name in kwargs})
+
+
+def output_option(help: str, required: bool = True) -> Callable:
+    return click.option(
+        "-o",
+        "--output",
+        required=required,
+        default=None,
+        type=click.Path(dir_okay=False, allow_dash=True),
+        help=help,
+    )
+
+
+def json_option(help: str = "Print the summary as JSON on stdout.") -> Callable:
+    return click.option("--json", "as_json", is_flag=True, help=help)
+
+
+quiet_option = click.option("-q", "--quiet", is_flag=True, help="Print errors only.")
+png_option = click.option(
+    "--png",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Also draw the mesh to this PNG file (needs matplotlib).",
+)
+
+
+def say(quiet: bool, msg: str) -> None:
+    """A message on stderr, unless ``--quiet``."""
+    if not quiet:
+        click.echo(f"deformesh: {msg}", err=True)
+
+
+def check_binary_stdout(out: str) -> None:
+    if out == "-" and sys.stdout.isatty():
+        raise click.UsageError("refusing to write binary data to a terminal; use -o FILE or a pipe")
+
+
+def show_progress(quiet: bool) -> bool:
+    """Progress bars only for a person watching: stderr is a terminal and not --quiet."""
+    return not quiet and sys.stderr.isatty()
+
+
+@contextlib.contextmanager
+def steps_bar(quiet: bool) -> Iterator[Callable | None]:
+    """A deformation progress callback drawing a bar on stderr (or None)."""
+    if not show_progress(quiet):
+        yield None
+        return
+    with click.progressbar(length=1000, label="deforming", file=sys.stderr) as bar:
+
+        def progress(done, stats):
+            bar.update(int(1000 * done) - bar.pos)
+
+        yield progress

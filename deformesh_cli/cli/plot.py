@@ -1,0 +1,43 @@
+"""``deformesh plot MESH -o PNG``: a picture of a mesh."""
+
+from __future__ import annotations
+
+import click
+
+from .. import formats
+from ..options import MeshOptions
+from ..readers import load_contour
+from .errors import handle_errors
+from .options import check_binary_stdout, output_option, stages, take
+
+
+@click.command("plot")
+@click.argument("mesh_path", metavar="MESH", type=click.Path(dir_okay=False))
+@output_option("PNG file to write ('-' for stdout).")
+@click.option(
+    "--contour",
+    "contour_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Draw this contour's points over the mesh.",
+)
+@stages("read")
+@handle_errors
+def command(mesh_path: str, output: str, contour_path: str | None, **kwargs) -> None:
+    """Draw a mesh to PNG: triangles shaded by radius ratio, the boundary, a histogram."""
+    from .. import plot  # matplotlib loads only here
+
+    o = take(MeshOptions, kwargs)
+    check_binary_stdout(output)
+    points, tri = formats.read_mesh(mesh_path)
+    cpts = None
+    if contour_path is not None:
+        c = load_contour(contour_path, None, o.decimal, o.tolerance, o.element_id, o.resample)
+        cpts = c.points
+    plot.draw(
+        points,
+        tri,
+        output,
+        contour_points=cpts,
+        title=f"{mesh_path}: {len(points)} nodes, {len(tri)} triangles",
+    )

@@ -1,0 +1,61 @@
+"""``deformesh quality MESH [--contour CONTOUR]``: a mesh's measures and its contract."""
+
+from __future__ import annotations
+
+import json
+
+import click
+
+from .. import formats, quality
+from ..options import MeshOptions
+from ..readers import load_contour
+from .errors import fail, handle_errors
+from .options import json_option, stages, take
+
+
+@click.command("quality")
+@click.argument("mesh_path", metavar="MESH", type=click.Path(dir_okay=False))
+@click.option(
+    "--contour",
+    "contour_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Check the mesh contract against this contour (the file it was made from).",
+)
+@stages("read")
+@json_option("Print the report as JSON.")
+@handle_errors
+def command(mesh_path: str, contour_path: str | None, as_json: bool, **kwargs) -> None:
+    """Report a mesh's angles, areas and radius ratios; check the contract against a contour.
+
+    Exit 1 if a triangle is folded or (with --contour) the contract is broken.
+    """
+    o = take(MeshOptions, kwargs)
+    points, tri = formats.read_mesh(mesh_path)
+    c = None
+    if contour_path is not None:
+        c = load_contour(contour_path, None, o.decimal, o.tolerance, o.element_id, o.resample)
+    rep, problem = quality.assess(points, tri, c)
+    rep = {"mesh": mesh_path, **rep}
+    click.echo(json.dumps(rep) if as_json else quality_text(rep))
+    if problem:
+        fail(f"{mesh_path}: {problem}")
+
+
+def quality_text(r: dict) -> str:
+    """The report as text: sizes, angles, areas, radius ratios and their histogram."""
+    x, y = r["smallest_area_at"]
+    out = [
+        f"{r['mesh']}: {r['nodes']} nodes, {r['triangles']} triangles, area {r['area']:.6g}",
+        f"angles: min {r['min_angle']:.2f} deg, max {r['max_angle']:.2f} deg; "
+        f"{r['angles_below_20']} triangle(s) with an angle below 20 deg",
+        f"smallest signed area: {r['smallest_area']:.3g} at ({x:.6g}, {y:.6g}); "
+        f"folded: {r['folded']}",
+        f"radius ratio 2r/R: mean {r['mean_radius_ratio']:.3f}, min {r['min_radius_ratio']:.3f}",
+    ]
+    h = r["radius_ratio_histogram"]
+    top = max(h["counts"]) or 1
+    for lo, hi, k in zip(h["edges"], h["edges"][1:], h["counts"]):
+        out.append(f"  {lo:.1f}-{hi:.1f} {k:9d} {'#' * round(40 * k / top)}".rstrip())
+    out.append(f"contract: {r['contract']}")
+    return "\n".join(out)

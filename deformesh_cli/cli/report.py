@@ -1,0 +1,74 @@
+"""Writing a finished mesh and reporting it: what ``triangulate`` and ``all`` share."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import click
+
+from .. import files, formats
+from ..contour import Contour
+from ..mesh import Mesh
+from .options import say
+
+
+def check_mesh_output(output: str, fmt: str | None, as_json: bool) -> str:
+    """The output's format; ``--json`` and a mesh on stdout cannot share stdout."""
+    if as_json and output == "-":
+        raise click.UsageError("--json and -o - both use stdout; write the mesh to a file")
+    return formats.format_for(output, fmt)  # an OptionError is a usage error
+
+
+def finish(
+    contour: Contour,
+    mesh: Mesh,
+    report: dict,
+    output: str,
+    fmt: str,
+    *,
+    as_json: bool,
+    quiet: bool,
+    t0: float,
+    msh_version: str,
+    png: str | None,
+) -> None:
+    """Write the mesh (and its picture), then the summary: JSON on stdout, a line on stderr."""
+    picture = None
+    if png is not None:  # drawn first: a failure here leaves no mesh file either
+        from .. import plot
+
+        files.check_folder(png)
+        picture = plot.render(
+            mesh.points,
+            mesh.triangles,
+            boundary=mesh.lines,
+            contour_points=mesh.points[: mesh.n_contour],
+            title=f"{output}: {mesh.n_nodes} nodes, {len(mesh.triangles)} triangles",
+        )
+    formats.write_mesh(mesh, output, fmt, msh_version)
+    if picture is not None:
+        files.write_bytes(picture, png)
+    report = {
+        "input": contour.source,
+        "output": output,
+        "format": fmt,
+        **report,
+        "seconds": round(time.perf_counter() - t0, 3),
+    }
+    report["notes"] = list(contour.notes) + list(report.get("notes", []))
+    if as_json:
+        click.echo(json.dumps(report, sort_keys=False))
+    for note in report["notes"]:
+        say(quiet, f"note: {contour.source}: {note}")
+    say(quiet, summary_line(report))
+
+
+def summary_line(r: dict) -> str:
+    """The one line on stderr that sums up a mesh."""
+    return (
+        f"{r['input']} -> {r['output']}: {r['nodes']} nodes, {r['triangles']} triangles, "
+        f"angles {r['min_angle']:.1f}-{r['max_angle']:.1f} deg, smallest area "
+        f"{r['smallest_area']:.3g}, {r['extra_boundary_nodes']} extra boundary nodes, "
+        f"contract {r['contract']} ({r['seconds']:.2f} s)"
+    )

@@ -1,0 +1,49 @@
+"""``deformesh triangulate STATE2 -o MESH``: stage 3."""
+
+from __future__ import annotations
+
+import time
+
+import click
+
+from .. import files, pipeline, state
+from ..options import MeshOptions, from_record
+from .errors import handle_errors
+from .options import json_option, output_option, png_option, quiet_option, stages, take
+from .report import check_mesh_output, finish
+
+
+@click.command("triangulate")
+@click.argument("state_in", metavar="STATE", type=click.Path(dir_okay=False, allow_dash=True))
+@output_option("Mesh file to write; the format follows the extension.")
+@stages("triangulate", "write")
+@png_option
+@json_option()
+@quiet_option
+@handle_errors
+def command(state_in: str, output: str, png, as_json: bool, quiet: bool, **kwargs) -> None:
+    """Keep the triangles inside the contour and write the mesh (stage 3)."""
+    t0 = time.perf_counter()
+    given = take(MeshOptions, kwargs)
+    fmt = check_mesh_output(output, given.fmt, as_json)
+    name = "<stdin>" if state_in == "-" else state_in
+    st = state.loads(files.read_bytes(state_in), name, want="deformed")
+    # the size function the deformation used, from the state file: its report
+    o = from_record(MeshOptions, st.options).replace(
+        **given.stage("triangulate"), **given.stage("write")
+    )
+    deformed = pipeline.Deformed(st.selection, st.points)
+    mesh, report = pipeline.run_triangulate(st.contour, deformed, o)
+    report.update(pipeline.selection_report(st.selection))
+    finish(
+        st.contour,
+        mesh,
+        report,
+        output,
+        fmt,
+        as_json=as_json,
+        quiet=quiet,
+        t0=t0,
+        msh_version=o.msh_version,
+        png=png,
+    )

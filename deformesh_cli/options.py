@@ -1,0 +1,237 @@
+"""The options of a meshing run and of a moving mesh, each default written once.
+
+:class:`MeshOptions` is what ``deformesh all`` takes, and each of ``select``,
+``deform`` and ``triangulate`` takes its stage's share of it; batches send it
+to their workers and the state file records it.  :class:`MoveOptions` is what
+``deformesh move`` takes.  Both are frozen and keyword-only.
+
+Each field carries, in its metadata, what the command line needs to offer
+it: the flag, the help text, the choices (taken from the core's own
+registries) and the kind of value.  :mod:`deformesh_cli.cli.options` builds the
+click options from them, so the defaults and ``--help`` cannot drift from the
+library's.  Nothing here imports click.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+from .deform import DEFAULT_STEPS, SOLVERS, SOLVES
+from .formats import FORMATS, MSH_VERSIONS
+from .select import DEFAULT_MAX_NODES, GRIDS
+
+#: The kinds of value a field's ``kind`` metadata names (the command line checks them):
+#: ``text``, ``flag`` (``--x``), ``switch`` (``--x/--no-x``), ``choice`` (one of
+#: ``choices``), ``positive`` (a float > 0), ``float``, ``count`` (an int >= ``min``),
+#: ``box`` (XMIN,YMIN,XMAX,YMAX), ``path`` (an existing file).
+KINDS = ("text", "flag", "switch", "choice", "positive", "float", "count", "box", "path")
+
+
+def _opt(default: Any, help: str, kind: str = "text", **meta: Any) -> Any:
+    """A dataclass field whose metadata says how the command line offers it."""
+    assert kind in KINDS
+    return field(default=default, metadata={"help": help, "kind": kind, **meta})
+
+
+_STEPS_HELP = "Pseudo-time steps of the deformation."
+_SOLVER_HELP = (
+    "Linear solver per step: sparse LDL^T ('direct'), multigrid-preconditioned CG ('amg'), "
+    "or 'auto' (direct on the band, and up to 60,000 free nodes on a whole grid)."
+)
+_DECIMAL_HELP = "Decimal mark of the CSV numbers; with ',' the delimiter is ';', tab or spaces."
+
+
+@dataclass(frozen=True, kw_only=True)
+class MeshOptions:
+    """Every option of a meshing run, grouped by the stage that reads it.
+
+    Reading the contour: ``decimal``, ``tolerance``, ``element_id``,
+    ``resample``.  Stage 1 (select): ``h``, ``box``, ``margin``, ``strict``,
+    ``max_nodes``, ``exterior``, ``grid``.  Stage 2 (deform): ``steps``,
+    ``solver``, ``solve``, ``size``, ``size_field``.  Stage 3 (triangulate):
+    ``improve``.  Writing: ``fmt``, ``msh_version``.
+    """
+
+    # reading the contour
+    decimal: str = _opt(".", _DECIMAL_HELP, "choice", choices=(".", ","))
+    tolerance: str | None = _opt(
+        None,
+        "SVG: largest gap between a curve and its chords, in drawing units, or "
+        "a percentage of the drawing's diagonal ('0.5%').  Default: 0.1%.",
+        metavar="TOL",
+    )
+    element_id: str | None = _opt(
+        None,
+        "SVG: mesh only the element with this id (a shape or a group). "
+        "Default: every filled shape.",
+        flag="--id",
+        metavar="ID",
+    )
+    resample: str | None = _opt(
+        None,
+        "Re-space the contour evenly (corners kept) at SPACING, in contour units "
+        "or as a percentage of its diagonal ('1%'). The given points are then "
+        "no longer all boundary nodes.",
+        metavar="SPACING",
+    )
+    # stage 1: select
+    h: float | None = _opt(
+        None,
+        "Grid step. Default: Appendix A's 0.9*d_c/sqrt(2), d_c the smallest "
+        "distance between two contour points.",
+        "positive",
+    )
+    box: tuple[float, float, float, float] | None = _opt(
+        None,
+        "Background box XMIN,YMIN,XMAX,YMAX (must contain the contour). "
+        "Default: the contour's bounding box grown by --margin.",
+        "box",
+    )
+    margin: float | None = _opt(
+        None,
+        "Gap between the contour's bounding box and the background box, in "
+        "contour units. Default: 3 grid steps.",
+        "float",
+    )
+    strict: bool = _opt(
+        False,
+        "Fail instead of adding boundary nodes where consecutive contour points "
+        "select grid nodes that are not neighbours.",
+        "flag",
+    )
+    max_nodes: int = _opt(
+        DEFAULT_MAX_NODES,
+        "Refuse grids with more nodes than this (memory guard).",
+        "count",
+        min=4,
+    )
+    exterior: bool = _opt(
+        False,
+        "Mesh the box minus the contour (e.g. an airfoil in a far-field box). "
+        "Default margin: the contour's larger extent.",
+        "flag",
+    )
+    grid: str = _opt(
+        "auto",
+        "'adapt': select on the points evenly re-spaced between corners with h "
+        "their median spacing, then slide each node along the contour to its "
+        "point; 'uniform': Appendix A's grid; 'auto': adapt when the median "
+        "spacing is over 4x the smallest (and no --h, not --exterior).",
+        "choice",
+        choices=GRIDS,
+    )
+    # stage 2: deform
+    steps: int = _opt(DEFAULT_STEPS, _STEPS_HELP, "count", min=1)
+    solver: str = _opt("auto", _SOLVER_HELP, "choice", choices=SOLVERS)
+    solve: str = _opt(
+        "band",
+        "Deform only a narrow band of cells around the path ('band': at least 4 cells, "
+        "3 times the farthest path node's travel) or the whole background grid ('full').",
+        "choice",
+        choices=SOLVES,
+    )
+    size: str | None = _opt(
+        None,
+        "Size function f: cells end with areas proportional to f. A numpy "
+        "expression in x, y and d (distance to the contour), e.g. '0.2 + d'.",
+        metavar="EXPR",
+    )
+    size_field: str | None = _opt(
+        None,
+        "Size function as values on a regular grid: rows x, y, f (CSV or .npy).",
+        "path",
+    )
+    # stage 3: triangulate
+    improve: bool = _opt(
+        True,
+        "Better triangles: around every triangle under 35 degrees, flip edges, move "
+        "free nodes and, where that cannot help (a thin part, a sharp corner), re-mesh a "
+        "few triangles around one node, while the smallest angle grows (boundary nodes "
+        "never move).",
+        "switch",
+    )
+    # writing
+    fmt: str | None = _opt(
+        None,
+        "Mesh format. Default: from the output file's extension.",
+        "choice",
+        choices=tuple(sorted(FORMATS)),
+        flag="--format",
+    )
+    msh_version: str = _opt(
+        MSH_VERSIONS[0],
+        "Gmsh file version for .msh output (ASCII either way).",
+        "choice",
+        choices=tuple(sorted(MSH_VERSIONS)),
+    )
+
+    def replace(self, **changes: Any) -> MeshOptions:
+        """A copy with ``changes`` (field names); an unknown name is a ``TypeError``."""
+        return dataclasses.replace(self, **changes)
+
+    def stage(self, name: str) -> dict[str, Any]:
+        """The fields one stage reads (``read``, ``select``, ``deform``, ``triangulate``,
+        ``write``), as a dict: what a state file records."""
+        return {k: getattr(self, k) for k in STAGES[name]}
+
+
+#: Which fields each stage reads.
+STAGES: dict[str, tuple[str, ...]] = {
+    "read": ("decimal", "tolerance", "element_id", "resample"),
+    "select": ("h", "box", "margin", "strict", "max_nodes", "exterior", "grid"),
+    "deform": ("steps", "solver", "solve", "size", "size_field"),
+    "triangulate": ("improve",),
+    "write": ("fmt", "msh_version"),
+}
+
+
+@dataclass(frozen=True, kw_only=True)
+class MoveOptions:
+    """The options of ``deformesh move``: carrying a mesh along its contour's frames."""
+
+    dt: float = _opt(
+        1.0,
+        "Time between frames: the .pvd's time step; velocity = displacement / dt.",
+        "positive",
+    )
+    steps: int = _opt(DEFAULT_STEPS, _STEPS_HELP, "count", min=1)
+    solver: str = _opt("auto", _SOLVER_HELP, "choice", choices=SOLVERS)
+    solve: str = _opt(
+        "full",
+        "Solve on the whole mesh ('full', the paper's scheme) or, on an exterior "
+        "mesh, on a band around the contour ('band': faster, but changes of shape "
+        "pile up at the band's edge).",
+        "choice",
+        choices=SOLVES,
+    )
+    fmt: str = _opt(
+        "vtu",
+        "Frame format.  Velocity is written where the format has point data (vtu, vtk, xdmf).",
+        "choice",
+        choices=tuple(sorted(FORMATS)),
+        flag="--format",
+    )
+    decimal: str = _opt(
+        ".", "Decimal mark of the frames' CSV numbers.", "choice", choices=(".", ",")
+    )
+
+
+def from_record(cls: type, record: dict) -> Any:
+    """An options object from a record (a state file's ``options``): the fields it
+    names, lists back to tuples; other keys are ignored."""
+    known = fields(cls)
+    return cls(
+        **{k: tuple(v) if isinstance(v, list) else v for k, v in record.items() if k in known}
+    )
+
+
+def fields(cls: type) -> dict[str, dataclasses.Field]:
+    """An options class's fields by name."""
+    return {f.name: f for f in dataclasses.fields(cls)}
+
+
+def flag(f: dataclasses.Field) -> str:
+    """The command-line flag of a field (``--max-nodes`` for ``max_nodes``)."""
+    return f.metadata.get("flag", "--" + f.name.replace("_", "-"))
