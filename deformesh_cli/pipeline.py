@@ -18,7 +18,7 @@ from . import respace as _respace
 from . import size as _size
 from .contour import Contour
 from .deform import SOLVES, DeformStats
-from .errors import FoldError, LimitError, OptionError, SelectionError
+from .errors import FoldError, LimitError, OptionError, SelectionError, SolverError
 from .mesh import Mesh
 from .options import MeshOptions
 from .select import EVEN_SPACING_RATIO, GRIDS, Selection, select
@@ -175,14 +175,17 @@ def run_deform(
             contour, sel.path_ring, sel.path_slide[:, 0], sel.path_slide[:, 1], sel.path_targets
         ),
     }
-    if band is None:
-        pos, st = _deform.deform(
-            pts0, tri, sel.path_nodes, sel.path_targets, grid.boundary_nodes(), **kwargs
-        )
-    else:
-        pos, st = _deform.deform_band(
-            pts0, tri, sel.path_nodes, sel.path_targets, grid.boundary_nodes(), band, **kwargs
-        )
+    try:
+        if band is None:
+            pos, st = _deform.deform(
+                pts0, tri, sel.path_nodes, sel.path_targets, grid.boundary_nodes(), **kwargs
+            )
+        else:
+            pos, st = _deform.deform_band(
+                pts0, tri, sel.path_nodes, sel.path_targets, grid.boundary_nodes(), band, **kwargs
+            )
+    except SolverError as exc:
+        raise SolverError(f"{contour.source}: deformation failed: {exc}") from None
     return Deformed(sel, pos, st)
 
 

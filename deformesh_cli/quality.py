@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from .contour import Contour
-from .errors import ContractError
+from .errors import ContractError, InputError
 from .geometry import boundary_edges, directed_boundary, edge_uses, signed_areas
 from .mesh import Mesh
 
@@ -238,7 +238,7 @@ CHUNK = 1 << 17
 def report(points: np.ndarray, tri: np.ndarray) -> dict:
     """What ``deformesh quality`` prints: angles, areas, radius ratios and their histogram."""
     if len(tri) == 0:
-        raise ValueError("no triangles to measure")
+        raise InputError("no triangles to measure")
     lo_angle, hi_angle, below_20, folded, area_sum, rr_sum, rr_min = (
         np.inf,
         -np.inf,

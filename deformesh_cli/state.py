@@ -134,7 +134,7 @@ def loads(data: bytes, name: str = "<state>", want: str | None = None) -> State:
                 or a.ndim != ndim
                 or a.shape[1:] != tail
             ):
-                raise ValueError(key)
+                raise InputError(f"{name}: damaged state file ({key}: wrong type or shape)")
             arrays[key] = a
         g = meta["grid"]
         grid = Grid(

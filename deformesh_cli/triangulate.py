@@ -23,7 +23,7 @@ import numpy as np
 import shapely
 
 from .contour import Contour
-from .errors import ContractError
+from .errors import ContractError, SelectionError
 from .geometry import edge_uses, touching
 from .mesh import Mesh
 from .select import DIAG_SLASH
@@ -186,7 +186,7 @@ def topology_inside(
         i1, j1 = np.roll(i, -1), np.roll(j, -1)
         di, dj = i1 - i, j1 - j
         if (np.maximum(np.abs(di), np.abs(dj)) != 1).any():
-            raise ValueError("a ring's grid path has a step that is not to an 8-neighbour")
+            raise SelectionError("a ring's grid path has a step that is not to an 8-neighbour")
         cross = dj != 0
         i, j, di, dj = i[cross], j[cross], di[cross], dj[cross]
         jmin = np.minimum(j, j + dj)
@@ -198,7 +198,7 @@ def topology_inside(
             # the cell is split '/', else at a = b
             a = np.where(slash, 3 - b, b)
             if ((x % 3 != 0) & (x % 3 == a)).any():
-                raise ValueError("a diagonal path step crosses its cell's split")
+                raise SelectionError("a diagonal path step crosses its cell's split")
             np.bitwise_xor.at(toggles, (row, x), 1)
     parity = np.bitwise_xor.accumulate(toggles, axis=1)
     cells = np.arange(nx * ny)

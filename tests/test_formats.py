@@ -1,0 +1,77 @@
+"""The format registry: every format round-trips, and carries what it says it carries."""
+
+import contextlib
+import io
+
+import meshio
+import numpy as np
+import pytest
+
+from deformesh_cli import formats, mesh_contour
+from deformesh_cli.errors import OptionError
+from deformesh_cli.formats import FORMATS
+from deformesh_cli.readers import load_contour
+
+from .conftest import SAMPLES
+
+
+@pytest.fixture(scope="module")
+def mesh():
+    """An exterior mesh of an SVG with a hole: several boundary groups, extra nodes."""
+    m = mesh_contour(load_contour(SAMPLES / "bracket.svg"), exterior=True).mesh
+    assert len(m.groups) > 3 and m.n_nodes > m.n_contour
+    return m
+
+
+def test_the_registry_is_keyed_by_the_formats_own_names():
+    assert FORMATS and all(name == f.name for name, f in FORMATS.items())
+    assert all(f.description and callable(f.write) for f in FORMATS.values())
+
+
+@pytest.mark.parametrize("name", [n for n, f in FORMATS.items() if f.readable])
+def test_round_trip(mesh, tmp_path, name):
+    f = FORMATS[name]
+    path = tmp_path / f"m.{name}"
+    assert formats.write_mesh(mesh, str(path)) == name
+    points, tri = formats.read_mesh(str(path), f.meshio_format)
+    assert np.array_equal(points, mesh.points)  # every digit
+    assert np.array_equal(tri, mesh.triangles)
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        back = meshio.read(path, file_format=f.meshio_format)
+    if f.point_data:
+        assert np.array_equal(
+            back.point_data["contour_point"][: mesh.n_contour], np.arange(mesh.n_contour)
+        )
+        assert (back.point_data["contour_point"][mesh.n_contour :] == -1).all()
+    if f.boundary_groups:
+        lines = np.concatenate([c.data for c in back.cells if c.type == "line"])
+        assert sorted(map(tuple, lines.tolist())) == sorted(map(tuple, mesh.lines.tolist()))
+        tags = np.concatenate(
+            [d for c, d in zip(back.cells, next(iter(back.cell_data.values()))) if c.type == "line"]
+        )
+        assert len(np.unique(tags)) == len(mesh.groups)
+
+
+@pytest.mark.parametrize("name", sorted(FORMATS))
+def test_stdout_is_offered_exactly_where_the_format_says(mesh, name, capfdbinary):
+    f = FORMATS[name]
+    if f.stdout:
+        formats.write_mesh(mesh, "-", name)
+        assert len(capfdbinary.readouterr().out) > 1000
+    else:
+        with pytest.raises(OptionError, match="cannot go to stdout"):
+            formats.write_mesh(mesh, "-", name)
+
+
+@pytest.mark.parametrize("name", [n for n, f in FORMATS.items() if f.sidecar])
+def test_a_sidecar_is_written_beside_its_file_and_listed_first(mesh, name):
+    files = formats.mesh_files(mesh, f"m.{name}", name)
+    assert [n for n, _ in files] == [f"m{FORMATS[name].sidecar}", f"m.{name}"]
+
+
+def test_versions_are_checked(mesh, tmp_path):
+    assert formats.MSH_VERSIONS[0] == "2.2"
+    formats.write_mesh(mesh, str(tmp_path / "m.msh"), msh_version="4.1")
+    assert (tmp_path / "m.msh").read_text().startswith("$MeshFormat\n4.1")
+    with pytest.raises(OptionError, match="--msh-version"):
+        formats.write_mesh(mesh, str(tmp_path / "n.msh"), msh_version="3.0")
