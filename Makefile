@@ -40,13 +40,13 @@ clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache .hypothesis
 
 bench: $(VENV)/.installed-bench
-	$(BIN)/python benchmarks/run_issue2.py --repeat 3
+	$(BIN)/python benchmarks/run_contours.py --repeat 3
 	$(BIN)/python benchmarks/run_batch.py --repeat 3
 	$(BIN)/python benchmarks/run_corpus.py
-	$(BIN)/python benchmarks/run_issue6.py --repeat 3
-	$(BIN)/python benchmarks/run_issue7.py --repeat 3
-	$(BIN)/python benchmarks/run_issue8.py --repeat 3
+	$(BIN)/python benchmarks/run_peers.py --repeat 3 --tools deformesh,triangle --section peers-triangle
+	$(BIN)/python benchmarks/run_quality.py --repeat 3
+	$(BIN)/python benchmarks/run_moving.py --repeat 3
 
 # only the side-by-side comparison with Triangle and Gmsh (about 25 minutes)
 bench-peers: $(VENV)/.installed-bench
-	$(BIN)/python benchmarks/run_issue6.py --repeat 3
+	$(BIN)/python benchmarks/run_peers.py --repeat 3

@@ -16,10 +16,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from results import heading
-from run_issue2 import EXE, ROOT, SHARED
+from run_contours import EXE, REFERENCE, ROOT
 
 CONTOURS = [
-    SHARED / n
+    REFERENCE / n
     for n in (
         "circle_100.csv",
         "bean_100.csv",

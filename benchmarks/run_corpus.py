@@ -18,7 +18,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from results import heading, write_section
-from run_issue2 import EXE, ROOT
+from run_contours import EXE, ROOT
 
 CORPUS = ROOT / "tests" / "data" / "corpus"
 
@@ -64,7 +64,7 @@ def main():
         by[kind(Path(r["input"]).name)].append(r)
     opts = " ".join(extra) or "default options"
     lines = heading(
-        f"## Corpus: real contours, {opts} (issue 5)",
+        f"## Corpus: real contours, {opts}",
         f"`deformesh all tests/data/corpus --out-dir ... --jobs {args.jobs}` ({opts}); "
         f"{len(recs)} contours in {wall:.0f} s wall. Seconds are per contour, inside the "
         "batch (no start-up).",

@@ -13,10 +13,12 @@ Nesting decides roles: a ring inside an odd number of others is a hole.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 import shapely
+from numpy.typing import ArrayLike
 
 from .errors import InputError, OptionError
 from .geometry import next_on_ring, signed_area
@@ -143,8 +145,8 @@ class Contour:
     def min_spacing(self) -> tuple[float, int, int]:
         """Smallest distance between any two contour points, and the two points.
 
-        By shapely's STRtree (shapely is loaded anyway; scipy.spatial took 0.17 s
-        to import on every run).  Checked: the same distance and the same two
+        By shapely's STRtree (shapely is loaded anyway; importing scipy.spatial on
+        every run costs start-up time).  Checked: the same distance and the same two
         points as scipy's cKDTree on every sample, reference and corpus contour.
         """
         g = shapely.points(self.points)
@@ -156,7 +158,11 @@ class Contour:
 
 
 def make_contour(
-    points, lines=None, source: str = "<contour>", ring_starts=None, ring_labels=None
+    points: ArrayLike,
+    lines: ArrayLike | None = None,
+    source: str = "<contour>",
+    ring_starts: Sequence[int] | None = None,
+    ring_labels: Sequence[str] | None = None,
 ) -> Contour:
     """Validate the points of one or more closed rings and return a :class:`Contour`.
 
@@ -284,7 +290,7 @@ def _check_simple(c: Contour, where=None) -> None:
     )
 
 
-def parse_spacing(value, contour: Contour, option: str = "--resample") -> float:
+def parse_spacing(value: str | float, contour: Contour, option: str = "--resample") -> float:
     """A length option: a number in contour units, or ``P%`` of the contour's diagonal."""
     s = str(value).strip()
     try:

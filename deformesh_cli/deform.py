@@ -48,9 +48,8 @@ class DeformStats:
 
 
 #: Solvers offered by ``--solver``.  "auto" picks "direct" on a narrow band (its
-#: factor stays sparse: 104k band nodes took 3.6 s direct vs 4.1 s amg, whole
-#: deformation) and, on a whole grid, up to this many free nodes (measured on square
-#: grids, 10 steps: 66k nodes 3.6 s direct vs 3.8 s amg; 116k: 7.4 vs 5.1 s).
+#: factor stays sparse) and, on a whole grid, up to this many free nodes, where
+#: the direct solve stopped being the faster one (``benchmarks/MEASURED.md``).
 SOLVERS = ("auto", "direct", "amg")
 AUTO_DIRECT_MAX = 60_000
 
@@ -66,9 +65,8 @@ class LinearSolver:
     ``direct`` factorises ``K = L D L^T`` with QDLDL (approximate minimum
     degree ordering).  The ordering and the symbolic factorisation are done
     once; later steps, whose matrices share the sparsity pattern (the mesh
-    moves, its connectivity does not), only refactor the numbers.  Measured on
-    a 43.6k-node band: first factorisation 0.10 s, each later one 0.008 s, a
-    solve 1.5 ms (SuperLU: 0.16-0.30 s per factorisation).  ``amg`` runs
+    moves, its connectivity does not), only refactor the numbers, a tenth of
+    the first factorisation's cost (``benchmarks/MEASURED.md``).  ``amg`` runs
     conjugate gradients preconditioned
     by a smoothed-aggregation hierarchy (pyamg) built on the first step's
     matrix and reused while it keeps converging fast (the mesh changes little
@@ -198,7 +196,7 @@ def deform_band(
     must lie strictly inside the band.
     """
     # (t, 3) reductions and np.unique are slow on a whole grid's triangles: per-corner
-    # masks and scatters instead (0.17 -> 0.05 s for 1.3e6 triangles)
+    # masks and scatters instead
     corner = [active[tri[:, k]] for k in range(3)]
     inside = corner[0] & corner[1] & corner[2]
     sub_tri = tri[inside]

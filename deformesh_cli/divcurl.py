@@ -71,7 +71,7 @@ class CSR:
     """A sparse matrix as three CSR arrays (or CSC: the same arrays, transposed).
 
     Enough for QDLDL, which reads these attributes, without loading
-    scipy.sparse (0.2-0.3 s to import) on the default path.
+    scipy.sparse (a noticeable part of start-up) on the default path.
     """
 
     data: np.ndarray
@@ -130,8 +130,7 @@ class Assembler:
         self._ff = np.flatnonzero(ff)
         keys = fr[ff] * nf + fc[ff]
         # np.unique(keys, return_inverse=True), by a stable sort: the keys come in runs
-        # (grid-ordered triangles), which a merge sort takes fast (0.10 -> 0.03 s, 87k
-        # triangles)
+        # (grid-ordered triangles), which a merge sort takes fast
         order = np.argsort(keys, kind="stable")
         sk = keys[order]
         new = np.empty(len(sk), dtype=bool)

@@ -1,4 +1,4 @@
-"""What the contour itself forces on the smallest angle (issue 7).
+"""What the contour itself forces on the smallest angle.
 
 Every boundary edge of a mesh belongs to exactly one triangle, which lies in
 the domain.  If that triangle has all three angles at least ``phi``, it
@@ -142,7 +142,8 @@ def weakest_bound(
     """The smallest :func:`edge_bounds` over the boundary edges with an end within one
     ring of the triangles ``weak`` (60 if none): no mesh with these boundary nodes
     has a larger smallest angle.  Only near the weak triangles, because that is
-    where it matters and a whole fine boundary costs (5,045 edges: 0.7 s)."""
+    where it matters and a whole fine boundary costs a noticeable share of a run
+    (``benchmarks/MEASURED.md``)."""
     from .geometry import touching
 
     near = np.zeros(len(points), dtype=bool)

@@ -8,6 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
+#: :func:`edge_uses`' table: ``(lo, hi, fwd, rev)`` arrays, one entry per undirected edge.
+EdgeTable = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
 
 def next_on_ring(ring: np.ndarray) -> np.ndarray:
     """Index of the next entry on the same closed ring (each ring's entries contiguous)."""
@@ -42,13 +45,13 @@ def signed_areas(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
 _REVERSE = 1 << 20
 
 
-def edge_uses(tri: np.ndarray, n: int):
+def edge_uses(tri: np.ndarray, n: int) -> EdgeTable:
     """Each undirected edge once: ``(lo, hi, fwd, rev)``, nodes ``lo < hi`` and how many
     triangles walk it ``lo -> hi`` and ``hi -> lo``.
 
     By a sparse matrix build (scipy sums the duplicate entries while it sorts by
-    row, in linear time): 0.07 s for 1e6 triangles, where sorting the 3e6 edge
-    keys took 0.25-0.6 s.  In a conforming counter-clockwise mesh an inner edge
+    row, in linear time), several times faster than sorting the edge keys
+    (``benchmarks/MEASURED.md``).  In a conforming counter-clockwise mesh an inner edge
     has ``fwd = rev = 1`` and a boundary edge one use.
     """
     import scipy.sparse as sp
@@ -64,7 +67,7 @@ def edge_uses(tri: np.ndarray, n: int):
     return lo, m.indices.astype(np.int64), m.data % _REVERSE, m.data // _REVERSE
 
 
-def patch_edge_uses(edges, n: int, removed: np.ndarray, added: np.ndarray):
+def patch_edge_uses(edges: EdgeTable, n: int, removed: np.ndarray, added: np.ndarray) -> EdgeTable:
     """:func:`edge_uses` after replacing triangles ``removed`` by ``added``, from the
     table ``edges`` of the mesh before: the same table a recount would give (tested),
     at the cost of the changed triangles only."""
@@ -92,7 +95,9 @@ def patch_edge_uses(edges, n: int, removed: np.ndarray, added: np.ndarray):
     return key // n, key % n, fwd, rev
 
 
-def directed_boundary(lo, hi, fwd, rev) -> np.ndarray:
+def directed_boundary(
+    lo: np.ndarray, hi: np.ndarray, fwd: np.ndarray, rev: np.ndarray
+) -> np.ndarray:
     one = fwd + rev == 1
     return np.where(
         (fwd[one] == 1)[:, None],

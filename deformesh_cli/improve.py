@@ -1,4 +1,4 @@
-"""Stage 3b: better triangles next to the contour (issue 7).
+"""Stage 3b: better triangles next to the contour.
 
 A deformed Cartesian mesh is right-isosceles inside (45 degrees); its weak
 triangles sit between the contour and the first grid rows (and, on an adapted

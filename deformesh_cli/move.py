@@ -181,7 +181,9 @@ def rigid_fit(p: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, flo
     return cp, cq, float(theta)
 
 
-def carry(points: np.ndarray, weight: np.ndarray, cp, cq, theta: float) -> np.ndarray:
+def carry(
+    points: np.ndarray, weight: np.ndarray, cp: np.ndarray, cq: np.ndarray, theta: float
+) -> np.ndarray:
     """Each node turned by ``weight * theta`` about ``cp`` and shifted by ``weight`` of
     ``cq - cp``: the rigid motion where the weight is 1, nothing where it is 0."""
     out = np.array(points, dtype=np.float64, copy=True)
@@ -246,7 +248,7 @@ def advance(
     steps: int = DEFAULT_STEPS,
     solver: str = "auto",
     solve: str = "full",
-    describe=None,
+    describe: Callable[[np.ndarray], str] | None = None,
     advice: tuple[str, str] = ADVICE,
 ) -> Step:
     """Deform ``points`` (the previous frame's) so the contour nodes sit on ``frame``.

@@ -6,6 +6,7 @@ is what ``deformesh all`` runs.  Nothing here prints or exits.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
@@ -23,6 +24,9 @@ from .mesh import Mesh
 from .options import MeshOptions
 from .select import EVEN_SPACING_RATIO, GRIDS, Selection, select
 from .size import SizeFunction
+
+#: ``callback(done, stats)``: pseudo-time done (0 to 1) and the deformation's statistics.
+Callback = Callable[[float, DeformStats], None]
 
 
 @dataclass
@@ -42,7 +46,9 @@ class MeshResult:
     report: dict = field(default_factory=dict)
 
 
-def grid_mode(contour: Contour, grid: str = "auto", h=None, exterior: bool = False) -> str:
+def grid_mode(
+    contour: Contour, grid: str = "auto", h: float | None = None, exterior: bool = False
+) -> str:
     if grid not in GRIDS:
         raise OptionError(f"--grid must be one of {', '.join(GRIDS)}, got {grid!r}")
     if grid != "auto":
@@ -58,7 +64,9 @@ def _options(options: MeshOptions | None, changes: dict) -> MeshOptions:
     return options.replace(**changes) if changes else options
 
 
-def candidate_selections(contour: Contour, options: MeshOptions | None = None, **changes):
+def candidate_selections(
+    contour: Contour, options: MeshOptions | None = None, **changes
+) -> Iterator[Selection]:
     """The selections ``all`` tries in turn.
 
     On an adapted grid: the re-spaced ones (:func:`.respace.candidate_selections`),
@@ -97,11 +105,9 @@ def run_select(contour: Contour, options: MeshOptions | None = None, **changes) 
 
 #: The narrow band reaches this many cells (grid steps, in i or j) past the
 #: nearest path node, and at least :data:`BAND_REACH` times the largest distance a
-#: path node travels.  4, not 8, since the quality stage: the band's smallest angle
-#: before the stage is at most 0.23 degrees below the whole grid's (circle_1000
-#: 14.19 vs 14.42), after it the two agree within 0.01, and the deformation costs
-#: about half (1e6 triangles, whole process: 0.88 / 0.83 of Triangle's time with 4,
-#: 1.04-1.06 with 8).
+#: path node travels.  With the quality stage a band of 4 cells gives the same
+#: smallest angles as the whole grid (tests/test_band.py allows 0.05 degrees) at
+#: about half the cost of 8 (``benchmarks/MEASURED.md``).
 BAND_CELLS = 4
 BAND_REACH = 3.0
 
@@ -124,7 +130,7 @@ def band_nodes(sel: Selection) -> np.ndarray | None:
 def _dilate(on: np.ndarray, reach: int, axis: int) -> np.ndarray:
     """True where ``on`` has a True within ``reach`` places along ``axis``.
 
-    (``scipy.ndimage.maximum_filter`` does this too, but takes 0.3-0.5 s to import.)
+    (``scipy.ndimage.maximum_filter`` does this too, but its import is slow.)
     """
     c = np.cumsum(on, axis=axis, dtype=np.int64)
     c = np.concatenate([np.zeros_like(c.take([0], axis=axis)), c], axis=axis)
@@ -139,7 +145,7 @@ def run_deform(
     sel: Selection,
     options: MeshOptions | None = None,
     *,
-    callback=None,
+    callback: Callback | None = None,
     size_function: SizeFunction | None = None,
     **changes,
 ) -> Deformed:
@@ -237,8 +243,7 @@ def run_triangulate(
             )
     # the contract check and the summary read the mesh independently; numpy and
     # scipy release the GIL in their loops, so on two cores the pair takes about as
-    # long as the longer one (1e6 triangles, whole process: 2.02 s with the two in
-    # turn, 1.73 s together; peak RSS 312 vs 345 MB)
+    # long as the longer one (``benchmarks/MEASURED.md``)
     with ThreadPoolExecutor(max_workers=2) as pool:
         summary = pool.submit(quality.stats, mesh)
         quality.check_contract(mesh, contour, sel.grid.box if sel.exterior else None, edges)
@@ -282,7 +287,7 @@ def mesh_contour(
     contour: Contour,
     options: MeshOptions | None = None,
     *,
-    callback=None,
+    callback: Callback | None = None,
     size_function: SizeFunction | None = None,
     **changes,
 ) -> MeshResult:
@@ -307,8 +312,7 @@ def mesh_contour(
         for sel in candidate_selections(contour, o):
             # stage 3's topology (which triangles, numbered how, and their edges) needs
             # only the selection: it runs on the second core while the deformation runs
-            # (1e6 triangles, 7 alternating runs: 1.79 s in turn, 1.56 s alongside; peak
-            # RSS 304 vs 388 MB)
+            # (``benchmarks/MEASURED.md``)
             sel.triangles()  # built once, here, rather than by both threads at once
             with ThreadPoolExecutor(max_workers=1) as pool:
                 cut = pool.submit(triangulate.cut, contour, sel, edges=True)

@@ -24,9 +24,9 @@ So, by default for unevenly spaced contours (``--grid adapt``):
 Where that fails, :func:`candidate_selections` walks a short ladder of other
 steps (:data:`LADDER`) before the caller falls back to Appendix A's grid.
 
-Measured (2026-11-24, 2 cores): naca0012_1000 (spacing ratio 316) meshes with
-its 1,000 points and no extra boundary node on a 32k-node grid in 3 s; a
-uniform grid at Appendix A's step would need 3.6e10 nodes.  A first prototype
+naca0012_1000 (spacing ratio 316) meshes this way with its 1,000 points and
+no extra boundary node on a 32k-node grid (``benchmarks/RESULTS.md``,
+"Contours"); a uniform grid at Appendix A's step would need 3.6e10 nodes.  A first prototype
 that adapted the grid with a size function built from the spacing
 (``scripts/prototype_adapt.py``) folded there: the discrete divergence at the
 trailing edge was 2-3 times the prescribed one, because the size function
@@ -198,8 +198,8 @@ class Slide:
 LADDER = ((True, 1), (False, 2), (False, 4), (True, 2), (False, 8))
 
 #: A ring with at least this fraction of corners is jagged: the copy is nearly the
-#: real contour, and sliding only cost time (coast_india's first slid rung took
-#: over 60 s to fail); jagged contours skip the slid rungs.  Corpus: coastlines
+#: real contour, and sliding only costs time (coast_india's first slid rung took
+#: a minute to fail); jagged contours skip the slid rungs.  Corpus: coastlines
 #: 0.20-0.39, airfoils 0.00-0.12, icons 0.00-0.80 (rust 0.55, x 0.80).
 JAGGED = 0.2
 

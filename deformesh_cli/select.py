@@ -69,14 +69,14 @@ class Grid:
     def box(self) -> tuple[float, float, float, float]:
         return (self.x0, self.y0, self.x0 + self.nx * self.hx, self.y0 + self.ny * self.hy)
 
-    def node_id(self, i, j):
+    def node_id(self, i: np.ndarray | int, j: np.ndarray | int) -> np.ndarray:
         return np.asarray(j) * (self.nx + 1) + np.asarray(i)
 
-    def node_ij(self, nid):
+    def node_ij(self, nid: np.ndarray | int) -> tuple[np.ndarray, np.ndarray]:
         nid = np.asarray(nid)
         return nid % (self.nx + 1), nid // (self.nx + 1)
 
-    def coords(self, nid=None) -> np.ndarray:
+    def coords(self, nid: np.ndarray | int | None = None) -> np.ndarray:
         """Undeformed coordinates of the given nodes (all nodes by default)."""
         if nid is None:
             nid = np.arange(self.n_nodes)

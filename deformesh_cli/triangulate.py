@@ -26,12 +26,12 @@ from .contour import Contour
 from .errors import ContractError, SelectionError
 from .geometry import edge_uses, touching
 from .mesh import Mesh
-from .select import DIAG_SLASH
+from .select import DIAG_SLASH, Grid, Selection
 
 BOX_SIDES = ("bottom", "right", "top", "left")
 
 
-def domain(rings: list[np.ndarray], box=None):
+def domain(rings: list[np.ndarray], box: tuple | None = None) -> shapely.Geometry:
     """Shapely geometry of the region the rings enclose (even-odd), or ``box`` minus it."""
     polys = [shapely.Polygon(r) for r in rings]
     inside = reduce(shapely.symmetric_difference, polys)
@@ -57,7 +57,7 @@ class Cut:
     edges: tuple | None = None  # geometry.edge_uses(triangles, nodes), when computed
 
 
-def extract(contour: Contour, sel, points: np.ndarray) -> Mesh:
+def extract(contour: Contour, sel: Selection, points: np.ndarray) -> Mesh:
     """Cut the mesh of the domain out of the deformed background mesh.
 
     ``sel`` is the :class:`~deformesh_cli.select.Selection` (grid, triangles,
@@ -67,7 +67,7 @@ def extract(contour: Contour, sel, points: np.ndarray) -> Mesh:
     return place(contour, sel, cut(contour, sel), points)
 
 
-def cut(contour: Contour, sel, edges: bool = False) -> Cut:
+def cut(contour: Contour, sel: Selection, edges: bool = False) -> Cut:
     """The topological half of :func:`extract`: it needs only the selection, so it can
     run while the deformation does.  ``edges``: also count the edge uses of the kept
     triangles (:func:`~.geometry.edge_uses`, what the contract check needs most)."""
@@ -130,7 +130,7 @@ def cut(contour: Contour, sel, edges: bool = False) -> Cut:
     return out
 
 
-def place(contour: Contour, sel, c: Cut, points: np.ndarray) -> Mesh:
+def place(contour: Contour, sel: Selection, c: Cut, points: np.ndarray) -> Mesh:
     """The mesh of cut ``c`` at the deformed ``points`` (every grid node).
 
     Every triangle the deformation moved is tested by geometry (shapely, its
@@ -165,7 +165,7 @@ def place(contour: Contour, sel, c: Cut, points: np.ndarray) -> Mesh:
 
 
 def topology_inside(
-    grid, diagonals: np.ndarray, path_nodes: np.ndarray, path_ring: np.ndarray, n_rings: int
+    grid: Grid, diagonals: np.ndarray, path_nodes: np.ndarray, path_ring: np.ndarray, n_rings: int
 ) -> np.ndarray:
     """Whether each grid triangle (in :func:`~.select.grid_triangles` order) lies inside
     the rings' grid paths by the even-odd rule.

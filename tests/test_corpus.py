@@ -1,8 +1,8 @@
 """The real corpus (tests/data/corpus: airfoils, icons, coastlines; see SOURCES.md), as one
 batch: every contour gives a mesh meeting the contract or a documented refusal.
 
-The pass rate itself is measured by `make bench` (benchmarks/RESULTS.md); issue 5's target
-is 95% at default options.  Here the grid is capped (--max-nodes) to keep the suite fast.
+The pass rate itself is measured by `make bench` (benchmarks/RESULTS.md) at default
+options.  Here the grid is capped (--max-nodes) to keep the suite fast.
 """
 
 import json
@@ -44,7 +44,7 @@ def test_corpus_meshes_or_refuses_with_a_reason(run, tmp_path):
             why = x["error"].removeprefix(f"{x['input']}: ")
             assert REFUSALS.match(why), x["error"]
     ok = sum(x["status"] == "ok" for x in recs)
-    assert ok >= 46  # measured: 21 when the corpus came in, 26 with the SVG merge, 45 with
-    # the adapted grid (issue 5), 46 with the "thin" trace rule; may only go up (at
-    # default options coast_india meshes too, on 1.75e6 grid nodes: not in this cap)
+    # a ratchet: the count may only go up (at default options coast_india meshes too,
+    # on 1.75e6 grid nodes: not within this cap)
+    assert ok >= 46
     assert r.exit_code == (0 if ok == len(recs) else 1)

@@ -1,4 +1,4 @@
-"""The quality stage (issue 7): better triangles next to the contour, never worse."""
+"""The quality stage: better triangles next to the contour, never worse."""
 
 import numpy as np
 import pytest

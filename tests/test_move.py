@@ -1,4 +1,4 @@
-"""Moving boundaries (issue 8): ``deformesh move``, one connectivity for every frame."""
+"""Moving boundaries: ``deformesh move``, one connectivity for every frame."""
 
 import json
 import xml.etree.ElementTree as ET

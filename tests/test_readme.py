@@ -1,69 +1,123 @@
-"""Every deformesh command in the README's sh blocks runs and exits 0."""
+"""The README and docs/ are true: every command in their sh blocks runs, every Python
+block runs, every option and --json key is documented, the README stays short."""
 
+import json
 import os
 import re
 
 import pytest
 
-from .conftest import ROOT
+from .conftest import ROOT, SAMPLES
 
 README = (ROOT / "README.md").read_text()
-BLOCKS = re.findall(r"```sh\n(.*?)```", README, flags=re.S)
+DOCS = {p.name: p.read_text() for p in sorted((ROOT / "docs").glob("*.md"))}
+ALL_TEXT = README + "".join(DOCS.values())
+PAGES = {"README.md": README, **{f"docs/{k}": v for k, v in DOCS.items()}}
+
+
+def _blocks(kind):
+    return [
+        (name, b)
+        for name, text in PAGES.items()
+        for b in re.findall(rf"```{kind}\n(.*?)```", text, re.S)
+    ]
+
+
 COMMANDS = [
-    ln.split("  #")[0].strip()
-    for b in BLOCKS
+    (name, ln.split("  #")[0].strip())
+    for name, b in _blocks("sh")
     for ln in b.splitlines()
     if ln.startswith("deformesh ")
 ]
+SCRIPT_BLOCKS = [(name, b) for name, b in _blocks("sh") if "python scripts/" in b]
 
 
 def test_readme_has_exactly_the_two_setup_commands():
     setup = [
-        ln.split("#")[0].strip() for b in BLOCKS for ln in b.splitlines() if ln.startswith("make ")
+        ln.split("#")[0].strip()
+        for b in re.findall(r"```sh\n(.*?)```", README, flags=re.S)
+        for ln in b.splitlines()
+        if ln.startswith("make ")
     ]
     assert setup == ["make demo", "make test"]
+    assert all("make " not in b for name, b in _blocks("sh") if name != "README.md")
 
 
-@pytest.mark.parametrize("cmd", COMMANDS)
-def test_readme_command_runs(sh, tmp_path, cmd):
+def test_readme_is_short_and_links_every_docs_page():
+    assert README.count("\n") <= 150
+    for name in DOCS:
+        assert f"(docs/{name})" in README, f"README does not link docs/{name}"
+
+
+def test_docs_links_point_at_existing_pages_and_headings():
+    for page, text in PAGES.items():
+        for target, anchor in re.findall(r"\]\(((?:docs/)?[\w.]+\.md)(?:#([\w-]+))?\)", text):
+            here = (ROOT / page).parent
+            path = (here / target) if not target.startswith("docs/") else ROOT / target
+            assert path.exists(), f"{page} links {target}"
+            if anchor:
+                heads = re.findall(r"^#+ (.*)$", path.read_text(), re.M)
+                slugs = {
+                    re.sub(r"[^\w\- ]", "", h).strip().lower().replace(" ", "-") for h in heads
+                }
+                assert anchor in slugs, f"{page} links {target}#{anchor}"
+
+
+@pytest.mark.parametrize(
+    "cmd", [c for _, c in COMMANDS], ids=[f"{n}: {c[:60]}" for n, c in COMMANDS]
+)
+def test_documented_command_runs(sh, tmp_path, cmd):
     os.symlink(ROOT / "samples", tmp_path / "samples")
+    os.symlink(ROOT / "tests", tmp_path / "tests")
     (tmp_path / "out").mkdir()
     r = sh(cmd, cwd=tmp_path)
     assert r.returncode == 0
     assert list((tmp_path / "out").iterdir())
 
 
-def test_readme_mentions_every_option():
+@pytest.mark.parametrize("block", [b for _, b in _blocks("python")], ids=lambda b: b[:40])
+def test_documented_python_runs(tmp_path, block, monkeypatch):
+    os.symlink(ROOT / "samples", tmp_path / "samples")
+    (tmp_path / "out").mkdir()
+    monkeypatch.chdir(tmp_path)
+    exec(compile(block, "<docs>", "exec"), {})
+    assert list((tmp_path / "out").iterdir())
+
+
+def test_every_option_is_documented():
     from deformesh_cli.cli import cli
 
     for name, cmd in cli.commands.items():
-        assert f"deformesh {name}" in README
+        assert f"deformesh {name}" in README, f"README does not show deformesh {name}"
+        assert f"deformesh {name}" in DOCS["commands.md"]
         for p in cmd.params:
-            for opt in p.opts:
-                if opt.startswith("--") and opt not in ("--help",):
-                    assert opt in README, f"{name} {opt} missing from README"
+            for opt in p.opts + getattr(p, "secondary_opts", []):
+                if opt.startswith("--") and opt != "--help":
+                    assert opt in DOCS["commands.md"] + DOCS["method.md"], (
+                        f"{name} {opt} missing from docs/commands.md"
+                    )
 
 
-def test_readme_lists_every_json_key(run, tmp_path):
-    import json
-
-    from .conftest import SAMPLES
-
+def test_every_json_key_is_documented(run, tmp_path):
     r = run("all", SAMPLES / "circle.csv", "-o", tmp_path / "m.vtk", "--json", "-q")
     assert r.exit_code == 0, r.stderr
     for key in json.loads(r.stdout):
-        assert f"`{key}`" in README, f"--json key {key} missing from README"
+        assert f"`{key}`" in DOCS["commands.md"], f"--json key {key} missing from docs/commands.md"
 
 
-SCRIPT_BLOCKS = [b for b in BLOCKS if "python scripts/" in b]
-
-
-@pytest.mark.parametrize("block", SCRIPT_BLOCKS)
-def test_readme_blocks_with_scripts_run_in_order(sh, tmp_path, block):
+@pytest.mark.parametrize("block", [b for _, b in SCRIPT_BLOCKS], ids=lambda b: b[:40])
+def test_blocks_with_scripts_run_in_order(sh, tmp_path, block):
     # a script line uses what the lines before it wrote: run the block as a whole
     for name in ("samples", "scripts"):
         os.symlink(ROOT / name, tmp_path / name)
     (tmp_path / "out").mkdir()
     (tmp_path / "docs").mkdir()
     sh("set -e\n" + block, cwd=tmp_path)
-    assert list((tmp_path / "docs").iterdir())  # the picture the README shows
+    assert list((tmp_path / "docs").iterdir())  # the picture the page shows
+
+
+def test_no_history_in_the_docs():
+    """Docs say what things do; history lives in CHANGELOG.md and the commit log."""
+    for page, text in PAGES.items():
+        assert not re.search(r"issue ?[0-9]", text, re.I), page
+        assert "../shared" not in text, page

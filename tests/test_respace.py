@@ -1,4 +1,4 @@
-"""The adapted grid (issue 5): select on the contour evenly re-spaced between corners,
+"""The adapted grid: select on the contour evenly re-spaced between corners,
 then slide every node along the contour to its real point."""
 
 import numpy as np

@@ -20,9 +20,9 @@ def load_contour(
     path: str | Path,
     data: bytes | None = None,
     decimal: str = ".",
-    tolerance=None,
+    tolerance: str | float | None = None,
     element_id: str | None = None,
-    resample_spacing=None,
+    resample_spacing: str | float | None = None,
 ) -> Contour:
     """Read a contour file: CSV, or SVG (by extension, or text starting with ``<``).
 

@@ -1,6 +1,6 @@
 """Time `deformesh all` as a whole process on the issue-2 contours; write RESULTS.md.
 
-Usage: python benchmarks/run_issue2.py [--repeat N]   (make bench)
+Usage: python benchmarks/run_contours.py [--repeat N]   (make bench)
 Whole processes, median of N runs, peak RSS from the child's rusage.
 """
 
@@ -18,7 +18,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from results import heading, write_section
 
 ROOT = Path(__file__).resolve().parent.parent
-SHARED = ROOT / "tests" / "data" / "contours"
+REFERENCE = ROOT / "tests" / "data" / "contours"
 EXE = str(Path(sys.executable).parent / "deformesh")
 
 CASES = [
@@ -34,7 +34,7 @@ CASES = [
     ("channel_100.csv", []),
     ("naca0012_100.csv", ["--h", "0.01"]),
     ("naca0012_100.csv", []),
-    ("naca0012_1000.csv", []),  # the adapted grid (issue 5): exactly its 1,000 points
+    ("naca0012_1000.csv", []),  # the adapted grid: exactly its 1,000 points
     ("naca0012_1000.csv", ["--grid", "uniform"]),  # refused: measures the time to refuse
     ("naca0012_1000.csv", ["--resample", "0.5%"]),  # what the refusal advises
     ("circle_1000.csv", ["--solve", "full"]),  # the whole-grid solve, next to the band
@@ -76,7 +76,7 @@ def main():
     rows = []
     with tempfile.TemporaryDirectory() as d:
         for name, opts in CASES:
-            path = ROOT / name if name.startswith("samples/") else SHARED / name
+            path = ROOT / name if name.startswith("samples/") else REFERENCE / name
             times, rec, code, rss = [], {}, 0, 0.0
             for _ in range(args.repeat):
                 dt, rss_i, code, rec = run_once(path, opts, os.path.join(d, "m.vtk"))
@@ -85,7 +85,7 @@ def main():
             rows.append((name, " ".join(opts), statistics.median(times), rss, code, rec))
             print(f"{name}: {statistics.median(times):.2f} s exit {code}", file=sys.stderr)
     lines = heading(
-        "## Issue 2: `deformesh all` per contour (whole process, median of "
+        "## Contours: `deformesh all` per contour (whole process, median of "
         f"{args.repeat}, written by `make bench`)",
         "Peak RSS of each process from wait4. A refusal's time is the whole process "
         "(Python start-up and imports included).",
@@ -106,8 +106,8 @@ def main():
             lines.append(
                 f"| {name} | {opts} | {t:.2f} | {rss:.0f} | {code} | refused: {msg}... | | | | |"
             )
-    write_section("issue2", "\n".join(lines))
-    print("wrote benchmarks/RESULTS.md (issue 2 section)", file=sys.stderr)
+    write_section("contours", "\n".join(lines))
+    print("wrote benchmarks/RESULTS.md (contours section)", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -1,12 +1,12 @@
-"""Triangle quality with and without the quality stage, next to Triangle's (issue 7).
+"""Triangle quality with and without the quality stage, next to Triangle's.
 
-Usage: python benchmarks/run_issue7.py [--repeat N]
+Usage: python benchmarks/run_quality.py [--repeat N]
 
 For each contour: ``deformesh all`` with the stage (the default) and with
 ``--no-improve``, and Triangle (``pq30a<h^2/2>Y``, h = deformesh's h, so the
 boundary nodes are the same points), each a whole process writing .vtk,
 alternating, median of N.  Min angle and mean radius ratio are measured on the
-written files by one code for all tools (``run_issue6.py --quality``); the time
+written files by one code for all tools (``run_peers.py --quality``); the time
 cost of the stage is the difference of the two deformesh medians.
 """
 
@@ -20,12 +20,12 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from results import heading, write_section
-from run_issue2 import EXE, ROOT, SHARED, run_process
-from run_issue6 import PEERS, PY, helper
+from run_contours import EXE, REFERENCE, ROOT, run_process
+from run_peers import PEERS, PY, helper
 
-CONTOURS = [SHARED / f"{s}_{n}.csv" for s in ("circle", "bean", "star") for n in (100, 1000)]
+CONTOURS = [REFERENCE / f"{s}_{n}.csv" for s in ("circle", "bean", "star") for n in (100, 1000)]
 CONTOURS += [
-    SHARED / f
+    REFERENCE / f
     for f in ("channel_100.csv", "square_hole_100.csv", "naca0012_100.csv", "naca0012_1000.csv")
 ]
 CONTOURS += [
@@ -106,7 +106,7 @@ def main():
             rows.append((path, report["on"], q, med))
             print(f"{path.name}: {q['off'][1]:.1f} -> {q['on'][1]:.1f} deg", file=sys.stderr)
     lines = heading(
-        "## Issue 7: the quality stage, next to Triangle (whole processes writing .vtk, "
+        "## Quality stage, next to Triangle (whole processes writing .vtk, "
         f"median of {args.repeat}, alternating)",
         "deformesh with the stage (default) and with `--no-improve`; Triangle "
         "`pq30a<h^2/2>Y` with deformesh's h on the same points (CSV contours only). "
@@ -132,8 +132,8 @@ def main():
             f"{q['off'][2]:.3f} | {q['on'][2]:.3f} | {t_rr} | {med['off']:.2f} | "
             f"{med['on']:.2f} | {med['on'] - med['off']:+.2f} |"
         )
-    write_section("issue7", "\n".join(lines))
-    print("wrote benchmarks/RESULTS.md (issue7 section)", file=sys.stderr)
+    write_section("quality", "\n".join(lines))
+    print("wrote benchmarks/RESULTS.md (quality section)", file=sys.stderr)
 
 
 if __name__ == "__main__":

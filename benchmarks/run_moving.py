@@ -1,6 +1,6 @@
-"""Moving boundaries (issue 8): time and quality of ``deformesh move`` per case.
+"""Moving meshes: time and quality of ``deformesh move`` per case.
 
-Usage: python benchmarks/run_issue8.py [--repeat N]   (make bench)
+Usage: python benchmarks/run_moving.py [--repeat N]   (make bench)
 
 For each case: ``deformesh all`` makes the mesh once, then ``deformesh move``
 runs as a whole process N times (median): seconds, peak RSS, and from its
@@ -24,7 +24,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "scripts"))
 from make_samples import naca0012, pitching, pulsating
 from results import heading, write_section
-from run_issue2 import EXE, ROOT, SHARED, run_process
+from run_contours import EXE, REFERENCE, ROOT, run_process
 
 SAMPLES = ROOT / "samples"
 
@@ -53,7 +53,7 @@ def frames_to(folder: Path, frames: list[np.ndarray], ring=None) -> list[str]:
 def turning_hole(frames: int = 20, degrees: float = 10.0):
     """square_hole_100 with its hole turned by ``degrees * k / frames`` in frame k
     (the square stays); the frames and the ring column."""
-    rows = np.loadtxt(SHARED / "square_hole_100.csv", delimiter=",", skiprows=1)
+    rows = np.loadtxt(REFERENCE / "square_hole_100.csv", delimiter=",", skiprows=1)
     pts, ring = rows[:, :2], rows[:, 2].astype(int)
     hole = ring == 1
     centre = pts[hole].mean(axis=0)
@@ -113,7 +113,7 @@ def main():
             ),
             (
                 "square_hole_100, the hole turning 10 degrees",
-                SHARED / "square_hole_100.csv",
+                REFERENCE / "square_hole_100.csv",
                 [],
                 frames_to(d / "hole", turned, ring),
                 [],
@@ -163,7 +163,7 @@ def main():
                 file=sys.stderr,
             )
     lines = heading(
-        f"## Issue 8: deformesh move (whole processes, median of {args.repeat})",
+        f"## Moving meshes: deformesh move (whole processes, median of {args.repeat})",
         "`deformesh all` makes the mesh once; then `deformesh move MESH FRAME... --out-dir` "
         "(20 frames, `.vtu` and `.pvd`) is timed as a whole process. Min angle over all "
         "frames next to frame 0's; solves and step halvings summed over the frames (no "
@@ -180,8 +180,8 @@ def main():
             f"{mb:.0f} | {rec['min_angle_first']:.1f} | {rec['min_angle']:.1f} | "
             f"{rec['min_angle_frame']} | {solves} | {halvings} |"
         )
-    write_section("issue8", "\n".join(lines))
-    print("wrote benchmarks/RESULTS.md (issue8 section)", file=sys.stderr)
+    write_section("moving", "\n".join(lines))
+    print("wrote benchmarks/RESULTS.md (moving section)", file=sys.stderr)
 
 
 if __name__ == "__main__":

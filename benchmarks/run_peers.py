@@ -1,6 +1,6 @@
-"""deformesh against Triangle and Gmsh, side by side, as whole processes (issue 6).
+"""Speed against peers: deformesh, Triangle and Gmsh side by side, as whole processes.
 
-Usage: python benchmarks/run_issue6.py [--repeat N] [--sizes 1e3,1e4,1e5,1e6]
+Usage: python benchmarks/run_peers.py [--repeat N] [--sizes 1e3,1e4,1e5,1e6]
                                        [--shapes circle,bean,naca0012] [--tools ...]
                                        [--section NAME]
 
@@ -33,7 +33,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from results import heading, write_section
-from run_issue2 import EXE, SHARED, run_process
+from run_contours import EXE, REFERENCE, run_process
 
 PEERS = Path(__file__).resolve().parent / "peers"
 PY = sys.executable
@@ -59,7 +59,7 @@ def shape(name: str):
     if name == "bean":  # the shared bean, smoothed by a periodic cubic spline
         from scipy.interpolate import CubicSpline
 
-        b = np.loadtxt(SHARED / "bean_100.csv", delimiter=",", skiprows=1)
+        b = np.loadtxt(REFERENCE / "bean_100.csv", delimiter=",", skiprows=1)
         u = np.linspace(0, 1, len(b) + 1)
         cs = CubicSpline(u, np.vstack([b, b[:1]]), bc_type="periodic")
         return cs(np.linspace(0, 1, 20000, endpoint=False))
@@ -127,7 +127,7 @@ def main():
     ap.add_argument("--sizes", default="1e3,1e4,1e5,1e6")
     ap.add_argument("--shapes", default="circle,bean,naca0012")
     ap.add_argument("--tools", default="deformesh,triangle,gmsh")
-    ap.add_argument("--section", default="issue6")
+    ap.add_argument("--section", default="peers")
     args = ap.parse_args()
     tools = args.tools.split(",")
     rows = []
@@ -155,7 +155,7 @@ def main():
                     rows.append((name, npts, h, tool, t, r, base))
                     print(f"{name} {size:.0e} {tool}: {t:.2f} s, exit {r['code']}", file=sys.stderr)
     lines = heading(
-        f"## Issue 6: deformesh against Triangle and Gmsh (whole processes writing .vtk, "
+        f"## Speed against peers: {', '.join(tools)} (whole processes writing .vtk, "
         f"median of {args.repeat}, alternating)",
         "Each contour has evenly spaced points at spacing h; every tool gets that h "
         "(deformesh `--h h`, Triangle `pq30a<h^2/2>Y`, Gmsh size h at every point). "
