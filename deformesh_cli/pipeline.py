@@ -15,7 +15,6 @@ import numpy as np
 from . import deform as _deform
 from . import forced, geometry, quality, triangulate
 from . import improve as _improve
-from . import respace as _respace
 from . import size as _size
 from .contour import Contour
 from .deform import SOLVES, DeformStats
@@ -23,6 +22,7 @@ from .errors import FoldError, LimitError, OptionError, SelectionError, SolverEr
 from .mesh import Mesh
 from .options import MeshOptions
 from .select import EVEN_SPACING_RATIO, GRIDS, Selection, select
+from .select import respace as _respace
 from .size import SizeFunction
 
 #: ``callback(done, stats)``: pseudo-time done (0 to 1) and the deformation's statistics.

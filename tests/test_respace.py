@@ -6,7 +6,6 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from deformesh_cli import respace
 from deformesh_cli.contour import make_contour
 from deformesh_cli.errors import LimitError
 from deformesh_cli.pipeline import (
@@ -18,6 +17,7 @@ from deformesh_cli.pipeline import (
 )
 from deformesh_cli.quality import check_contract
 from deformesh_cli.readers import load_contour
+from deformesh_cli.select import respace
 
 from .conftest import ROOT, contour_file
 

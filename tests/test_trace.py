@@ -7,13 +7,13 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from deformesh_cli import pipeline, trace
+from deformesh_cli import pipeline
 from deformesh_cli.contour import make_contour
 from deformesh_cli.errors import FoldError, SelectionError
 from deformesh_cli.geometry import signed_area
 from deformesh_cli.quality import check_contract
-from deformesh_cli.select import Grid, select
-from deformesh_cli.trace import assign, outline, region_cells, thin_features
+from deformesh_cli.select import Grid, select, trace
+from deformesh_cli.select.trace import assign, outline, region_cells, thin_features
 
 from .test_properties import star_polygons
 

@@ -39,11 +39,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .contour import Contour, make_contour
-from .contour import ring_corners as corners
-from .errors import InputError, LimitError, SelectionError
-from .geometry import next_on_ring
-from .select import DEFAULT_MAX_NODES, select
+from ..contour import Contour, make_contour
+from ..contour import ring_corners as corners
+from ..errors import InputError, LimitError, SelectionError
+from ..geometry import next_on_ring
+from .uniform import DEFAULT_MAX_NODES, select
 
 
 @dataclass

@@ -20,9 +20,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .contour import Contour
-from .errors import LimitError, OptionError, SelectionError
-from .geometry import next_on_ring, signed_area, signed_areas
+from ..contour import Contour
+from ..errors import LimitError, OptionError, SelectionError
+from ..geometry import next_on_ring, signed_area, signed_areas
 
 #: Default cap on background grid nodes.  A full solve costs about 1.2 kB per
 #: node at peak (sparse LU of a 2D Laplacian), so 8e6 nodes stay well inside

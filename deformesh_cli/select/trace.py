@@ -36,7 +36,7 @@ import itertools
 
 import numpy as np
 
-from .errors import SelectionError
+from ..errors import SelectionError
 
 
 class TraceError(SelectionError):

@@ -1,0 +1,54 @@
+"""Stage 1: the background grid, the grid nodes the contour points take, and the path.
+
+- :mod:`.uniform`: Appendix A's Cartesian grid of one step, the node selection,
+  the grid path and its forced diagonals, the fallbacks (shifted grids, halved
+  steps);
+- :mod:`.trace`: a simple grid path traced around a region of cells, where
+  Appendix A's choice gives none;
+- :mod:`.respace`: the adapted grid (selection on the contour evenly re-spaced,
+  nodes slid along the contour to the real points);
+- :mod:`.graded`: a graded background (a balanced quadtree of square cells
+  split into right isosceles triangles, conforming across levels).
+"""
+
+from .uniform import (
+    DEFAULT_MARGIN_CELLS,
+    DEFAULT_MAX_NODES,
+    DIAG_BACKSLASH,
+    DIAG_SLASH,
+    EVEN_SPACING_RATIO,
+    GRIDS,
+    Grid,
+    NoFreeNode,
+    Selection,
+    build_path,
+    check_path,
+    choose_grid,
+    estimate_nodes,
+    fit_path,
+    force_diagonals,
+    grid_triangles,
+    select,
+    select_nodes,
+)
+
+__all__ = [
+    "DEFAULT_MARGIN_CELLS",
+    "DEFAULT_MAX_NODES",
+    "DIAG_BACKSLASH",
+    "DIAG_SLASH",
+    "EVEN_SPACING_RATIO",
+    "GRIDS",
+    "Grid",
+    "NoFreeNode",
+    "Selection",
+    "build_path",
+    "check_path",
+    "choose_grid",
+    "estimate_nodes",
+    "fit_path",
+    "force_diagonals",
+    "grid_triangles",
+    "select",
+    "select_nodes",
+]
