@@ -46,6 +46,7 @@ bench: $(VENV)/.installed-bench
 	$(BIN)/python benchmarks/run_peers.py --repeat 3 --tools deformesh,triangle --section peers-triangle
 	$(BIN)/python benchmarks/run_quality.py --repeat 3
 	$(BIN)/python benchmarks/run_moving.py --repeat 3
+	$(BIN)/python benchmarks/run_graded.py
 
 # only the side-by-side comparison with Triangle and Gmsh (about 25 minutes)
 bench-peers: $(VENV)/.installed-bench

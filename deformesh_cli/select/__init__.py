@@ -8,7 +8,8 @@
 - :mod:`.respace`: the adapted grid (selection on the contour evenly re-spaced,
   nodes slid along the contour to the real points);
 - :mod:`.graded`: a graded background (a balanced quadtree of square cells
-  split into right isosceles triangles, conforming across levels).
+  split into right isosceles triangles, conforming across levels; not yet used by
+  the pipeline).
 """
 
 from .uniform import (

@@ -1,0 +1,378 @@
+"""A graded Cartesian background: a balanced quadtree of square cells, conforming
+right isosceles triangles.
+
+The cells have sides ``h0 * 2**k`` (level ``k``; level 0 is the finest) and
+tile the box.  Near each contour point the cells are about the contour's
+local size there (:func:`local_sizes`: its spacing to its neighbours, and
+its distance to other parts of the contour, so that the two sides of a thin
+part get cells of their own); away from the contour they grow by at most
+``growth`` per cell width (:func:`refine`), and neighbouring cells differ
+by at most one level (:func:`balance`).
+
+Every leaf is split into right isosceles triangles (:meth:`Quadtree.triangulate`):
+
+- a leaf whose four neighbours are no finer than it is cut along one
+  diagonal (``/`` or ``\\``, per leaf: a path can force it);
+- a leaf with a finer neighbour has the midpoints of those sides as
+  nodes; it is cut as a fan from a new centre node to its corners and
+  midpoints (4 to 8 triangles).
+
+So the triangulation is conforming across level changes and, before any
+deformation, every triangle is 45-45-90.
+
+Coordinates are kept on an integer lattice of step ``h0 / 2`` (centres of
+level-0 cells are lattice points), ``x = x0 + I * hx / 2``, ``y = y0 + J *
+hy / 2``, with ``hx = hy = h0`` when the box is a whole number of root cells
+(a box given exactly may stretch one axis by less than one root cell over
+the box's extent).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..contour import Contour
+from ..errors import LimitError
+
+#: Default growth: how much larger a cell may be than the contour's local size
+#: per cell width of distance (a size field ``s_q + (growth - 1) |x - q|``).
+DEFAULT_GROWTH = 2.0
+
+#: A cell next to a contour point has at most this times the point's local size,
+#: so that each point has a cell of its own (Appendix A's 0.9 / sqrt(2)).
+CELL_FACTOR = 0.9
+
+#: Neighbouring contour points considered when a cell's size is decided.
+NEAREST = 16
+
+#: Points this many places apart along a ring or more count as "other parts" of the
+#: contour for the local feature size.
+APART = 3
+
+
+def local_sizes(contour: Contour) -> np.ndarray:
+    """Per contour point: the smaller of its two edges, and of its distance to the
+    contour's points at least :data:`APART` places away along its ring (or on
+    another ring): what a cell near it may measure for the two sides of a thin
+    part to keep distinct nodes."""
+    from scipy.spatial import cKDTree
+
+    p = contour.points
+    m = len(p)
+    edge = contour.edge_lengths()
+    prev = edge[_prev_on_ring(contour)]
+    s = np.minimum(edge, prev)
+    tree = cKDTree(p)
+    k = min(m, 2 * APART + 2)
+    dist, idx = tree.query(p, k=k)
+    ring = contour.ring
+    pos = np.arange(m) - np.asarray(contour.starts)[ring]
+    size = np.diff(contour.starts)[ring]
+    for c in range(1, k):
+        j = idx[:, c]
+        same = ring[j] == ring
+        apart = np.abs(pos[j] - pos)
+        apart = np.minimum(apart, size - apart)
+        far = ~same | (apart >= APART)
+        s = np.where(far, np.minimum(s, dist[:, c]), s)
+    return s
+
+
+def _prev_on_ring(contour: Contour) -> np.ndarray:
+    idx = np.arange(contour.n)
+    starts = np.asarray(contour.starts)
+    ring = contour.ring
+    first = starts[ring]
+    size = np.diff(starts)[ring]
+    return first + (idx - first - 1) % size
+
+
+def graded_sizes(points: np.ndarray, s: np.ndarray, growth: float) -> np.ndarray:
+    """``s`` made consistent with the growth: ``min over q' of s_q' + (growth - 1) |q - q'|``
+    at every point ``q`` (so no point asks for cells much larger than a neighbour's)."""
+    alpha = growth - 1.0
+    out = np.array(s, dtype=np.float64, copy=True)
+    for a in range(0, len(points), 2048):
+        d = np.hypot(*(points[a : a + 2048, None, :] - points[None, :, :]).transpose(2, 0, 1))
+        out[a : a + 2048] = np.min(s[None, :] + alpha * d, axis=1)
+    return out
+
+
+@dataclass
+class Quadtree:
+    """The leaves of a balanced quadtree over a box.
+
+    Attributes
+    ----------
+    x0, y0 : lower-left corner of the box.
+    hx, hy : the finest cell's width and height (``h0``; equal unless the box
+        was given and stretched).
+    top : the root level: root cells have sides ``2**top`` finest cells.
+    nx, ny : root cells along x and y.
+    level, i, j : (c,) int64 each: leaf ``c`` is cell ``(i, j)`` of level ``level``,
+        covering finest cells ``i * 2**level .. (i + 1) * 2**level - 1`` in x (and
+        likewise in y).
+    """
+
+    x0: float
+    y0: float
+    hx: float
+    hy: float
+    top: int
+    nx: int
+    ny: int
+    level: np.ndarray
+    i: np.ndarray
+    j: np.ndarray
+
+    @property
+    def box(self) -> tuple[float, float, float, float]:
+        w = self.nx * 2**self.top
+        h = self.ny * 2**self.top
+        return (self.x0, self.y0, self.x0 + w * self.hx, self.y0 + h * self.hy)
+
+    @property
+    def n_leaves(self) -> int:
+        return len(self.level)
+
+    def sizes(self) -> np.ndarray:
+        """Each leaf's side (its width)."""
+        return self.hx * 2.0**self.level
+
+    def _keys(self, level: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+        """One integer per (level, i, j) cell, unique over all levels."""
+        width = self.nx * 2**self.top  # cells of level 0 along x
+        return (level.astype(np.int64) * (width + 1) + i) * (self.ny * 2**self.top + 1) + j
+
+    def leaf_index(self, level: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+        """The leaf that holds cell ``(level, i, j)`` (the cell itself or an ancestor),
+        or -1 where the cell is split into finer leaves or lies outside the box."""
+        keys = self._keys(self.level, self.i, self.j)
+        order = np.argsort(keys)
+        skeys = keys[order]
+        out = np.full(len(level), -1, dtype=np.int64)
+        width, height = self.nx * 2**self.top, self.ny * 2**self.top
+        inside = (i >= 0) & (j >= 0) & (i * 2**level < width) & (j * 2**level < height)
+        for up in range(0, self.top + 1):
+            lv = level + up
+            ok = inside & (out < 0) & (lv <= self.top)
+            if not ok.any():
+                continue
+            k = self._keys(lv[ok], i[ok] >> up, j[ok] >> up)
+            pos = np.clip(np.searchsorted(skeys, k), 0, len(skeys) - 1)
+            hit = skeys[pos] == k
+            idx = np.flatnonzero(ok)
+            out[idx[hit]] = order[pos[hit]]
+        return out
+
+    def triangulate(self, diagonals: np.ndarray | None = None):
+        """The conforming triangulation: ``(points, triangles, cell)``.
+
+        ``diagonals`` (per leaf, 0 for ``/`` or 1 for ``\\``; default all ``/``) is
+        used by leaves without a finer neighbour.  ``cell[t]`` is the leaf of
+        triangle ``t``.  Triangles are counter-clockwise.
+        """
+        n = self.n_leaves
+        lv, i, j = self.level, self.i, self.j
+        side = 2 * (1 << lv.astype(np.int64))  # in lattice units (half finest cells)
+        half = side // 2
+        x, y = i * side, j * side  # lower-left corner, lattice units
+        # a side has a midpoint node when the neighbour across it is finer: the cell
+        # there at the same level is split (no leaf holds it)
+        finer = np.zeros((n, 4), dtype=bool)  # bottom, right, top, left
+        width, height = self.nx * 2**self.top, self.ny * 2**self.top
+        for s, (di, dj) in enumerate(((0, -1), (1, 0), (0, 1), (-1, 0))):
+            ni, nj = i + di, j + dj
+            inside = (ni >= 0) & (nj >= 0) & (ni * 2**lv < width) & (nj * 2**lv < height)
+            holder = np.full(n, 0)
+            holder[inside] = self.leaf_index(lv[inside], ni[inside], nj[inside])
+            finer[:, s] = inside & (holder < 0)
+        if diagonals is None:
+            diagonals = np.zeros(n, dtype=np.uint8)
+        corners = np.stack(
+            [
+                np.column_stack([x, y]),
+                np.column_stack([x + side, y]),
+                np.column_stack([x + side, y + side]),
+                np.column_stack([x, y + side]),
+            ],
+            axis=1,
+        )  # (n, 4, 2): lower-left, lower-right, upper-right, upper-left
+        mids = np.stack(
+            [
+                np.column_stack([x + half, y]),
+                np.column_stack([x + side, y + half]),
+                np.column_stack([x + half, y + side]),
+                np.column_stack([x, y + half]),
+            ],
+            axis=1,
+        )
+        centre = np.column_stack([x + half, y + half])
+        plain = ~finer.any(axis=1)
+        tris: list[np.ndarray] = []  # (t, 3, 2) lattice coordinates
+        cells: list[np.ndarray] = []
+        # plain leaves: two triangles along the diagonal
+        for d, (a, b) in ((0, ((0, 1, 2), (0, 2, 3))), (1, ((0, 1, 3), (1, 2, 3)))):
+            on = np.flatnonzero(plain & (diagonals == d))
+            for tri in (a, b):
+                tris.append(corners[on][:, list(tri)])
+                cells.append(on)
+        # fan leaves: per side, one or two triangles to the centre
+        fan = np.flatnonzero(~plain)
+        for s in range(4):
+            a, b = corners[fan, s], corners[fan, (s + 1) % 4]
+            c = centre[fan]
+            split = finer[fan, s]
+            whole = ~split
+            tris.append(np.stack([a[whole], b[whole], c[whole]], axis=1))
+            cells.append(fan[whole])
+            m = mids[fan, s]
+            tris.append(np.stack([a[split], m[split], c[split]], axis=1))
+            cells.append(fan[split])
+            tris.append(np.stack([m[split], b[split], c[split]], axis=1))
+            cells.append(fan[split])
+        lattice = np.concatenate(tris)
+        cell = np.concatenate(cells)
+        flat = lattice.reshape(-1, 2)
+        key = flat[:, 0] * (2 * height + 1) + flat[:, 1]
+        ukey, inv = np.unique(key, return_inverse=True)
+        li, lj = ukey // (2 * height + 1), ukey % (2 * height + 1)
+        points = np.column_stack([self.x0 + li * (self.hx / 2), self.y0 + lj * (self.hy / 2)])
+        triangles = inv.reshape(-1, 3).astype(np.int64)
+        order = np.argsort(cell, kind="stable")
+        return points, triangles[order], cell[order]
+
+
+def build(
+    contour: Contour,
+    box: tuple[float, float, float, float],
+    growth: float = DEFAULT_GROWTH,
+    max_h: float | None = None,
+    factor: float = CELL_FACTOR,
+    box_given: bool = False,
+    max_nodes: int | None = None,
+) -> Quadtree:
+    """The balanced quadtree over ``box`` for ``contour``.
+
+    The finest cell ``h0`` is the largest ``max_h / 2**k`` (``max_h`` default: the
+    box's shorter side) not above ``factor`` times the smallest graded local size.
+    Without ``box_given`` the box is grown to a whole number of root cells, keeping
+    its centre, so cells are square; a given box is kept and the finest cell
+    stretched along one axis to fit.
+    """
+    s = graded_sizes(contour.points, local_sizes(contour), growth) * factor
+    xmin, ymin, xmax, ymax = box
+    w, h = xmax - xmin, ymax - ymin
+    nx, ny, root = root_cells(w, h, max_h, exact=box_given)
+    top = max(0, math.ceil(math.log2(root / float(s.min()))))
+    if box_given:
+        hx, hy = w / (nx * 2**top), h / (ny * 2**top)
+        x0, y0 = xmin, ymin
+    else:
+        hx = hy = root / 2**top
+        x0 = xmin - (nx * root - w) / 2
+        y0 = ymin - (ny * root - h) / 2
+    i, j = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+    tree = Quadtree(
+        x0, y0, hx, hy, top, nx, ny,
+        np.full(nx * ny, top, np.int64), i.ravel().astype(np.int64), j.ravel().astype(np.int64),
+    )  # fmt: skip
+    tree = refine(tree, contour.points, s, growth, max_nodes)
+    return balance(tree)
+
+
+#: A given box may stretch the cells along one axis by at most this fraction.
+MAX_STRETCH = 0.05
+
+
+def root_cells(
+    w: float, h: float, max_h: float | None = None, exact: bool = False
+) -> tuple[int, int, float]:
+    """``(nx, ny, side)``: root cells tiling a ``w`` by ``h`` box, as few as keep each
+    no larger than ``max_h`` and, for an ``exact`` box, their two sides within
+    :data:`MAX_STRETCH` of each other (otherwise the box grows to fit them)."""
+    short, long_ = min(w, h), max(w, h)
+    n = 1 if max_h is None else max(1, math.ceil(short / max_h - 1e-9))
+    while True:
+        side = short / n
+        m = max(1, round(long_ / side)) if exact else max(1, math.ceil(long_ / side - 1e-9))
+        if not exact or abs(long_ / m / side - 1) <= MAX_STRETCH:
+            break
+        n += 1
+    if max_h is not None and exact:
+        while long_ / m > max_h * (1 + MAX_STRETCH):
+            m += 1
+    nx, ny = (m, n) if w >= h else (n, m)
+    return nx, ny, side
+
+
+def refine(
+    tree: Quadtree,
+    points: np.ndarray,
+    s: np.ndarray,
+    growth: float,
+    max_nodes: int | None = None,
+) -> Quadtree:
+    """Split every leaf larger than the size field ``min over q of s_q + (growth - 1)
+    d(q, cell)`` (``d`` the distance from point ``q`` to the cell), level by level
+    from the root."""
+    from scipy.spatial import cKDTree
+
+    alpha = growth - 1.0
+    kd = cKDTree(points)
+    k = min(NEAREST, len(points))
+    lv, i, j = tree.level, tree.i, tree.j
+    keep_l, keep_i, keep_j = [], [], []
+    while len(lv):
+        w = tree.hx * 2.0**lv
+        hgt = tree.hy * 2.0**lv
+        x0 = tree.x0 + i * w
+        y0 = tree.y0 + j * hgt
+        cx, cy = x0 + w / 2, y0 + hgt / 2
+        _, idx = kd.query(np.column_stack([cx, cy]), k=k)
+        idx = idx.reshape(len(lv), -1)
+        q = points[idx]  # (c, k, 2)
+        dx = np.maximum(np.abs(q[..., 0] - cx[:, None]) - w[:, None] / 2, 0.0)
+        dy = np.maximum(np.abs(q[..., 1] - cy[:, None]) - hgt[:, None] / 2, 0.0)
+        need = np.min(s[idx] + alpha * np.hypot(dx, dy), axis=1)
+        split = (np.maximum(w, hgt) > need) & (lv > 0)
+        keep_l.append(lv[~split])
+        keep_i.append(i[~split])
+        keep_j.append(j[~split])
+        if max_nodes is not None and sum(len(a) for a in keep_l) + 4 * split.sum() > max_nodes:
+            raise LimitError(
+                f"the graded grid would need more than {max_nodes} cells; "
+                "raise --max-nodes or give a larger --growth"
+            )
+        ls, is_, js = lv[split] - 1, i[split], j[split]
+        lv = np.repeat(ls, 4)
+        i = (np.repeat(is_, 4) * 2) + np.tile([0, 1, 0, 1], len(is_))
+        j = (np.repeat(js, 4) * 2) + np.tile([0, 0, 1, 1], len(js))
+    return Quadtree(
+        tree.x0, tree.y0, tree.hx, tree.hy, tree.top, tree.nx, tree.ny,
+        np.concatenate(keep_l), np.concatenate(keep_i), np.concatenate(keep_j),
+    )  # fmt: skip
+
+
+def balance(tree: Quadtree) -> Quadtree:
+    """Split leaves until every two leaves sharing a side differ by at most one level."""
+    lv, i, j = tree.level, tree.i, tree.j
+    while True:
+        t = Quadtree(tree.x0, tree.y0, tree.hx, tree.hy, tree.top, tree.nx, tree.ny, lv, i, j)
+        marks = np.zeros(len(lv), dtype=bool)
+        for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+            holder = t.leaf_index(lv, i + di, j + dj)
+            ok = holder >= 0
+            too_big = ok.copy()
+            too_big[ok] = lv[holder[ok]] > lv[ok] + 1
+            marks[holder[too_big]] = True
+        if not marks.any():
+            return t
+        keep = ~marks
+        ls, is_, js = lv[marks] - 1, i[marks], j[marks]
+        lv = np.concatenate([lv[keep], np.repeat(ls, 4)])
+        i = np.concatenate([i[keep], np.repeat(is_, 4) * 2 + np.tile([0, 1, 0, 1], len(is_))])
+        j = np.concatenate([j[keep], np.repeat(js, 4) * 2 + np.tile([0, 0, 1, 1], len(js))])

@@ -1,0 +1,162 @@
+"""The graded background: a balanced quadtree split into conforming right isosceles
+triangles, its cells following the contour's local size."""
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from deformesh_cli.contour import make_contour
+from deformesh_cli.errors import InputError, LimitError
+from deformesh_cli.geometry import edge_uses, signed_areas
+from deformesh_cli.quality import measures
+from deformesh_cli.readers import load_contour
+from deformesh_cli.select import graded
+
+from .conftest import SAMPLES, contour_file
+from .test_properties import star_polygons
+
+CONTOURS = [
+    SAMPLES / "peanut.csv",
+    SAMPLES / "bracket.svg",
+    SAMPLES / "naca0012.csv",
+    contour_file("circle_1000.csv"),
+    contour_file("naca0012_1000.csv"),
+    contour_file("square_hole_100.csv"),
+]
+
+
+def _box(c, grow=0.1):
+    lo, hi = c.points.min(axis=0), c.points.max(axis=0)
+    e = float((hi - lo).max()) * grow
+    return (lo[0] - e, lo[1] - e, hi[0] + e, hi[1] + e)
+
+
+def _check_triangulation(q, pts, tri, square=True):
+    """Conforming, counter-clockwise, tiling the box, and (square cells) 45-45-90."""
+    area = signed_areas(pts, tri)
+    assert (area > 0).all()
+    x0, y0, x1, y1 = q.box
+    assert area.sum() == pytest.approx((x1 - x0) * (y1 - y0), rel=1e-12)
+    lo, hi, fwd, rev = edge_uses(tri, len(pts))
+    assert (fwd <= 1).all() and (rev <= 1).all()  # no edge walked twice the same way
+    lone = (fwd + rev) == 1
+    a, b = pts[lo[lone]], pts[hi[lone]]
+    on_box = (
+        (np.isclose(a[:, 0], x0) & np.isclose(b[:, 0], x0))
+        | (np.isclose(a[:, 0], x1) & np.isclose(b[:, 0], x1))
+        | (np.isclose(a[:, 1], y0) & np.isclose(b[:, 1], y0))
+        | (np.isclose(a[:, 1], y1) & np.isclose(b[:, 1], y1))
+    )
+    assert on_box.all()  # every boundary edge is on the box: no hanging node anywhere
+    assert np.hypot(*(a - b).T).sum() == pytest.approx(2 * (x1 - x0 + y1 - y0), rel=1e-12)
+    if square:
+        amin, amax, _, _ = measures(pts, tri)
+        assert np.allclose(amin, 45.0) and np.allclose(amax, 90.0)
+
+
+def _check_balanced(q):
+    for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+        holder = q.leaf_index(q.level, q.i + di, q.j + dj)
+        ok = holder >= 0
+        assert (q.level[holder[ok]] <= q.level[ok] + 1).all()
+
+
+@pytest.mark.parametrize("path", CONTOURS, ids=lambda p: p.name)
+def test_conforming_right_isosceles_and_balanced(path):
+    c = load_contour(path)
+    q = graded.build(c, _box(c))
+    pts, tri, cell = q.triangulate()
+    _check_triangulation(q, pts, tri)
+    _check_balanced(q)
+    assert len(cell) == len(tri) and set(cell.tolist()) == set(range(q.n_leaves))
+    assert q.level.min() == 0 and q.level.max() >= 1  # graded: more than one size
+
+
+@pytest.mark.parametrize("path", CONTOURS, ids=lambda p: p.name)
+def test_cells_follow_the_size_field(path):
+    """Each leaf is no larger than the size field there (before balancing, which only
+    splits), and the leaf holding a contour point no larger than its local size."""
+    c = load_contour(path)
+    growth = graded.DEFAULT_GROWTH
+    s = graded.graded_sizes(c.points, graded.local_sizes(c), growth) * graded.CELL_FACTOR
+    q = graded.build(c, _box(c))
+    side = q.sizes()
+    x0 = q.x0 + q.i * side
+    y0 = q.y0 + q.j * side
+    dx = np.maximum(np.abs(c.points[None, :, 0] - (x0 + side / 2)[:, None]) - side[:, None] / 2, 0)
+    dy = np.maximum(np.abs(c.points[None, :, 1] - (y0 + side / 2)[:, None]) - side[:, None] / 2, 0)
+    need = np.min(s[None, :] + (growth - 1) * np.hypot(dx, dy), axis=1)
+    assert ((side <= need * (1 + 1e-12)) | (q.level == 0)).all()
+    # the finest cells are no larger than the smallest local size, and no finer
+    # than half of it (h0 is the largest power-of-two fraction that fits)
+    h0 = side[q.level == 0].max()
+    assert s.min() / 2 < h0 <= s.min() * (1 + 1e-12)
+
+
+def test_the_two_sides_of_a_thin_part_get_cells_of_their_own():
+    """A strip 0.01 thick and 1 long with points 0.05 apart: the local size is the
+    thickness, so no leaf holds points of both sides."""
+    x = np.linspace(0, 1, 21)
+    pts = np.concatenate(
+        [np.column_stack([x, np.zeros(21)]), np.column_stack([x[::-1], np.full(21, 0.01)])]
+    )
+    c = make_contour(pts, source="strip")
+    s = graded.local_sizes(c)
+    assert s.max() <= 0.01 + 1e-12
+    q = graded.build(c, _box(c, 0.5))
+    holder = q.leaf_index(
+        np.zeros(c.n, np.int64),
+        np.floor((c.points[:, 0] - q.x0) / q.hx).astype(np.int64),
+        np.floor((c.points[:, 1] - q.y0) / q.hy).astype(np.int64),
+    )
+    bottom, top = set(holder[:21].tolist()), set(holder[21:].tolist())
+    assert not bottom & top
+
+
+def test_a_given_box_is_kept_and_cells_stay_nearly_square():
+    c = load_contour(SAMPLES / "naca0012.csv")
+    for box in ((-20, -20, 21, 20), (-50, -50, 51, 50), (-2, -2, 3, 2)):
+        q = graded.build(c, box, box_given=True)
+        assert q.box == pytest.approx(box, abs=1e-9)
+        assert abs(q.hx / q.hy - 1) <= graded.MAX_STRETCH
+        pts, tri, _ = q.triangulate()
+        _check_triangulation(q, pts, tri, square=False)
+        amin, amax, _, _ = measures(pts, tri)
+        assert amin.min() > 43 and amax.max() < 93
+
+
+def test_a_far_field_grades_to_few_cells():
+    """A 41 x 40 box around a unit-chord airfoil: the cells grow from the contour's
+    size to the box's, so the whole grid holds a few thousand nodes, not 1e8."""
+    c = load_contour(SAMPLES / "naca0012.csv")
+    q = graded.build(c, (-20, -20, 21, 20), box_given=True)
+    pts, _, _ = q.triangulate()
+    assert q.top >= 14 and len(pts) < 5_000
+
+
+def test_either_diagonal_is_conforming():
+    c = load_contour(SAMPLES / "peanut.csv")
+    q = graded.build(c, _box(c))
+    rng = np.random.default_rng(1)
+    pts, tri, cell = q.triangulate(rng.integers(0, 2, q.n_leaves).astype(np.uint8))
+    _check_triangulation(q, pts, tri)
+
+
+def test_too_many_cells_is_a_limit_error():
+    c = load_contour(contour_file("circle_1000.csv"))
+    with pytest.raises(LimitError, match="graded grid"):
+        graded.build(c, _box(c), max_nodes=1000)
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(star_polygons(r_min=0.1), st.floats(-3, 3))
+def test_random_polygons(pts, log_scale):
+    try:
+        c = make_contour(pts * 10.0**log_scale, source="random")
+    except InputError:
+        return
+    q = graded.build(c, _box(c, 0.3))
+    pts_, tri, _ = q.triangulate()
+    _check_triangulation(q, pts_, tri)
+    _check_balanced(q)
