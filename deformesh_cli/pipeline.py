@@ -23,6 +23,7 @@ from .mesh import Mesh
 from .options import MeshOptions
 from .select import EVEN_SPACING_RATIO, GRIDS, Selection, select
 from .select import respace as _respace
+from .select.graded_path import GradedSelection, select_graded
 from .size import SizeFunction
 
 #: ``callback(done, stats)``: pseudo-time done (0 to 1) and the deformation's statistics.
@@ -51,6 +52,8 @@ def grid_mode(
 ) -> str:
     if grid not in GRIDS:
         raise OptionError(f"--grid must be one of {', '.join(GRIDS)}, got {grid!r}")
+    if grid == "graded" and h is not None:
+        raise OptionError("--h sets the step of a uniform grid; it does not apply to --grid graded")
     if grid != "auto":
         return grid
     if h is not None or exterior:
@@ -75,6 +78,29 @@ def candidate_selections(
     """
     o = _options(options, changes)
     mode = grid_mode(contour, o.grid, o.h, o.exterior)
+    fell_back = None
+    if mode == "graded":
+        try:
+            yield select_graded(
+                contour,
+                box=o.box,
+                margin=o.margin,
+                exterior=o.exterior,
+                max_nodes=o.max_nodes,
+            )
+            fell_back = "the graded grid's deformation folded"
+        except (SelectionError, LimitError) as exc:
+            why = str(exc).removeprefix(f"{contour.source}: ")
+            fell_back = f"the graded grid did not work here ({why})"
+        mode = grid_mode(contour, "auto", o.h, o.exterior)
+    for sel in _ungraded(contour, o, mode):
+        if fell_back is not None:
+            sel.notes.insert(0, f"{fell_back}: fell back to the {mode} grid")
+        yield sel
+
+
+def _ungraded(contour: Contour, o: MeshOptions, mode: str) -> Iterator[Selection]:
+    """The adapted rungs (``mode == "adapt"``) and Appendix A's uniform grid."""
     if mode == "adapt":
         yield from _respace.candidate_selections(
             contour, o.h, o.box, o.margin, o.strict, o.max_nodes, o.exterior
@@ -114,6 +140,8 @@ BAND_REACH = 3.0
 
 def band_nodes(sel: Selection) -> np.ndarray | None:
     """Boolean node mask of the narrow band, or None when it would not save much."""
+    if isinstance(sel, GradedSelection):
+        return sel.band_nodes()
     g = sel.grid
     h = min(g.hx, g.hy)
     travel = np.hypot(*(sel.path_targets - g.coords(sel.path_nodes)).T).max(initial=0.0)

@@ -18,7 +18,7 @@ import numpy as np
 
 from . import __version__
 from .contour import Contour, make_contour
-from .errors import InputError
+from .errors import InputError, OptionError
 from .select import Grid, Selection
 
 FORMAT = "deformesh-state"
@@ -52,6 +52,11 @@ class State:
 def dumps(state: State) -> bytes:
     """Serialise a state to bytes (deterministic)."""
     sel, g = state.selection, state.selection.grid
+    if not isinstance(g, Grid):
+        raise OptionError(
+            "the graded grid is not written to state files yet: mesh with 'deformesh all', "
+            "or select with --grid uniform or adapt"
+        )
     meta = {
         "format": FORMAT,
         "version": VERSION,

@@ -74,7 +74,7 @@ def cut(contour: Contour, sel: Selection, edges: bool = False) -> Cut:
     grid = sel.grid
     tri = sel.triangles()
     path_nodes, path_source, path_ring = sel.path_nodes, sel.path_source, sel.path_ring
-    inside = topology_inside(grid, sel.diagonals, path_nodes, path_ring, contour.n_rings)
+    inside = sel.inside_triangles()
     if sel.exterior:
         inside = ~inside
     kept = tri[inside]
@@ -87,7 +87,7 @@ def cut(contour: Contour, sel: Selection, edges: bool = False) -> Cut:
     nxt = m + len(extra)
     box_ring = np.zeros(0, dtype=np.int64)
     if sel.exterior:
-        box_ring = _box_ring(grid)
+        box_ring = grid.box_ring()
         new_id[box_ring] = nxt + np.arange(len(box_ring))
         nxt += len(box_ring)
     used = np.zeros(grid.n_nodes, dtype=bool)
@@ -109,7 +109,7 @@ def cut(contour: Contour, sel: Selection, edges: bool = False) -> Cut:
         group.append(np.full(len(e), r))
     if sel.exterior:
         ring = new_id[box_ring]
-        side = np.repeat(np.arange(4), [grid.nx, grid.ny, grid.nx, grid.ny])
+        side = np.repeat(np.arange(4), grid.side_edges())
         lines.append(np.column_stack([ring, np.roll(ring, -1)]))
         group.append(contour.n_rings + side)
         names += list(BOX_SIDES)
@@ -214,13 +214,3 @@ def topology_inside(
 def _centroids(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
     """Triangle centroids (a third of the corner sum; ``points[tri].mean`` is 3x slower)."""
     return (points[tri[:, 0]] + points[tri[:, 1]] + points[tri[:, 2]]) / 3.0
-
-
-def _box_ring(grid) -> np.ndarray:
-    """Grid boundary nodes counter-clockwise from the lower left corner."""
-    nx, ny, w = grid.nx, grid.ny, grid.nx + 1
-    bottom = np.arange(nx)
-    right = nx + np.arange(ny) * w
-    top = ny * w + np.arange(nx, 0, -1)
-    left = np.arange(ny, 0, -1) * w
-    return np.concatenate([bottom, right, top, left])

@@ -87,11 +87,12 @@ def test_cells_follow_the_size_field(path):
     dx = np.maximum(np.abs(c.points[None, :, 0] - (x0 + side / 2)[:, None]) - side[:, None] / 2, 0)
     dy = np.maximum(np.abs(c.points[None, :, 1] - (y0 + side / 2)[:, None]) - side[:, None] / 2, 0)
     need = np.min(s[None, :] + (growth - 1) * np.hypot(dx, dy), axis=1)
-    assert ((side <= need * (1 + 1e-12)) | (q.level == 0)).all()
-    # the finest cells are no larger than the smallest local size, and no finer
-    # than half of it (h0 is the largest power-of-two fraction that fits)
+    assert ((side <= graded.SPLIT_ABOVE * need * (1 + 1e-12)) | (q.level == 0)).all()
+    # the finest cells are within a factor SPLIT_ABOVE of the smallest local size
+    # (h0 is the largest power-of-two fraction of the root that fits)
     h0 = side[q.level == 0].max()
-    assert s.min() / 2 < h0 <= s.min() * (1 + 1e-12)
+    top = graded.SPLIT_ABOVE * s.min()
+    assert top / 2 < h0 <= top * (1 + 1e-12)
 
 
 def test_the_two_sides_of_a_thin_part_get_cells_of_their_own():
@@ -160,3 +161,90 @@ def test_random_polygons(pts, log_scale):
     pts_, tri, _ = q.triangulate()
     _check_triangulation(q, pts_, tri)
     _check_balanced(q)
+
+
+# -- the path on the graded grid, and meshes made on it --------------------------------
+
+#: Contours the graded path fits today (every point its own node, no extra node).
+FITTED = [
+    SAMPLES / "peanut.csv",
+    SAMPLES / "circle.csv",
+    contour_file("circle_100.csv"),
+    contour_file("circle_1000.csv"),
+    contour_file("star_100.csv"),
+    contour_file("star_1000.csv"),
+    contour_file("channel_100.csv"),
+]
+
+
+@pytest.mark.parametrize("path", FITTED, ids=lambda p: p.name)
+def test_graded_path_keeps_every_contour_edge(path):
+    from deformesh_cli.select.graded_path import select_graded
+
+    c = load_contour(path)
+    sel = select_graded(c)
+    assert sel.extra_nodes == 0
+    assert sorted(sel.path_source.tolist()) == list(range(c.n))
+    assert len(np.unique(sel.path_nodes)) == len(sel.path_nodes)  # a node per point
+    assert np.array_equal(sel.path_targets, c.points[sel.path_source])
+    tri = sel.triangles()
+    lo, hi, _, _ = edge_uses(tri, sel.grid.n_nodes)
+    edges = set((lo * sel.grid.n_nodes + hi).tolist())
+    for r in np.unique(sel.path_ring):
+        ring = sel.path_nodes[sel.path_ring == r]
+        a, b = np.minimum(ring, np.roll(ring, -1)), np.maximum(ring, np.roll(ring, -1))
+        assert all(int(k) in edges for k in a * sel.grid.n_nodes + b)  # steps are edges
+    on = np.zeros(sel.grid.n_nodes, dtype=bool)
+    on[sel.path_nodes] = True
+    assert not (on[tri[:, 0]] & on[tri[:, 1]] & on[tri[:, 2]]).any()
+    _check_triangulation(sel.grid.tree, sel.grid.points, tri)
+
+
+@pytest.mark.parametrize("path", FITTED, ids=lambda p: p.name)
+def test_graded_meshes_meet_the_contract_with_no_extra_node(path):
+    from deformesh_cli import mesh_contour
+
+    c = load_contour(path)
+    res = mesh_contour(c, grid="graded")  # raises unless the contract holds
+    uniform = mesh_contour(c, grid="uniform")
+    assert res.report["h_rule"] == "graded" and res.report["extra_boundary_nodes"] == 0
+    assert res.report["min_angle"] >= 35.0
+    assert res.mesh.n_nodes < uniform.mesh.n_nodes  # graded: fewer nodes away from the contour
+    assert np.array_equal(res.mesh.points[: c.n], c.points)
+
+
+def test_graded_exterior_and_size_function():
+    from deformesh_cli import mesh_contour
+
+    c = load_contour(SAMPLES / "circle.csv")
+    ext = mesh_contour(c, grid="graded", exterior=True, box=(-2.0, -2.0, 2.0, 2.0))
+    assert ext.report["h_rule"] == "graded" and ext.report["extra_boundary_nodes"] == 0
+    assert set(ext.mesh.groups) >= {"contour", "bottom", "right", "top", "left"}
+    sized = mesh_contour(load_contour(SAMPLES / "peanut.csv"), grid="graded", size="0.05 + d")
+    assert sized.report["h_rule"] == "graded"
+    assert sized.report["size_correlation"] >= 0.9
+
+
+def test_graded_falls_back_with_a_note():
+    """Where no path fits (here: square corners), 'all' meshes on the other grids and
+    says so."""
+    from deformesh_cli import mesh_contour
+
+    res = mesh_contour(load_contour(contour_file("square_hole_100.csv")), grid="graded")
+    assert res.report["h_rule"] != "graded"
+    assert res.report["notes"][0].startswith("the graded grid did not work here")
+
+
+def test_graded_cli(run, tmp_path):
+    out = tmp_path / "m.msh"
+    r = run("all", SAMPLES / "peanut.csv", "--grid", "graded", "-o", out, "--json", "-q")
+    assert r.exit_code == 0, r.stderr
+    import json
+
+    rec = json.loads(r.stdout)
+    assert rec["extra_boundary_nodes"] == 0 and rec["h_rule"] == "graded"
+    r = run("all", SAMPLES / "peanut.csv", "--grid", "graded", "--h", "0.1", "-o", out)
+    assert r.exit_code == 2 and "--h" in r.stderr
+    r = run("select", SAMPLES / "peanut.csv", "--grid", "graded", "-o", tmp_path / "s")
+    assert r.exit_code == 2 and "state files" in r.stderr
+    assert not (tmp_path / "s").exists()

@@ -43,7 +43,11 @@ DEFAULT_GROWTH = 2.0
 
 #: A cell next to a contour point has at most this times the point's local size,
 #: so that each point has a cell of its own (Appendix A's 0.9 / sqrt(2)).
-CELL_FACTOR = 0.9
+CELL_FACTOR = 1.0
+
+#: A cell is split when it is larger than this times the size field: cells end between
+#: ``1 / SPLIT_ABOVE`` and ``SPLIT_ABOVE`` times it (a power of two apart).
+SPLIT_ABOVE = 1.4142135623730951
 
 #: Neighbouring contour points considered when a cell's size is decided.
 NEAREST = 16
@@ -168,30 +172,23 @@ class Quadtree:
             out[idx[hit]] = order[pos[hit]]
         return out
 
-    def triangulate(self, diagonals: np.ndarray | None = None):
-        """The conforming triangulation: ``(points, triangles, cell)``.
-
-        ``diagonals`` (per leaf, 0 for ``/`` or 1 for ``\\``; default all ``/``) is
-        used by leaves without a finer neighbour.  ``cell[t]`` is the leaf of
-        triangle ``t``.  Triangles are counter-clockwise.
-        """
+    def layout(self) -> Layout:
+        """Every leaf's corners, side midpoints and centre on the lattice, and which of
+        its sides have a finer neighbour (so a midpoint node)."""
         n = self.n_leaves
         lv, i, j = self.level, self.i, self.j
         side = 2 * (1 << lv.astype(np.int64))  # in lattice units (half finest cells)
         half = side // 2
         x, y = i * side, j * side  # lower-left corner, lattice units
-        # a side has a midpoint node when the neighbour across it is finer: the cell
-        # there at the same level is split (no leaf holds it)
         finer = np.zeros((n, 4), dtype=bool)  # bottom, right, top, left
         width, height = self.nx * 2**self.top, self.ny * 2**self.top
         for s, (di, dj) in enumerate(((0, -1), (1, 0), (0, 1), (-1, 0))):
             ni, nj = i + di, j + dj
             inside = (ni >= 0) & (nj >= 0) & (ni * 2**lv < width) & (nj * 2**lv < height)
-            holder = np.full(n, 0)
+            holder = np.zeros(n, dtype=np.int64)
             holder[inside] = self.leaf_index(lv[inside], ni[inside], nj[inside])
+            # the cell across that side at the same level is split: no leaf holds it
             finer[:, s] = inside & (holder < 0)
-        if diagonals is None:
-            diagonals = np.zeros(n, dtype=np.uint8)
         corners = np.stack(
             [
                 np.column_stack([x, y]),
@@ -211,7 +208,22 @@ class Quadtree:
             axis=1,
         )
         centre = np.column_stack([x + half, y + half])
-        plain = ~finer.any(axis=1)
+        return Layout(corners, mids, centre, finer, 2 * height + 1)
+
+    def triangulate(self, diagonals: np.ndarray | None = None):
+        """The conforming triangulation: ``(points, triangles, cell)``.
+
+        ``diagonals`` (per leaf, 0 for ``/`` or 1 for ``\\``; default all ``/``) is
+        used by leaves without a finer neighbour.  ``cell[t]`` is the leaf of
+        triangle ``t``.  Triangles are counter-clockwise.  The node numbering does
+        not depend on ``diagonals``.
+        """
+        lay = self.layout()
+        n = self.n_leaves
+        corners, mids, centre, finer = lay.corners, lay.mids, lay.centre, lay.finer
+        if diagonals is None:
+            diagonals = np.zeros(n, dtype=np.uint8)
+        plain = lay.plain
         tris: list[np.ndarray] = []  # (t, 3, 2) lattice coordinates
         cells: list[np.ndarray] = []
         # plain leaves: two triangles along the diagonal
@@ -236,14 +248,39 @@ class Quadtree:
             cells.append(fan[split])
         lattice = np.concatenate(tris)
         cell = np.concatenate(cells)
-        flat = lattice.reshape(-1, 2)
-        key = flat[:, 0] * (2 * height + 1) + flat[:, 1]
-        ukey, inv = np.unique(key, return_inverse=True)
-        li, lj = ukey // (2 * height + 1), ukey % (2 * height + 1)
+        ukey, inv = np.unique(lay.key(lattice.reshape(-1, 2)), return_inverse=True)
+        li, lj = ukey // lay.stride, ukey % lay.stride
         points = np.column_stack([self.x0 + li * (self.hx / 2), self.y0 + lj * (self.hy / 2)])
         triangles = inv.reshape(-1, 3).astype(np.int64)
         order = np.argsort(cell, kind="stable")
         return points, triangles[order], cell[order]
+
+    def node_keys(self) -> np.ndarray:
+        """The sorted lattice keys of the nodes (node ``k`` of :meth:`triangulate` has
+        key ``node_keys()[k]``)."""
+        lay = self.layout()
+        parts = [lay.corners.reshape(-1, 2), lay.centre[~lay.plain]]
+        parts += [lay.mids[lay.finer]]
+        return np.unique(lay.key(np.concatenate(parts)))
+
+
+@dataclass
+class Layout:
+    """The lattice coordinates of each leaf's nodes (see :meth:`Quadtree.layout`)."""
+
+    corners: np.ndarray  # (n, 4, 2): lower-left, lower-right, upper-right, upper-left
+    mids: np.ndarray  # (n, 4, 2): bottom, right, top, left midpoints
+    centre: np.ndarray  # (n, 2)
+    finer: np.ndarray  # (n, 4) bool: that side has a finer neighbour (a midpoint node)
+    stride: int  # key = lattice x * stride + lattice y
+
+    @property
+    def plain(self) -> np.ndarray:
+        """Leaves with no finer neighbour: two triangles along a diagonal."""
+        return ~self.finer.any(axis=1)
+
+    def key(self, xy: np.ndarray) -> np.ndarray:
+        return xy[..., 0].astype(np.int64) * self.stride + xy[..., 1]
 
 
 def build(
@@ -251,23 +288,25 @@ def build(
     box: tuple[float, float, float, float],
     growth: float = DEFAULT_GROWTH,
     max_h: float | None = None,
-    factor: float = CELL_FACTOR,
+    factor: float | None = None,
     box_given: bool = False,
     max_nodes: int | None = None,
 ) -> Quadtree:
     """The balanced quadtree over ``box`` for ``contour``.
 
-    The finest cell ``h0`` is the largest ``max_h / 2**k`` (``max_h`` default: the
-    box's shorter side) not above ``factor`` times the smallest graded local size.
+    The finest cell ``h0`` is the largest ``root / 2**k`` (``root`` the root cells'
+    side, at most ``max_h``; default: the box's shorter side) not above
+    :data:`SPLIT_ABOVE` times ``factor`` times the smallest graded local size.
     Without ``box_given`` the box is grown to a whole number of root cells, keeping
     its centre, so cells are square; a given box is kept and the finest cell
     stretched along one axis to fit.
     """
+    factor = CELL_FACTOR if factor is None else factor
     s = graded_sizes(contour.points, local_sizes(contour), growth) * factor
     xmin, ymin, xmax, ymax = box
     w, h = xmax - xmin, ymax - ymin
     nx, ny, root = root_cells(w, h, max_h, exact=box_given)
-    top = max(0, math.ceil(math.log2(root / float(s.min()))))
+    top = max(0, math.ceil(math.log2(root / (SPLIT_ABOVE * float(s.min())))))
     if box_given:
         hx, hy = w / (nx * 2**top), h / (ny * 2**top)
         x0, y0 = xmin, ymin
@@ -338,7 +377,7 @@ def refine(
         dx = np.maximum(np.abs(q[..., 0] - cx[:, None]) - w[:, None] / 2, 0.0)
         dy = np.maximum(np.abs(q[..., 1] - cy[:, None]) - hgt[:, None] / 2, 0.0)
         need = np.min(s[idx] + alpha * np.hypot(dx, dy), axis=1)
-        split = (np.maximum(w, hgt) > need) & (lv > 0)
+        split = (np.maximum(w, hgt) > SPLIT_ABOVE * need) & (lv > 0)
         keep_l.append(lv[~split])
         keep_i.append(i[~split])
         keep_j.append(j[~split])

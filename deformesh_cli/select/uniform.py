@@ -35,7 +35,9 @@ DEFAULT_MAX_NODES = 8_000_000
 #: (Appendix A's grid would be that squared times bigger), ``--h`` is not given
 #: and the mesh is not exterior.  Icons (long edges, even small spacing: median
 #: / smallest 1.1-2) keep Appendix A's grid, which gave them 15-21 degrees.
-GRIDS = ("auto", "adapt", "uniform")
+#: ``graded`` is the graded quadtree grid (:mod:`.graded_path`), falling back to what
+#: ``auto`` chooses where it finds no path.
+GRIDS = ("auto", "adapt", "uniform", "graded")
 
 #: Default margin between the contour's bounding box and the background box, in cells.
 DEFAULT_MARGIN_CELLS = 3
@@ -86,6 +88,19 @@ class Grid:
     def boundary_nodes(self) -> np.ndarray:
         i, j = self.node_ij(np.arange(self.n_nodes))
         return np.flatnonzero((i == 0) | (j == 0) | (i == self.nx) | (j == self.ny))
+
+    def box_ring(self) -> np.ndarray:
+        """The box's nodes counter-clockwise from the lower left corner."""
+        nx, ny, w = self.nx, self.ny, self.nx + 1
+        bottom = np.arange(nx)
+        right = nx + np.arange(ny) * w
+        top = ny * w + np.arange(nx, 0, -1)
+        left = np.arange(ny, 0, -1) * w
+        return np.concatenate([bottom, right, top, left])
+
+    def side_edges(self) -> tuple[int, int, int, int]:
+        """How many edges of :meth:`box_ring` lie on the bottom, right, top, left sides."""
+        return (self.nx, self.ny, self.nx, self.ny)
 
 
 def estimate_nodes(width: float, height: float, h: float) -> float:
@@ -276,6 +291,13 @@ class Selection:
         if self._triangles is None:
             self._triangles = grid_triangles(self.grid, self.diagonals)
         return self._triangles
+
+    def inside_triangles(self) -> np.ndarray:
+        """Per triangle of :meth:`triangles`: inside the rings' paths (even-odd)."""
+        from ..triangulate import topology_inside
+
+        n_rings = int(self.path_ring.max()) + 1 if len(self.path_ring) else 0
+        return topology_inside(self.grid, self.diagonals, self.path_nodes, self.path_ring, n_rings)
 
 
 def grid_triangles(

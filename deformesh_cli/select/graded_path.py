@@ -1,0 +1,450 @@
+"""Stage 1 on the graded grid: one node per contour point, consecutive points on
+neighbouring nodes, so no contour edge is split.
+
+Appendix A takes, for each point, the nearest free corner of its cell.  Here
+every ring is assigned at once: each point may take one of the
+:data:`CANDIDATES` nodes nearest to it (cell corners and side midpoints, not
+the box and not another ring's), consecutive points must take two nodes
+joined by a grid edge (a cell side, or either diagonal of a leaf without a
+finer neighbour), and among those assignments the one with the least summed
+squared distance, in units of each point's local size, is found by dynamic
+programming around the ring.  A node taken twice is given to the nearer
+point and the ring assigned again.
+
+Then the path fixes the leaves' diagonals: a diagonal step forces its leaf's
+diagonal, and an L-turn along two sides of a leaf forces the diagonal through
+the corner, so no triangle has three path nodes.  Anything that cannot be
+met (no assignment, two forced diagonals in one leaf, a path that is not a
+simple counter-clockwise ring) is a :class:`~deformesh_cli.errors.SelectionError`,
+and the caller falls back to the other grids.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import shapely
+
+from ..contour import Contour
+from ..errors import SelectionError
+from ..geometry import signed_area
+from . import graded
+
+#: Nodes a contour point may take: the nearest this many.
+CANDIDATES = 9
+
+#: Times a ring is assigned again after a node was taken twice or a corner cut.
+MAX_ROUNDS = 40
+
+#: Band of the deformation on the graded grid: nodes within this many edges of the
+#: path (the uniform grid's 4 cells).
+BAND_HOPS = 4
+
+
+@dataclass
+class GradedGrid:
+    """The graded background as the stages see it: its nodes and its box."""
+
+    tree: graded.Quadtree
+    points: np.ndarray  # (n, 2) undeformed node coordinates
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.points)
+
+    @property
+    def box(self) -> tuple[float, float, float, float]:
+        return self.tree.box
+
+    @property
+    def nx(self) -> int:
+        return self.tree.nx
+
+    @property
+    def ny(self) -> int:
+        return self.tree.ny
+
+    @property
+    def hx(self) -> float:
+        return self.tree.hx
+
+    @property
+    def hy(self) -> float:
+        return self.tree.hy
+
+    def coords(self, nid: np.ndarray | int | None = None) -> np.ndarray:
+        return self.points if nid is None else self.points[nid]
+
+    def _sides(self):
+        x0, y0, x1, y1 = self.box
+        x, y = self.points[:, 0], self.points[:, 1]
+        xmax, ymax = x.max(), y.max()  # the box's far sides, as the nodes have them
+        return x == x0, x == xmax, y == y0, y == ymax
+
+    def boundary_nodes(self) -> np.ndarray:
+        left, right, bottom, top = self._sides()
+        return np.flatnonzero(left | right | bottom | top)
+
+    def box_ring(self) -> np.ndarray:
+        """The box's nodes counter-clockwise from the lower left corner."""
+        left, right, bottom, top = self._sides()
+        x, y = self.points[:, 0], self.points[:, 1]
+        parts = [
+            np.flatnonzero(bottom & ~right)[np.argsort(x[bottom & ~right])],
+            np.flatnonzero(right & ~top)[np.argsort(y[right & ~top])],
+            np.flatnonzero(top & ~left)[np.argsort(-x[top & ~left])],
+            np.flatnonzero(left & ~bottom)[np.argsort(-y[left & ~bottom])],
+        ]
+        return np.concatenate(parts)
+
+    def side_edges(self) -> tuple[int, int, int, int]:
+        left, right, bottom, top = self._sides()
+        return (
+            int((bottom & ~right).sum()),
+            int((right & ~top).sum()),
+            int((top & ~left).sum()),
+            int((left & ~bottom).sum()),
+        )
+
+
+@dataclass
+class GradedSelection:
+    """Stage 1's result on the graded grid (the attributes the later stages read, as
+    :class:`~deformesh_cli.select.uniform.Selection` has them)."""
+
+    grid: GradedGrid
+    path_nodes: np.ndarray
+    path_targets: np.ndarray
+    path_source: np.ndarray
+    path_ring: np.ndarray
+    diagonals: np.ndarray  # per leaf
+    h: float  # the finest cell
+    exterior: bool = False
+    notes: list[str] = field(default_factory=list)
+    h_rule: str = "graded"
+    path_rule: str = "graded"
+    searched_further: int = 0
+    refinements: int = 0
+    path_slide: None = None
+    _triangles: np.ndarray | None = field(default=None, init=False, repr=False)
+
+    @property
+    def extra_nodes(self) -> int:
+        return int(np.count_nonzero(self.path_source < 0))
+
+    def triangles(self) -> np.ndarray:
+        if self._triangles is None:
+            self._triangles = self.grid.tree.triangulate(self.diagonals)[1]
+        return self._triangles
+
+    def inside_triangles(self) -> np.ndarray:
+        """Per triangle: its centroid inside the rings' paths (even-odd); a centroid is
+        never on a path, whose steps are triangle edges."""
+        tri = self.triangles()
+        p = self.grid.points
+        cen = (p[tri[:, 0]] + p[tri[:, 1]] + p[tri[:, 2]]) / 3.0
+        inside = np.zeros(len(tri), dtype=bool)
+        for r in np.unique(self.path_ring):
+            ring = shapely.Polygon(p[self.path_nodes[self.path_ring == r]])
+            inside ^= shapely.contains_xy(ring, cen[:, 0], cen[:, 1])
+        return inside
+
+    def band_nodes(self) -> np.ndarray | None:
+        """Nodes within :data:`BAND_HOPS` edges of the path, or None if half the grid."""
+        import scipy.sparse as sp
+
+        tri = self.triangles()
+        n = self.grid.n_nodes
+        a = np.concatenate([tri[:, 0], tri[:, 1], tri[:, 2]])
+        b = np.concatenate([tri[:, 1], tri[:, 2], tri[:, 0]])
+        adj = sp.csr_matrix((np.ones(len(a), np.int8), (a, b)), shape=(n, n))
+        adj = adj + adj.T
+        on = np.zeros(n, dtype=bool)
+        on[self.path_nodes] = True
+        for _ in range(BAND_HOPS):
+            on |= (adj @ on.astype(np.int8)) > 0
+        return on if on.sum() < 0.5 * n else None
+
+
+def select_graded(
+    contour: Contour,
+    box: tuple[float, float, float, float] | None = None,
+    margin: float | None = None,
+    exterior: bool = False,
+    growth: float = graded.DEFAULT_GROWTH,
+    max_nodes: int | None = None,
+) -> GradedSelection:
+    """Lay the graded grid over ``contour`` and fit each ring's path to its points."""
+    s = graded.local_sizes(contour)
+    lo, hi = contour.points.min(axis=0), contour.points.max(axis=0)
+    given = box is not None
+    if box is None:
+        if margin is None:
+            margin = float((hi - lo).max()) if exterior else 3.0 * float(s.max())
+        box = (lo[0] - margin, lo[1] - margin, hi[0] + margin, hi[1] + margin)
+    tree = graded.build(contour, box, growth=growth, box_given=given, max_nodes=max_nodes)
+    lay = tree.layout()
+    points, tri0, cell0 = tree.triangulate()
+    keys = tree.node_keys()
+    grid = GradedGrid(tree, points)
+    edges = _allowed_edges(tri0, cell0, lay, keys, len(points))
+    turns = _l_turns(lay, keys, len(points))
+    free = np.ones(len(points), dtype=bool)
+    free[grid.boundary_nodes()] = False
+    centres = np.searchsorted(keys, lay.key(lay.centre[~lay.plain]))
+    free[centres] = False
+    nodes, sources, rings = [], [], []
+    for r in range(contour.n_rings):
+        order = contour.ring_order(r)
+        path = _assign(contour, order, points, free, edges, turns, s[order])
+        free[path] = False
+        nodes.append(path)
+        sources.append(order)
+        rings.append(np.full(len(order), r))
+    path_nodes = np.concatenate(nodes)
+    path_ring = np.concatenate(rings)
+    diagonals = _force_diagonals(contour, tree, lay, keys, path_nodes, path_ring)
+    sel = GradedSelection(
+        grid,
+        path_nodes,
+        contour.points[np.concatenate(sources)],
+        np.concatenate(sources),
+        path_ring,
+        diagonals,
+        h=float(tree.hx),
+        exterior=exterior,
+    )
+    _check(contour, sel)
+    return sel
+
+
+def _allowed_edges(tri0, cell0, lay, keys, n) -> np.ndarray:
+    """Sorted keys ``lo * n + hi`` of the node pairs a path step may join: the
+    triangulation's edges, and both diagonals of every leaf without a finer
+    neighbour."""
+    e = np.concatenate([tri0[:, [0, 1]], tri0[:, [1, 2]], tri0[:, [2, 0]]])
+    plain = np.flatnonzero(lay.plain)
+    c = np.searchsorted(keys, lay.key(lay.corners[plain]))  # (p, 4) node ids
+    e = np.concatenate([e, c[:, [0, 2]], c[:, [1, 3]]])
+    lo, hi = np.minimum(e[:, 0], e[:, 1]), np.maximum(e[:, 0], e[:, 1])
+    return np.unique(lo * n + hi)
+
+
+def _l_turns(lay, keys, n) -> np.ndarray:
+    """Sorted keys ``(a * n + b) * n + c`` of the steps ``a -> b -> c`` along two sides of
+    a leaf without a finer neighbour (``b`` the corner between them), both ways round."""
+    plain = np.flatnonzero(lay.plain)
+    c = np.searchsorted(keys, lay.key(lay.corners[plain])).astype(np.int64)
+    out = []
+    for s in range(4):
+        a, b, d = c[:, (s - 1) % 4], c[:, s], c[:, (s + 1) % 4]
+        out += [(a * n + b) * n + d, (d * n + b) * n + a]
+    return np.unique(np.concatenate(out))
+
+
+def _l_turn(a, b, c, turns, n) -> np.ndarray:
+    """``a -> b -> c`` is one of :func:`_l_turns`."""
+    k = (a * n + b) * n + c
+    pos = np.clip(np.searchsorted(turns, k), 0, max(len(turns) - 1, 0))
+    return (turns[pos] == k) if len(turns) else np.zeros(len(a), dtype=bool)
+
+
+def _adjacent(edges: np.ndarray, n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    k = np.minimum(a, b) * n + np.maximum(a, b)
+    pos = np.clip(np.searchsorted(edges, k), 0, len(edges) - 1)
+    return (edges[pos] == k) & (a != b)
+
+
+def _assign(contour, order, points, free, edges, turns, s) -> np.ndarray:
+    """One node per point of a ring (in ``order``), consecutive ones adjacent, the
+    least summed squared distance over the local size; see the module's docstring."""
+    from scipy.spatial import cKDTree
+
+    idx = np.flatnonzero(free)
+    kd = cKDTree(points[idx])
+    q = contour.points[order]
+    m, n = len(q), len(points)
+    k = min(CANDIDATES, len(idx))
+    dist, near = kd.query(q, k=k)
+    cand = idx[near.reshape(m, k)]
+    cost = (dist.reshape(m, k) / s[:, None]) ** 2
+    for _ in range(MAX_ROUNDS):
+        path = _viterbi2(cand, cost, edges, turns, n)
+        if path is None:
+            raise SelectionError(
+                f"{contour.source}: no graded-grid path gives every point of "
+                f"{contour.ring_labels[int(contour.ring[order[0]])]} a neighbour of the next"
+            )
+        uniq, counts = np.unique(path, return_counts=True)
+        if (counts == 1).all():
+            return path
+        for node in uniq[counts > 1]:  # a node taken twice: the nearer point keeps it
+            at = np.flatnonzero(path == node)
+            d = np.hypot(*(q[at] - points[node]).T)
+            loser = np.delete(at, np.argmin(d))
+            cost[loser] = np.where(cand[loser] == node, np.inf, cost[loser])
+    raise SelectionError(
+        f"{contour.source}: the graded-grid path takes a node twice after {MAX_ROUNDS} rounds"
+    )
+
+
+#: Candidates of the first point a ring's assignment may start from (the nearest ones).
+STARTS = 3
+
+
+def _viterbi2(cand, cost, edges, turns, n) -> np.ndarray | None:
+    """The cheapest closed sequence of candidates with consecutive ones adjacent and no
+    step ``a -> b -> c`` whose ends ``a`` and ``c`` are adjacent too (it would cut a
+    corner: a triangle of three path nodes, or a cell needing both diagonals), but an
+    L-turn along two sides of a leaf.  Dynamic programming over pairs of consecutive
+    candidates, the first two points' pair fixed for each start."""
+    m, k = cand.shape
+    inf = np.inf
+    nxt = np.roll(cand, -1, axis=0)
+    step = _adjacent(
+        edges, n, np.repeat(cand, k, axis=1).ravel(), np.tile(nxt, (1, k)).ravel()
+    ).reshape(m, k, k)  # step[t, i, j]: cand[t, i] -> cand[t + 1, j]
+    prv = np.roll(cand, 1, axis=0)
+    a = np.broadcast_to(prv[:, :, None, None], (m, k, k, k)).ravel()
+    b = np.broadcast_to(cand[:, None, :, None], (m, k, k, k)).ravel()
+    c = np.broadcast_to(nxt[:, None, None, :], (m, k, k, k)).ravel()
+    cut = (_adjacent(edges, n, a, c) | (a == c)) & ~_l_turn(a, b, c, turns, n)
+    ok3 = ~cut.reshape(m, k, k, k)  # ok3[t, i, j, l]: cand[t-1, i], cand[t, j], cand[t+1, l]
+    starts = [(x0, x1) for x0 in np.argsort(cost[0])[:STARTS] for x1 in range(k)]
+    starts = [(x0, x1) for x0, x1 in starts if np.isfinite(cost[0, x0]) and step[0, x0, x1]]
+    if not starts or m < 3:
+        return None
+    s0 = np.array([x for x, _ in starts])
+    s1 = np.array([y for _, y in starts])
+    ns = len(starts)
+    d = np.full((ns, k, k), inf)  # d[s, i, j]: point t - 1 on i, point t on j
+    d[np.arange(ns), s0, s1] = cost[0, s0] + cost[1, s1]
+    back = np.empty((m, ns, k, k), dtype=np.int8)
+    for t in range(1, m - 1):
+        allowed = ok3[t] & step[t][None, :, :]  # (i, j, l)
+        tot = np.where(allowed[None], d[:, :, :, None], inf)  # (s, i, j, l)
+        i = np.argmin(tot, axis=1)  # (s, j, l)
+        back[t + 1] = i
+        d = np.take_along_axis(tot, i[:, None, :, :], axis=1)[:, 0] + cost[t + 1][None, None, :]
+    # close the ring: last -> first, and the triples around the start
+    close = d.copy()
+    last = m - 1
+    for si in range(ns):
+        x0, x1 = s0[si], s1[si]
+        close[si] = np.where(
+            step[last][None, :, x0] & ok3[last][:, :, x0] & ok3[0][:, x0, x1][None, :],
+            close[si],
+            inf,
+        )
+    si, i, j = np.unravel_index(int(np.argmin(close)), close.shape)
+    if not np.isfinite(close[si, i, j]):
+        return None
+    sel = np.empty(m, dtype=np.int64)
+    sel[m - 1], sel[m - 2] = j, i
+    for t in range(m - 1, 1, -1):
+        sel[t - 2] = back[t, si, sel[t - 1], sel[t]]
+    return cand[np.arange(m), sel]
+
+
+def _viterbi(cand, cost, edges, n) -> np.ndarray | None:
+    """The cheapest closed sequence of candidates with consecutive ones adjacent."""
+    m, k = cand.shape
+    allowed = np.empty((m, k, k), dtype=bool)  # step t -> t+1 (cyclic)
+    nxt = np.roll(cand, -1, axis=0)
+    allowed[:] = _adjacent(
+        edges, n, np.repeat(cand, k, axis=1).ravel(), np.tile(nxt, (1, k)).ravel()
+    ).reshape(m, k, k)
+    inf = np.inf
+    # every start at once: d[a, j] = cheapest cost of the points so far, the first on
+    # candidate a, the last on candidate j
+    d = np.full((k, k), inf)
+    d[np.arange(k), np.arange(k)] = cost[0]
+    back = np.empty((m, k, k), dtype=np.int8)
+    for t in range(1, m):
+        step = np.where(allowed[t - 1][None, :, :], d[:, :, None], inf)  # (start, from, to)
+        j = np.argmin(step, axis=1)
+        back[t] = j
+        d = np.take_along_axis(step, j[:, None, :], axis=1)[:, 0, :] + cost[t][None, :]
+    close = np.where(allowed[m - 1].T, d, inf)  # the last node next to the first
+    a, end = np.unravel_index(int(np.argmin(close)), close.shape)
+    best_total = close[a, end]
+    best_path = None
+    if np.isfinite(best_total):
+        sel = np.empty(m, dtype=np.int64)
+        sel[m - 1] = end
+        for t in range(m - 1, 0, -1):
+            sel[t - 1] = back[t, a, sel[t]]
+        best_path = cand[np.arange(m), sel]
+    return best_path if np.isfinite(best_total) else None
+
+
+def _force_diagonals(contour, tree, lay, keys, path_nodes, path_ring) -> np.ndarray:
+    """Each leaf's diagonal: forced by a diagonal path step or an L-turn along two of its
+    sides (the diagonal through the corner), '/' elsewhere; two forces disagreeing in
+    one leaf are a SelectionError."""
+    n_leaves = tree.n_leaves
+    plain = np.flatnonzero(lay.plain)
+    c = np.searchsorted(keys, lay.key(lay.corners[plain]))  # (p, 4): LL, LR, UR, UL
+    force = np.full(n_leaves, -1, dtype=np.int64)
+    # a step's leaf by its two nodes: a lookup from unordered corner pairs
+    pair_leaf = {}
+    for d, (u, v) in ((0, (0, 2)), (1, (1, 3))):
+        for leaf, a, b in zip(plain, c[:, u], c[:, v]):
+            pair_leaf[(min(a, b), max(a, b))] = (leaf, d)
+    side_leaves: dict[tuple[int, int], list[int]] = {}
+    for s_ in range(4):
+        a, b = c[:, s_], c[:, (s_ + 1) % 4]
+        for leaf, x, y in zip(plain, a, b):
+            side_leaves.setdefault((min(x, y), max(x, y)), []).append(leaf)
+    corner_of = {}
+    for col, d in ((0, 0), (2, 0), (1, 1), (3, 1)):  # the diagonal through this corner
+        for leaf, node in zip(plain, c[:, col]):
+            corner_of[(leaf, int(node))] = d
+
+    def want(leaf, d, where):
+        if force[leaf] >= 0 and force[leaf] != d:
+            raise SelectionError(
+                f"{contour.source}: the graded-grid path needs both diagonals of one cell "
+                f"near {where}"
+            )
+        force[leaf] = d
+
+    for r in np.unique(path_ring):
+        ring = path_nodes[path_ring == r]
+        prev, nxt = np.roll(ring, 1), np.roll(ring, -1)
+        for t, (a, b) in enumerate(zip(ring, nxt)):
+            key = (min(a, b), max(a, b))
+            if key in pair_leaf:
+                leaf, d = pair_leaf[key]
+                want(leaf, d, f"path node {t} of ring {r}")
+        for t, (a, b, cc) in enumerate(zip(prev, ring, nxt)):
+            s1 = side_leaves.get((min(a, b), max(a, b)), [])
+            s2 = side_leaves.get((min(b, cc), max(b, cc)), [])
+            for leaf in set(s1) & set(s2):
+                want(leaf, corner_of[(leaf, int(b))], f"path node {t} of ring {r}")
+    out = np.zeros(n_leaves, dtype=np.uint8)
+    out[force >= 0] = force[force >= 0]
+    return out
+
+
+def _check(contour: Contour, sel: GradedSelection) -> None:
+    """Each ring's path a simple counter-clockwise polygon, no triangle with three path
+    nodes."""
+    p = sel.grid.points
+    for r in np.unique(sel.path_ring):
+        ring = p[sel.path_nodes[sel.path_ring == r]]
+        if signed_area(ring) <= 0 or not shapely.is_simple(shapely.LinearRing(ring)):
+            raise SelectionError(
+                f"{contour.source}: the graded-grid path of {contour.ring_labels[r]} is not a "
+                "simple counter-clockwise ring"
+            )
+    on = np.zeros(sel.grid.n_nodes, dtype=bool)
+    on[sel.path_nodes] = True
+    tri = sel.triangles()
+    three = on[tri[:, 0]] & on[tri[:, 1]] & on[tri[:, 2]]
+    if three.any():
+        x, y = p[tri[np.argmax(three)]].mean(axis=0)
+        raise SelectionError(
+            f"{contour.source}: a graded-grid triangle has three path nodes near ({x:.6g}, {y:.6g})"
+        )
