@@ -305,15 +305,14 @@ def build(
     s = graded_sizes(contour.points, local_sizes(contour), growth) * factor
     xmin, ymin, xmax, ymax = box
     w, h = xmax - xmin, ymax - ymin
-    nx, ny, root = root_cells(w, h, max_h, exact=box_given)
-    top = max(0, math.ceil(math.log2(root / (SPLIT_ABOVE * float(s.min())))))
+    nx, ny, top, h0 = root_cells(w, h, float(s.min()), max_h, exact=box_given)
     if box_given:
         hx, hy = w / (nx * 2**top), h / (ny * 2**top)
         x0, y0 = xmin, ymin
     else:
-        hx = hy = root / 2**top
-        x0 = xmin - (nx * root - w) / 2
-        y0 = ymin - (ny * root - h) / 2
+        hx = hy = h0
+        x0 = xmin - (nx * 2**top * h0 - w) / 2
+        y0 = ymin - (ny * 2**top * h0 - h) / 2
     i, j = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
     tree = Quadtree(
         x0, y0, hx, hy, top, nx, ny,
@@ -323,29 +322,39 @@ def build(
     return balance(tree)
 
 
+#: Root cells along the box's shorter side: at least this many, so that the finest
+#: cell can be sized to within ``1 / (2 * ROOTS)`` of the smallest local size.
+ROOTS = 8
+
 #: A given box may stretch the cells along one axis by at most this fraction.
-MAX_STRETCH = 0.05
+MAX_STRETCH = 1.0 / (2 * ROOTS) + 1e-9
 
 
 def root_cells(
-    w: float, h: float, max_h: float | None = None, exact: bool = False
-) -> tuple[int, int, float]:
-    """``(nx, ny, side)``: root cells tiling a ``w`` by ``h`` box, as few as keep each
-    no larger than ``max_h`` and, for an ``exact`` box, their two sides within
-    :data:`MAX_STRETCH` of each other (otherwise the box grows to fit them)."""
+    w: float, h: float, target: float, max_h: float | None = None, exact: bool = False
+) -> tuple[int, int, int, float]:
+    """``(nx, ny, top, h0)``: root cells of ``2**top`` finest cells of side ``h0`` about
+    ``target``, tiling a ``w`` by ``h`` box.
+
+    At least :data:`ROOTS` root cells along the shorter side (and none larger than
+    ``max_h``).  For an ``exact`` box the root cells divide it, so ``h0`` is within
+    ``1 / (2 * ROOTS)`` of ``target`` and the two axes within :data:`MAX_STRETCH`;
+    otherwise ``h0`` is ``target`` and the box is to grow to a whole number of root
+    cells (less than one root cell more along each axis).
+    """
     short, long_ = min(w, h), max(w, h)
-    n = 1 if max_h is None else max(1, math.ceil(short / max_h - 1e-9))
-    while True:
+    top = max(0, math.floor(math.log2(short / (ROOTS * target))))
+    if max_h is not None:
+        while top > 0 and target * 2**top > max_h:
+            top -= 1
+    if exact:
+        n = max(1, round(short / (target * 2**top)))
         side = short / n
-        m = max(1, round(long_ / side)) if exact else max(1, math.ceil(long_ / side - 1e-9))
-        if not exact or abs(long_ / m / side - 1) <= MAX_STRETCH:
-            break
-        n += 1
-    if max_h is not None and exact:
-        while long_ / m > max_h * (1 + MAX_STRETCH):
-            m += 1
-    nx, ny = (m, n) if w >= h else (n, m)
-    return nx, ny, side
+        m = max(1, round(long_ / side))
+        nx, ny = (m, n) if w >= h else (n, m)
+        return nx, ny, top, side / 2**top
+    side = target * 2**top
+    return max(1, math.ceil(w / side - 1e-9)), max(1, math.ceil(h / side - 1e-9)), top, target
 
 
 def refine(
