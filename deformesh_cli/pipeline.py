@@ -80,18 +80,20 @@ def candidate_selections(
     mode = grid_mode(contour, o.grid, o.h, o.exterior)
     fell_back = None
     if mode == "graded":
-        try:
-            yield select_graded(
-                contour,
-                box=o.box,
-                margin=o.margin,
-                exterior=o.exterior,
-                max_nodes=o.max_nodes,
-            )
-            fell_back = "the graded grid's deformation folded"
-        except (SelectionError, LimitError) as exc:
-            why = str(exc).removeprefix(f"{contour.source}: ")
-            fell_back = f"the graded grid did not work here ({why})"
+        for slide in (False, True):
+            try:
+                yield select_graded(
+                    contour,
+                    box=o.box,
+                    margin=o.margin,
+                    exterior=o.exterior,
+                    max_nodes=o.max_nodes,
+                    slide=slide,
+                )
+                fell_back = "the graded grid's deformation folded"
+            except (SelectionError, LimitError) as exc:
+                why = str(exc).removeprefix(f"{contour.source}: ")
+                fell_back = f"the graded grid did not work here ({why})"
         mode = grid_mode(contour, "auto", o.h, o.exterior)
     for sel in _ungraded(contour, o, mode):
         if fell_back is not None:

@@ -230,11 +230,11 @@ def test_graded_exterior_and_size_function():
 
 
 def test_graded_falls_back_with_a_note():
-    """Where no path fits (here: a sharp trailing edge, whose cells must be thinner than
-    the points are apart), 'all' meshes on the other grids and says so."""
+    """Where no path fits (here: a blunt trailing edge 0.0025 thick between points far
+    more apart), 'all' meshes on the other grids and says so."""
     from deformesh_cli import mesh_contour
 
-    res = mesh_contour(load_contour(contour_file("naca0012_100.csv")), grid="graded")
+    res = mesh_contour(load_contour(SAMPLES / "naca0012.csv"), grid="graded")
     assert res.report["h_rule"] != "graded"
     assert res.report["notes"][0].startswith("the graded grid did not work here")
 
@@ -252,3 +252,28 @@ def test_graded_cli(run, tmp_path):
     r = run("select", SAMPLES / "peanut.csv", "--grid", "graded", "-o", tmp_path / "s")
     assert r.exit_code == 2 and "state files" in r.stderr
     assert not (tmp_path / "s").exists()
+
+
+@pytest.mark.parametrize(
+    "path,floor",
+    [
+        (contour_file("naca0012_100.csv"), 11.7),
+        (contour_file("naca0012_1000.csv"), 11.7),
+        (SAMPLES / "bracket.svg", 34.0),
+    ],  # fmt: skip
+    ids=lambda v: getattr(v, "name", str(v)),
+)
+def test_graded_slides_where_the_spacing_changes_fast(path, floor):
+    """Points clustered at an airfoil's ends, or long edges beside short ones: the path is
+    fitted to the points evenly re-spaced between corners and the deformation slides
+    each node to its point; still no extra node, and no worse angles than the other
+    grids give (floor: what the default grid gives today)."""
+    from deformesh_cli import mesh_contour
+
+    c = load_contour(path)
+    res = mesh_contour(c, grid="graded")
+    assert res.report["h_rule"] == "graded-slid"
+    assert res.report["extra_boundary_nodes"] == 0
+    assert res.report["min_angle"] >= floor
+    assert np.array_equal(res.mesh.points[: c.n], c.points)
+    assert res.mesh.n_nodes < mesh_contour(c).mesh.n_nodes

@@ -30,6 +30,7 @@ from ..contour import Contour
 from ..errors import SelectionError
 from ..geometry import signed_area
 from . import graded
+from .respace import path_arclengths, respace
 
 #: Nodes a contour point may take: the nearest this many.
 CANDIDATES = 9
@@ -126,7 +127,9 @@ class GradedSelection:
     path_rule: str = "graded"
     searched_further: int = 0
     refinements: int = 0
-    path_slide: None = None
+    #: (n_path, 2) arc lengths where each path node starts and ends its slide along the
+    #: contour (:mod:`.respace`), or None for straight moves
+    path_slide: np.ndarray | None = None
     _triangles: np.ndarray | None = field(default=None, init=False, repr=False)
 
     @property
@@ -151,8 +154,12 @@ class GradedSelection:
         return inside
 
     def band_nodes(self) -> np.ndarray | None:
-        """Nodes within :data:`BAND_HOPS` edges of the path, or None if half the grid."""
+        """Nodes within :data:`BAND_HOPS` edges of the path, or None if half the grid
+        (or the nodes slide along the contour, farther than a band would follow)."""
         import scipy.sparse as sp
+
+        if self.path_slide is not None:
+            return None
 
         tri = self.triangles()
         n = self.grid.n_nodes
@@ -174,8 +181,21 @@ def select_graded(
     exterior: bool = False,
     growth: float = graded.DEFAULT_GROWTH,
     max_nodes: int | None = None,
+    slide: bool = False,
 ) -> GradedSelection:
-    """Lay the graded grid over ``contour`` and fit each ring's path to its points."""
+    """Lay the graded grid over ``contour`` and fit each ring's path to its points.
+
+    ``slide``: fit the path to the contour's points evenly re-spaced between its
+    corners (:func:`.respace.respace`), and let the deformation slide each node along
+    the contour to its point, as the adapted grid does: for contours whose spacing
+    changes faster than the cells can follow.
+    """
+    rs = None
+    if slide:
+        rs = respace(contour)
+        if rs is None:
+            raise SelectionError(f"{contour.source}: the evenly re-spaced copy is not valid")
+        real, contour = contour, rs.copy
     s = graded.local_sizes(contour)
     lo, hi = contour.points.min(axis=0), contour.points.max(axis=0)
     given = box is not None
@@ -216,6 +236,18 @@ def select_graded(
         exterior=exterior,
     )
     _check(contour, sel)
+    if rs is not None:
+        s0, s1, sel.path_targets = path_arclengths(
+            rs, sel.path_source, sel.path_ring, sel.path_targets
+        )
+        sel.path_slide = np.column_stack([s0, s1])
+        sel.h_rule = "graded-slid"
+        sel.notes.insert(
+            0,
+            "graded grid on the points evenly re-spaced between corners; the deformation "
+            "slides each node along the contour to its point",
+        )
+        del real
     return sel
 
 
@@ -429,8 +461,8 @@ def _force_diagonals(contour, tree, lay, keys, path_nodes, path_ring) -> np.ndar
 
 
 def _check(contour: Contour, sel: GradedSelection) -> None:
-    """Each ring's path a simple counter-clockwise polygon, no triangle with three path
-    nodes."""
+    """Each ring's path a simple counter-clockwise polygon, no triangle with three
+    consecutive path nodes."""
     p = sel.grid.points
     for r in np.unique(sel.path_ring):
         ring = p[sel.path_nodes[sel.path_ring == r]]
@@ -439,12 +471,26 @@ def _check(contour: Contour, sel: GradedSelection) -> None:
                 f"{contour.source}: the graded-grid path of {contour.ring_labels[r]} is not a "
                 "simple counter-clockwise ring"
             )
-    on = np.zeros(sel.grid.n_nodes, dtype=bool)
-    on[sel.path_nodes] = True
+    # a triangle of three consecutive path nodes collapses as the contour flattens
+    # there; three path nodes from two sides of a thin part span it, which is fine
+    n = sel.grid.n_nodes
+    pos = np.full(n, -1, dtype=np.int64)
+    ring_of = np.full(n, -1, dtype=np.int64)
+    size = np.zeros(n, dtype=np.int64)
+    for r in np.unique(sel.path_ring):
+        nodes = sel.path_nodes[sel.path_ring == r]
+        pos[nodes] = np.arange(len(nodes))
+        ring_of[nodes] = r
+        size[nodes] = len(nodes)
     tri = sel.triangles()
-    three = on[tri[:, 0]] & on[tri[:, 1]] & on[tri[:, 2]]
-    if three.any():
-        x, y = p[tri[np.argmax(three)]].mean(axis=0)
+    pt, rt = pos[tri], ring_of[tri]
+    on = (pt >= 0).all(axis=1) & (rt[:, 0] == rt[:, 1]) & (rt[:, 1] == rt[:, 2])
+    p, m = np.sort(pt[on], axis=1), size[tri[on, 0]]
+    span = np.minimum.reduce([p[:, 2] - p[:, 0], m - (p[:, 1] - p[:, 0]), m - (p[:, 2] - p[:, 1])])
+    ear = span <= 2
+    if ear.any():
+        x, y = sel.grid.points[tri[np.flatnonzero(on)[np.argmax(ear)]]].mean(axis=0)
         raise SelectionError(
-            f"{contour.source}: a graded-grid triangle has three path nodes near ({x:.6g}, {y:.6g})"
+            f"{contour.source}: a graded-grid triangle has three consecutive path nodes "
+            f"near ({x:.6g}, {y:.6g})"
         )
