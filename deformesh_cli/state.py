@@ -18,8 +18,10 @@ import numpy as np
 
 from . import __version__
 from .contour import Contour, make_contour
-from .errors import InputError, OptionError
+from .errors import InputError
 from .select import Grid, Selection
+from .select.graded import Quadtree
+from .select.graded_path import GradedGrid, GradedSelection
 
 FORMAT = "deformesh-state"
 VERSION = 3
@@ -52,18 +54,20 @@ class State:
 def dumps(state: State) -> bytes:
     """Serialise a state to bytes (deterministic)."""
     sel, g = state.selection, state.selection.grid
-    if not isinstance(g, Grid):
-        raise OptionError(
-            "the graded grid is not written to state files yet: mesh with 'deformesh all', "
-            "or select with --grid uniform or adapt"
-        )
+    graded = not isinstance(g, Grid)
+    if not graded:
+        grid_meta = {"x0": g.x0, "y0": g.y0, "hx": g.hx, "hy": g.hy, "nx": g.nx, "ny": g.ny}
+    else:
+        t = g.tree
+        grid_meta = {"kind": "graded", "x0": t.x0, "y0": t.y0, "hx": t.hx, "hy": t.hy,
+                     "nx": t.nx, "ny": t.ny, "top": t.top}  # fmt: skip
     meta = {
         "format": FORMAT,
         "version": VERSION,
         "stage": state.stage,
         "written_by": f"deformesh {__version__}",
         "source": state.contour.source,
-        "grid": {"x0": g.x0, "y0": g.y0, "hx": g.hx, "hy": g.hy, "nx": g.nx, "ny": g.ny},
+        "grid": grid_meta,
         "h": sel.h,
         "h_rule": sel.h_rule,
         "searched_further": sel.searched_further,
@@ -86,6 +90,8 @@ def dumps(state: State) -> bytes:
     }
     if sel.path_slide is not None:
         arrays["path_slide"] = sel.path_slide
+    if graded:
+        arrays.update(leaf_level=g.tree.level, leaf_i=g.tree.i, leaf_j=g.tree.j)
     if state.stage == "deformed":
         arrays["points"] = state.points
     buf = io.BytesIO()
@@ -129,6 +135,9 @@ def loads(data: bytes, name: str = "<state>", want: str | None = None) -> State:
         spec["points"] = ("f", 2, (2,))
     if "path_slide.npy" in zf.namelist():  # optional: an adapted grid's slide
         spec["path_slide"] = ("f", 2, (2,))
+    graded = isinstance(meta.get("grid"), dict) and meta["grid"].get("kind") == "graded"
+    if graded:  # the graded grid's leaves
+        spec.update(leaf_level=("i", 1, ()), leaf_i=("i", 1, ()), leaf_j=("i", 1, ()))
     arrays = {}
     try:
         for key, (kind, ndim, tail) in spec.items():
@@ -142,14 +151,19 @@ def loads(data: bytes, name: str = "<state>", want: str | None = None) -> State:
                 raise InputError(f"{name}: damaged state file ({key}: wrong type or shape)")
             arrays[key] = a
         g = meta["grid"]
-        grid = Grid(
-            float(g["x0"]),
-            float(g["y0"]),
-            float(g["hx"]),
-            float(g["hy"]),
-            int(g["nx"]),
-            int(g["ny"]),
-        )
+        if graded:
+            grid = _graded_grid(g, arrays, name)
+            cells = grid.tree.n_leaves
+        else:
+            grid = Grid(
+                float(g["x0"]),
+                float(g["y0"]),
+                float(g["hx"]),
+                float(g["hy"]),
+                int(g["nx"]),
+                int(g["ny"]),
+            )
+            cells = grid.nx * grid.ny
     except (KeyError, ValueError, TypeError, zipfile.BadZipFile, EOFError, OSError) as exc:
         raise InputError(f"{name}: damaged state file ({exc.__class__.__name__}: {exc})") from None
     n = grid.n_nodes
@@ -159,7 +173,7 @@ def loads(data: bytes, name: str = "<state>", want: str | None = None) -> State:
         and grid.ny >= 1
         and grid.hx > 0
         and grid.hy > 0
-        and len(arrays["diagonals"]) == grid.nx * grid.ny
+        and len(arrays["diagonals"]) == cells
         and len(arrays["path_targets"]) == p
         and len(arrays["path_source"]) == p
         and len(arrays["path_ring"]) == p
@@ -193,6 +207,21 @@ def loads(data: bytes, name: str = "<state>", want: str | None = None) -> State:
     src = arrays["path_source"]
     if src.max() >= contour.n or np.count_nonzero(src >= 0) != contour.n:
         raise InputError(f"{name}: inconsistent state file (path does not match the contour)")
+    if graded:
+        sel = GradedSelection(
+            grid,
+            arrays["path_nodes"].astype(np.int64),
+            arrays["path_targets"].astype(np.float64),
+            src.astype(np.int64),
+            arrays["path_ring"].astype(np.int64),
+            arrays["diagonals"].astype(np.uint8),
+            h=float(meta.get("h", grid.hx)),
+            exterior=bool(meta.get("exterior", False)),
+            notes=list(meta.get("notes", [])),
+            h_rule=str(meta.get("h_rule", "graded")),
+            path_slide=arrays.get("path_slide"),
+        )
+        return State(stage, contour, sel, arrays.get("points"), _options(meta, name))
     sel = Selection(
         grid=grid,
         path_nodes=arrays["path_nodes"].astype(np.int64),
@@ -209,7 +238,33 @@ def loads(data: bytes, name: str = "<state>", want: str | None = None) -> State:
         exterior=bool(meta.get("exterior", False)),
         path_slide=arrays.get("path_slide"),
     )
+    return State(stage, contour, sel, arrays.get("points"), _options(meta, name))
+
+
+def _options(meta: dict, name: str) -> dict:
     options = meta.get("options", {})
     if not isinstance(options, dict):
         raise InputError(f"{name}: inconsistent state file (options is not a mapping)")
-    return State(stage, contour, sel, arrays.get("points"), options)
+    return options
+
+
+def _graded_grid(g: dict, arrays: dict, name: str) -> GradedGrid:
+    """The graded grid of a state file: its quadtree's leaves, triangulated again."""
+    level, i, j = arrays["leaf_level"], arrays["leaf_i"], arrays["leaf_j"]
+    top, nx, ny = int(g["top"]), int(g["nx"]), int(g["ny"])
+    ok = (
+        len(level) == len(i) == len(j) >= 1
+        and min(top, nx, ny) >= 0 and nx >= 1 and ny >= 1 and top <= 60
+        and float(g["hx"]) > 0 and float(g["hy"]) > 0
+        and level.min() >= 0 and level.max() <= top
+        and (i >= 0).all() and (j >= 0).all()
+        and (i * 2**level < nx * 2**top).all() and (j * 2**level < ny * 2**top).all()
+        and int((4.0 ** level.astype(np.float64)).sum()) == nx * ny * 4**top
+    )  # fmt: skip
+    if not ok:
+        raise InputError(f"{name}: inconsistent state file (the graded grid's leaves)")
+    tree = Quadtree(
+        float(g["x0"]), float(g["y0"]), float(g["hx"]), float(g["hy"]), top, nx, ny,
+        level.astype(np.int64), i.astype(np.int64), j.astype(np.int64),
+    )  # fmt: skip
+    return GradedGrid(tree, tree.triangulate()[0])

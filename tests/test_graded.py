@@ -249,9 +249,38 @@ def test_graded_cli(run, tmp_path):
     assert rec["extra_boundary_nodes"] == 0 and rec["h_rule"] == "graded"
     r = run("all", SAMPLES / "peanut.csv", "--grid", "graded", "--h", "0.1", "-o", out)
     assert r.exit_code == 2 and "--h" in r.stderr
-    r = run("select", SAMPLES / "peanut.csv", "--grid", "graded", "-o", tmp_path / "s")
-    assert r.exit_code == 2 and "state files" in r.stderr
-    assert not (tmp_path / "s").exists()
+
+
+def test_graded_state_files_give_the_same_mesh(sh, tmp_path):
+    """select | deform | triangulate on the graded grid writes what all writes, and a
+    state file whose leaves do not tile the box is refused in one line."""
+    import io
+    import zipfile
+
+    src = contour_file("naca0012_100.csv")  # slid: the state carries path_slide too
+    sh(
+        f"deformesh select {src} --grid graded -o - -q | deformesh deform - -o s.state -q"
+        f" && deformesh triangulate s.state -o pipe.msh -q"
+        f" && deformesh all {src} --grid graded -o all.msh -q",
+        cwd=tmp_path,
+    )
+    assert (tmp_path / "pipe.msh").read_bytes() == (tmp_path / "all.msh").read_bytes()
+    data = (tmp_path / "s.state").read_bytes()
+    with zipfile.ZipFile(io.BytesIO(data)) as zin:
+        members = {n: zin.read(n) for n in zin.namelist()}
+    assert {"leaf_level.npy", "leaf_i.npy", "leaf_j.npy", "path_slide.npy"} <= set(members)
+    buf = io.BytesIO()
+    level = np.lib.format.read_array(io.BytesIO(members["leaf_level.npy"]))
+    b = io.BytesIO()
+    np.lib.format.write_array(b, level[:-1])  # one leaf missing: the box is not tiled
+    members["leaf_level.npy"] = b.getvalue()
+    with zipfile.ZipFile(buf, "w") as zout:
+        for n, v in members.items():
+            zout.writestr(n, v)
+    (tmp_path / "bad.state").write_bytes(buf.getvalue())
+    r = sh("deformesh triangulate bad.state -o bad.msh", cwd=tmp_path, check=False)
+    assert r.returncode == 1 and b"inconsistent state file" in r.stderr
+    assert r.stderr.count(b"\n") == 1 and not (tmp_path / "bad.msh").exists()
 
 
 @pytest.mark.parametrize(
