@@ -80,7 +80,10 @@ def candidate_selections(
     mode = grid_mode(contour, o.grid, o.h, o.exterior)
     fell_back = None
     if mode == "graded":
-        for slide in (False, True):
+        # as given, then slid, then (unless --strict) with extra boundary nodes
+        for slide, extra in ((False, False), (True, False), (False, True), (True, True)):
+            if extra and o.strict:
+                break
             try:
                 yield select_graded(
                     contour,
@@ -89,6 +92,7 @@ def candidate_selections(
                     exterior=o.exterior,
                     max_nodes=o.max_nodes,
                     slide=slide,
+                    extra=extra,
                 )
                 fell_back = "the graded grid's deformation folded"
             except (SelectionError, LimitError) as exc:

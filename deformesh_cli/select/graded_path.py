@@ -182,6 +182,7 @@ def select_graded(
     growth: float = graded.DEFAULT_GROWTH,
     max_nodes: int | None = None,
     slide: bool = False,
+    extra: bool = False,
 ) -> GradedSelection:
     """Lay the graded grid over ``contour`` and fit each ring's path to its points.
 
@@ -189,6 +190,11 @@ def select_graded(
     corners (:func:`.respace.respace`), and let the deformation slide each node along
     the contour to its point, as the adapted grid does: for contours whose spacing
     changes faster than the cells can follow.
+
+    ``extra``: where two consecutive points have no neighbouring candidates, let
+    the path step through one grid node between them, an extra boundary node on
+    that contour edge (each costs far more than any distance, so as few as
+    possible); without it, such a ring is a SelectionError.
     """
     rs = None
     if slide:
@@ -214,21 +220,24 @@ def select_graded(
     free[grid.boundary_nodes()] = False
     centres = np.searchsorted(keys, lay.key(lay.centre[~lay.plain]))
     free[centres] = False
-    nodes, sources, rings = [], [], []
+    hop2 = _two_steps(edges, len(points), free) if extra else None
+    nodes, sources, targets, rings = [], [], [], []
     for r in range(contour.n_rings):
         order = contour.ring_order(r)
-        path = _assign(contour, order, points, free, edges, turns, s[order])
+        path = _assign(contour, order, points, free, edges, turns, s[order], hop2)
+        path, src, tgt = _through(contour, order, path, points, free, edges)
         free[path] = False
         nodes.append(path)
-        sources.append(order)
-        rings.append(np.full(len(order), r))
+        sources.append(src)
+        targets.append(tgt)
+        rings.append(np.full(len(path), r))
     path_nodes = np.concatenate(nodes)
     path_ring = np.concatenate(rings)
     diagonals = _force_diagonals(contour, tree, lay, keys, path_nodes, path_ring)
     sel = GradedSelection(
         grid,
         path_nodes,
-        contour.points[np.concatenate(sources)],
+        np.concatenate(targets),
         np.concatenate(sources),
         path_ring,
         diagonals,
@@ -288,7 +297,57 @@ def _adjacent(edges: np.ndarray, n: int, a: np.ndarray, b: np.ndarray) -> np.nda
     return (edges[pos] == k) & (a != b)
 
 
-def _assign(contour, order, points, free, edges, turns, s) -> np.ndarray:
+def _two_steps(edges: np.ndarray, n: int, free: np.ndarray):
+    """The node pairs two grid edges apart through a ``free`` node (a sparse matrix)."""
+    import scipy.sparse as sp
+
+    lo, hi = edges // n, edges % n
+    a = sp.csr_matrix((np.ones(2 * len(lo), np.int32), (np.r_[lo, hi], np.r_[hi, lo])), (n, n))
+    two = (a @ sp.diags(free.astype(np.int32), dtype=np.int32) @ a).tocsr()
+    two.setdiag(0)
+    two.eliminate_zeros()
+    return two
+
+
+def _through(contour, order, path, points, free, edges):
+    """The ring's path with a grid node put between each two consecutive nodes that are
+    not neighbours (a common neighbour of both, free, nearest the contour edge's
+    middle): ``(nodes, sources, targets)``, -1 the source of an extra node, its
+    target the middle of its contour edge."""
+    n = len(points)
+    q = contour.points[order]
+    nxt = np.roll(path, -1)
+    gap = ~_adjacent(edges, n, path, nxt)
+    if not gap.any():
+        return path, order, q
+    lo, hi = edges // n, edges % n
+    taken = set(path.tolist())
+    nodes, sources, targets = [], [], []
+    for t in range(len(path)):
+        nodes.append(path[t])
+        sources.append(order[t])
+        targets.append(q[t])
+        if not gap[t]:
+            continue
+        a, b = path[t], nxt[t]
+        na = set(hi[lo == a].tolist()) | set(lo[hi == a].tolist())
+        nb = set(hi[lo == b].tolist()) | set(lo[hi == b].tolist())
+        common = [w for w in na & nb if free[w] and w not in taken]
+        mid = (q[t] + q[(t + 1) % len(q)]) / 2
+        if not common:
+            raise SelectionError(
+                f"{contour.source}: no free grid node between the nodes of "
+                f"{contour.where(int(order[t]))} and the next point"
+            )
+        w = min(common, key=lambda w: float(np.hypot(*(points[w] - mid))))
+        taken.add(w)
+        nodes.append(w)
+        sources.append(-1)
+        targets.append(mid)
+    return np.array(nodes, np.int64), np.array(sources, np.int64), np.array(targets)
+
+
+def _assign(contour, order, points, free, edges, turns, s, hop2=None) -> np.ndarray:
     """One node per point of a ring (in ``order``), consecutive ones adjacent, the
     least summed squared distance over the local size; see the module's docstring."""
     from scipy.spatial import cKDTree
@@ -302,7 +361,7 @@ def _assign(contour, order, points, free, edges, turns, s) -> np.ndarray:
     cand = idx[near.reshape(m, k)]
     cost = (dist.reshape(m, k) / s[:, None]) ** 2
     for _ in range(MAX_ROUNDS):
-        path = _viterbi2(cand, cost, edges, turns, n)
+        path = _viterbi2(cand, cost, edges, turns, n, hop2)
         if path is None:
             raise SelectionError(
                 f"{contour.source}: no graded-grid path gives every point of "
@@ -325,7 +384,12 @@ def _assign(contour, order, points, free, edges, turns, s) -> np.ndarray:
 STARTS = 3
 
 
-def _viterbi2(cand, cost, edges, turns, n) -> np.ndarray | None:
+#: What an extra boundary node costs in the assignment (its points' squared distances,
+#: in units of their local sizes, are at most a few).
+EXTRA_COST = 1e3
+
+
+def _viterbi2(cand, cost, edges, turns, n, hop2=None) -> np.ndarray | None:
     """The cheapest closed sequence of candidates with consecutive ones adjacent and no
     step ``a -> b -> c`` whose ends ``a`` and ``c`` are adjacent too (it would cut a
     corner: a triangle of three path nodes, or a cell needing both diagonals), but an
@@ -343,6 +407,18 @@ def _viterbi2(cand, cost, edges, turns, n) -> np.ndarray | None:
     c = np.broadcast_to(nxt[:, None, None, :], (m, k, k, k)).ravel()
     cut = (_adjacent(edges, n, a, c) | (a == c)) & ~_l_turn(a, b, c, turns, n)
     ok3 = ~cut.reshape(m, k, k, k)  # ok3[t, i, j, l]: cand[t-1, i], cand[t, j], cand[t+1, l]
+    jump = np.zeros((m, k, k))  # the cost of a step through one extra node
+    if hop2 is not None:
+        aa = np.repeat(cand, k, axis=1).ravel()
+        bb = np.tile(nxt, (1, k)).ravel()
+        two = np.asarray(hop2[aa, bb]).ravel().reshape(m, k, k) > 0
+        through = ~step & two
+        jump = np.where(through, EXTRA_COST, 0.0)
+        # a step through a node cuts no corner the triple test would see: allow the
+        # triples on either side of it (the path is checked whole afterwards)
+        ok3 |= through[:, None, :, :]
+        ok3 |= np.roll(through, 1, axis=0)[:, :, :, None]
+        step = step | two
     starts = [(x0, x1) for x0 in np.argsort(cost[0])[:STARTS] for x1 in range(k)]
     starts = [(x0, x1) for x0, x1 in starts if np.isfinite(cost[0, x0]) and step[0, x0, x1]]
     if not starts or m < 3:
@@ -351,11 +427,11 @@ def _viterbi2(cand, cost, edges, turns, n) -> np.ndarray | None:
     s1 = np.array([y for _, y in starts])
     ns = len(starts)
     d = np.full((ns, k, k), inf)  # d[s, i, j]: point t - 1 on i, point t on j
-    d[np.arange(ns), s0, s1] = cost[0, s0] + cost[1, s1]
+    d[np.arange(ns), s0, s1] = cost[0, s0] + cost[1, s1] + jump[0, s0, s1]
     back = np.empty((m, ns, k, k), dtype=np.int8)
     for t in range(1, m - 1):
         allowed = ok3[t] & step[t][None, :, :]  # (i, j, l)
-        tot = np.where(allowed[None], d[:, :, :, None], inf)  # (s, i, j, l)
+        tot = np.where(allowed[None], d[:, :, :, None] + jump[t][None, None], inf)
         i = np.argmin(tot, axis=1)  # (s, j, l)
         back[t + 1] = i
         d = np.take_along_axis(tot, i[:, None, :, :], axis=1)[:, 0] + cost[t + 1][None, None, :]
@@ -366,7 +442,7 @@ def _viterbi2(cand, cost, edges, turns, n) -> np.ndarray | None:
         x0, x1 = s0[si], s1[si]
         close[si] = np.where(
             step[last][None, :, x0] & ok3[last][:, :, x0] & ok3[0][:, x0, x1][None, :],
-            close[si],
+            close[si] + jump[last][None, :, x0],
             inf,
         )
     si, i, j = np.unravel_index(int(np.argmin(close)), close.shape)
