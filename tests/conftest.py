@@ -73,3 +73,19 @@ def sh():
         return r
 
     return _sh
+
+
+def solver_read(path):
+    """What the solvers users feed see in a .msh file: the gmsh Python module's physical
+    groups (name -> dimension) and the scikit-fem mesh it loads."""
+    import gmsh  # the test extra installs both
+    import skfem
+
+    gmsh.initialize()
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.open(str(path))
+        phys = {gmsh.model.getPhysicalName(d, t): d for d, t in gmsh.model.getPhysicalGroups()}
+    finally:
+        gmsh.finalize()
+    return phys, skfem.MeshTri.load(str(path))

@@ -13,7 +13,7 @@ from deformesh_cli.quality import measures
 from deformesh_cli.readers import load_contour
 from deformesh_cli.select import graded
 
-from .conftest import SAMPLES, contour_file
+from .conftest import SAMPLES, contour_file, solver_read
 from .test_properties import star_polygons
 
 CONTOURS = [
@@ -316,9 +316,6 @@ def test_graded_far_field_opens_in_gmsh_and_scikit_fem(run, tmp_path, box):
     remain on the airfoil, reported; the 101 x 100 box finds no path yet.)"""
     import json
 
-    import gmsh
-    import skfem
-
     out = tmp_path / "far.msh"
     arg = "--box=" + ",".join(str(v) for v in box)
     r = run("all", SAMPLES / "naca0012.csv", "--grid", "graded", "--exterior", arg,
@@ -329,14 +326,7 @@ def test_graded_far_field_opens_in_gmsh_and_scikit_fem(run, tmp_path, box):
     assert rec["nodes"] < 3 * 700  # Triangle pq30Y: 654 and 668 nodes on these boxes
     c = load_contour(SAMPLES / "naca0012.csv")
     assert rec["area"] == pytest.approx((box[2] - box[0]) * (box[3] - box[1]) - c.area, rel=1e-12)
-    gmsh.initialize()
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.open(str(out))
-        phys = {gmsh.model.getPhysicalName(d, t): d for d, t in gmsh.model.getPhysicalGroups()}
-    finally:
-        gmsh.finalize()
+    phys, sk = solver_read(out)
     assert phys == {"contour": 1, "bottom": 1, "right": 1, "top": 1, "left": 1, "domain": 2}
-    sk = skfem.MeshTri.load(str(out))
     assert set(sk.boundaries) == {"contour", "bottom", "right", "top", "left"}
     assert len(sk.boundaries["contour"]) == c.n + rec["extra_boundary_nodes"]

@@ -14,7 +14,7 @@ from deformesh_cli.mesh import Mesh
 from deformesh_cli.quality import check_contract
 from deformesh_cli.readers import load_contour, parse_csv
 
-from .conftest import contour_file
+from .conftest import contour_file, solver_read
 
 
 def _circle(cx, cy, r, n, cw=False):
@@ -110,20 +110,8 @@ def test_exterior_airfoil_in_a_far_field_box(run, tmp_path):
     assert groups == ("contour", "bottom", "right", "top", "left")
     assert rec["area"] == pytest.approx(20 - c.area, rel=1e-12)
 
-    import gmsh  # the test extra installs it
-
-    gmsh.initialize()
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.open(str(out))
-        phys = {gmsh.model.getPhysicalName(d, t): d for d, t in gmsh.model.getPhysicalGroups()}
-    finally:
-        gmsh.finalize()
+    phys, sk = solver_read(out)
     assert phys == {"contour": 1, "bottom": 1, "right": 1, "top": 1, "left": 1, "domain": 2}
-
-    import skfem
-
-    sk = skfem.MeshTri.load(str(out))
     assert set(sk.boundaries) == {"contour", "bottom", "right", "top", "left"}
     assert set(sk.subdomains) == {"domain"}
     # the contour's boundary facets are exactly the airfoil's edges (with extra nodes)
