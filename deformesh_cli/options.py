@@ -21,6 +21,7 @@ from typing import Any
 from .deform import DEFAULT_STEPS, SOLVERS, SOLVES
 from .formats import FORMATS, MSH_VERSIONS
 from .select import DEFAULT_MAX_NODES, GRIDS
+from .select.graded import DEFAULT_GROWTH
 
 #: The kinds of value a field's ``kind`` metadata names (the command line checks them):
 #: ``text``, ``flag`` (``--x``), ``switch`` (``--x/--no-x``), ``choice`` (one of
@@ -124,6 +125,18 @@ class MeshOptions:
         "choice",
         choices=GRIDS,
     )
+    growth: float = _opt(
+        DEFAULT_GROWTH,
+        "Graded grid: how fast cells grow away from the contour (a cell at distance d "
+        "from a point of local size s is at most s + (GROWTH - 1) d wide).",
+        "positive",
+    )
+    max_h: float | None = _opt(
+        None,
+        "Graded grid: the largest cell. Default: as large as the box allows.",
+        "positive",
+        metavar="H",
+    )
     # stage 2: deform
     steps: int = _opt(DEFAULT_STEPS, _STEPS_HELP, "count", min=1)
     solver: str = _opt("auto", _SOLVER_HELP, "choice", choices=SOLVERS)
@@ -182,7 +195,17 @@ class MeshOptions:
 #: Which fields each stage reads.
 STAGES: dict[str, tuple[str, ...]] = {
     "read": ("decimal", "tolerance", "element_id", "resample"),
-    "select": ("h", "box", "margin", "strict", "max_nodes", "exterior", "grid"),
+    "select": (
+        "h",
+        "box",
+        "margin",
+        "strict",
+        "max_nodes",
+        "exterior",
+        "grid",
+        "growth",
+        "max_h",
+    ),  # fmt: skip
     "deform": ("steps", "solver", "solve", "size", "size_field"),
     "triangulate": ("improve",),
     "write": ("fmt", "msh_version"),

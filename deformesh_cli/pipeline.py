@@ -93,6 +93,8 @@ def candidate_selections(
                     max_nodes=o.max_nodes,
                     slide=slide,
                     extra=extra,
+                    growth=o.growth,
+                    max_h=o.max_h,
                 )
                 fell_back = "the graded grid's deformation folded"
             except (SelectionError, LimitError) as exc:

@@ -330,3 +330,17 @@ def test_graded_far_field_opens_in_gmsh_and_scikit_fem(run, tmp_path, box):
     assert phys == {"contour": 1, "bottom": 1, "right": 1, "top": 1, "left": 1, "domain": 2}
     assert set(sk.boundaries) == {"contour", "bottom", "right", "top", "left"}
     assert len(sk.boundaries["contour"]) == c.n + rec["extra_boundary_nodes"]
+
+
+def test_growth_and_max_h_shape_the_graded_grid():
+    from deformesh_cli import mesh_contour
+    from deformesh_cli.errors import OptionError
+
+    c = load_contour(contour_file("circle_1000.csv"))
+    nodes = [mesh_contour(c, grid="graded", growth=g).mesh.n_nodes for g in (1.5, 2.0, 3.0)]
+    assert nodes[0] > nodes[1] > nodes[2]  # faster growth: fewer nodes away from the contour
+    res = mesh_contour(c, grid="graded", max_h=0.1)
+    assert res.selection.grid.tree.sizes().max() <= 0.1 * (1 + graded.MAX_STRETCH)
+    assert res.mesh.n_nodes > nodes[1]
+    with pytest.raises(OptionError, match="--growth"):
+        mesh_contour(c, grid="graded", growth=1.0)

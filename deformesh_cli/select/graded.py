@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..contour import Contour
-from ..errors import LimitError
+from ..errors import LimitError, OptionError
 
 #: Default growth: how much larger a cell may be than the contour's local size
 #: per cell width of distance (a size field ``s_q + (growth - 1) |x - q|``).
@@ -301,6 +301,8 @@ def build(
     its centre, so cells are square; a given box is kept and the finest cell
     stretched along one axis to fit.
     """
+    if not growth > 1.0:
+        raise OptionError(f"--growth must be > 1 (cells grow away from the contour), got {growth}")
     factor = CELL_FACTOR if factor is None else factor
     s = graded_sizes(contour.points, local_sizes(contour), growth) * factor
     xmin, ymin, xmax, ymax = box

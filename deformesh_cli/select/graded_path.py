@@ -183,6 +183,7 @@ def select_graded(
     max_nodes: int | None = None,
     slide: bool = False,
     extra: bool = False,
+    max_h: float | None = None,
 ) -> GradedSelection:
     """Lay the graded grid over ``contour`` and fit each ring's path to its points.
 
@@ -209,7 +210,9 @@ def select_graded(
         if margin is None:
             margin = float((hi - lo).max()) if exterior else 3.0 * float(s.max())
         box = (lo[0] - margin, lo[1] - margin, hi[0] + margin, hi[1] + margin)
-    tree = graded.build(contour, box, growth=growth, box_given=given, max_nodes=max_nodes)
+    tree = graded.build(
+        contour, box, growth=growth, max_h=max_h, box_given=given, max_nodes=max_nodes
+    )
     lay = tree.layout()
     points, tri0, cell0 = tree.triangulate()
     keys = tree.node_keys()
