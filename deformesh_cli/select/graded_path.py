@@ -513,12 +513,22 @@ def _force_diagonals(contour, tree, lay, keys, path_nodes, path_ring) -> np.ndar
         for leaf, node in zip(plain, c[:, col]):
             corner_of[(leaf, int(node))] = d
 
-    def want(leaf, d, where):
+    turn_only = np.zeros(n_leaves, dtype=bool)  # forced by L-turns alone
+
+    def want(leaf, d, where, turn=False):
+        if force[leaf] >= 0 and force[leaf] != d and turn and turn_only[leaf]:
+            return  # a U-turn (three sides of one cell): either split leaves one ear
+        if force[leaf] >= 0 and force[leaf] != d and not turn and turn_only[leaf]:
+            turn_only[leaf] = False  # a diagonal step decides
+            force[leaf] = d
+            return
         if force[leaf] >= 0 and force[leaf] != d:
             raise SelectionError(
                 f"{contour.source}: the graded-grid path needs both diagonals of one cell "
                 f"near {where}"
             )
+        if force[leaf] < 0:
+            turn_only[leaf] = turn
         force[leaf] = d
 
     for r in np.unique(path_ring):
@@ -533,10 +543,31 @@ def _force_diagonals(contour, tree, lay, keys, path_nodes, path_ring) -> np.ndar
             s1 = side_leaves.get((min(a, b), max(a, b)), [])
             s2 = side_leaves.get((min(b, cc), max(b, cc)), [])
             for leaf in set(s1) & set(s2):
-                want(leaf, corner_of[(leaf, int(b))], f"path node {t} of ring {r}")
+                want(leaf, corner_of[(leaf, int(b))], f"path node {t} of ring {r}", turn=True)
     out = np.zeros(n_leaves, dtype=np.uint8)
     out[force >= 0] = force[force >= 0]
     return out
+
+
+def _fair_ears(sel: GradedSelection, ears: np.ndarray) -> np.ndarray:
+    """Per ear triangle (three consecutive path nodes): its three targets make a
+    triangle of the same orientation with no angle under :data:`EAR_ANGLE`."""
+    where = np.full(sel.grid.n_nodes, -1, dtype=np.int64)
+    where[sel.path_nodes] = np.arange(len(sel.path_nodes))
+    q = sel.path_targets[where[ears]]  # (e, 3, 2)
+    from ..geometry import signed_areas
+    from ..quality import measures
+
+    flat = q.reshape(-1, 2)
+    t = np.arange(len(flat)).reshape(-1, 3)
+    area = signed_areas(flat, t)
+    smallest = measures(flat, t)[0]
+    return (area > 0) & (smallest >= EAR_ANGLE)
+
+
+#: An ear left by a U-turn is accepted when its contour points' triangle has no angle
+#: under this (degrees).
+EAR_ANGLE = 10.0
 
 
 def _check(contour: Contour, sel: GradedSelection) -> None:
@@ -567,6 +598,11 @@ def _check(contour: Contour, sel: GradedSelection) -> None:
     p, m = np.sort(pt[on], axis=1), size[tri[on, 0]]
     span = np.minimum.reduce([p[:, 2] - p[:, 0], m - (p[:, 1] - p[:, 0]), m - (p[:, 2] - p[:, 1])])
     ear = span <= 2
+    if ear.any():
+        # an ear whose three contour points make a proper triangle turning the same way
+        # (a U-turn at the end of a strip) keeps its area as the path lands on them
+        idx = np.flatnonzero(on)[ear]
+        ear[ear] = ~_fair_ears(sel, tri[idx])
     if ear.any():
         x, y = sel.grid.points[tri[np.flatnonzero(on)[np.argmax(ear)]]].mean(axis=0)
         raise SelectionError(
