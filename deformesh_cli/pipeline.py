@@ -80,9 +80,10 @@ def candidate_selections(
     mode = grid_mode(contour, o.grid, o.h, o.exterior)
     fell_back = None
     if mode == "graded":
-        # as given, then slid, then (unless --strict) with extra boundary nodes
+        # as given, then slid; for a far field (which the other grids would mesh with
+        # one step for the whole box) then with extra boundary nodes, unless --strict
         for slide, extra in ((False, False), (True, False), (False, True), (True, True)):
-            if extra and o.strict:
+            if extra and (o.strict or not o.exterior):
                 break
             try:
                 yield select_graded(

@@ -223,7 +223,7 @@ def select_graded(
     free[grid.boundary_nodes()] = False
     centres = np.searchsorted(keys, lay.key(lay.centre[~lay.plain]))
     free[centres] = False
-    hop2 = _two_steps(edges, len(points), free) if extra else None
+    hop2 = _hops(edges, len(points), free) if extra else None
     nodes, sources, targets, rings = [], [], [], []
     for r in range(contour.n_rings):
         order = contour.ring_order(r)
@@ -300,23 +300,37 @@ def _adjacent(edges: np.ndarray, n: int, a: np.ndarray, b: np.ndarray) -> np.nda
     return (edges[pos] == k) & (a != b)
 
 
-def _two_steps(edges: np.ndarray, n: int, free: np.ndarray):
-    """The node pairs two grid edges apart through a ``free`` node (a sparse matrix)."""
+#: The most grid edges one contour edge may take (so at most this less one extra
+#: boundary nodes on it).
+MAX_HOPS = 3
+
+
+def _hops(edges: np.ndarray, n: int, free: np.ndarray):
+    """A sparse matrix: for two nodes 2 to :data:`MAX_HOPS` grid edges apart through
+    ``free`` nodes, that number of edges (0 elsewhere)."""
     import scipy.sparse as sp
 
     lo, hi = edges // n, edges % n
     a = sp.csr_matrix((np.ones(2 * len(lo), np.int32), (np.r_[lo, hi], np.r_[hi, lo])), (n, n))
-    two = (a @ sp.diags(free.astype(np.int32), dtype=np.int32) @ a).tocsr()
-    two.setdiag(0)
-    two.eliminate_zeros()
-    return two
+    through = sp.diags(free.astype(np.int32), dtype=np.int32)
+    reach = (a > 0).astype(np.int32)
+    seen = reach.copy()
+    out = sp.csr_matrix((n, n), dtype=np.int32)
+    for k in range(2, MAX_HOPS + 1):
+        reach = ((reach @ through @ a) > 0).astype(np.int32)
+        new = reach - reach.multiply(seen)
+        new.setdiag(0)
+        new.eliminate_zeros()
+        out = out + k * new
+        seen = ((seen + reach) > 0).astype(np.int32)
+    return out.tocsr()
 
 
 def _through(contour, order, path, points, free, edges):
-    """The ring's path with a grid node put between each two consecutive nodes that are
-    not neighbours (a common neighbour of both, free, nearest the contour edge's
-    middle): ``(nodes, sources, targets)``, -1 the source of an extra node, its
-    target the middle of its contour edge."""
+    """The ring's path with the fewest free grid nodes put between each two consecutive
+    nodes that are not neighbours (at most :data:`MAX_HOPS` edges, nearest the contour
+    edge): ``(nodes, sources, targets)``, -1 the source of an extra node, the extra
+    nodes' targets evenly spaced on their contour edge."""
     n = len(points)
     q = contour.points[order]
     nxt = np.roll(path, -1)
@@ -324,6 +338,10 @@ def _through(contour, order, path, points, free, edges):
     if not gap.any():
         return path, order, q
     lo, hi = edges // n, edges % n
+    neighbours: dict[int, list[int]] = {}
+    for x, y in zip(lo.tolist(), hi.tolist()):
+        neighbours.setdefault(x, []).append(y)
+        neighbours.setdefault(y, []).append(x)
     taken = set(path.tolist())
     nodes, sources, targets = [], [], []
     for t in range(len(path)):
@@ -332,22 +350,47 @@ def _through(contour, order, path, points, free, edges):
         targets.append(q[t])
         if not gap[t]:
             continue
-        a, b = path[t], nxt[t]
-        na = set(hi[lo == a].tolist()) | set(lo[hi == a].tolist())
-        nb = set(hi[lo == b].tolist()) | set(lo[hi == b].tolist())
-        common = [w for w in na & nb if free[w] and w not in taken]
-        mid = (q[t] + q[(t + 1) % len(q)]) / 2
-        if not common:
+        a, b = int(path[t]), int(nxt[t])
+        qa, qb = q[t], q[(t + 1) % len(q)]
+        route = _route(a, b, neighbours, free, taken, points, qa, qb)
+        if route is None:
             raise SelectionError(
-                f"{contour.source}: no free grid node between the nodes of "
+                f"{contour.source}: no free grid nodes between the nodes of "
                 f"{contour.where(int(order[t]))} and the next point"
             )
-        w = min(common, key=lambda w: float(np.hypot(*(points[w] - mid))))
-        taken.add(w)
-        nodes.append(w)
-        sources.append(-1)
-        targets.append(mid)
+        for j, w in enumerate(route, start=1):
+            taken.add(w)
+            nodes.append(w)
+            sources.append(-1)
+            targets.append(qa + (qb - qa) * j / (len(route) + 1))
     return np.array(nodes, np.int64), np.array(sources, np.int64), np.array(targets)
+
+
+def _route(a, b, neighbours, free, taken, points, qa, qb) -> list[int] | None:
+    """The intermediate nodes of the shortest route from ``a`` to ``b`` through free,
+    untaken nodes (at most :data:`MAX_HOPS` + 2 edges: the assignment counted routes
+    of up to :data:`MAX_HOPS` without the nodes taken since), the one nearest the
+    segment ``qa - qb`` among the shortest."""
+    d = qb - qa
+    length2 = float(d @ d) or 1.0
+
+    def off(w):
+        u = min(max(float((points[w] - qa) @ d) / length2, 0.0), 1.0)
+        return float(np.hypot(*(points[w] - (qa + u * d))))
+
+    frontier = [[a]]
+    for _ in range(MAX_HOPS + 1):  # (a route may have to go round nodes already taken)
+        grown = []
+        for route in frontier:
+            for w in neighbours.get(route[-1], []):
+                if free[w] and w not in taken and w not in route:
+                    grown.append([*route, w])
+        done = [r for r in grown if b in neighbours.get(r[-1], [])]
+        if done:
+            best = min(done, key=lambda r: sum(off(w) for w in r[1:]))
+            return best[1:]
+        frontier = grown
+    return None
 
 
 def _assign(contour, order, points, free, edges, turns, s, hop2=None) -> np.ndarray:
@@ -414,9 +457,10 @@ def _viterbi2(cand, cost, edges, turns, n, hop2=None) -> np.ndarray | None:
     if hop2 is not None:
         aa = np.repeat(cand, k, axis=1).ravel()
         bb = np.tile(nxt, (1, k)).ravel()
-        two = np.asarray(hop2[aa, bb]).ravel().reshape(m, k, k) > 0
+        hops = np.asarray(hop2[aa, bb]).ravel().reshape(m, k, k)
+        two = hops > 0
         through = ~step & two
-        jump = np.where(through, EXTRA_COST, 0.0)
+        jump = np.where(through, EXTRA_COST * (hops - 1), 0.0)
         # a step through a node cuts no corner the triple test would see: allow the
         # triples on either side of it (the path is checked whole afterwards)
         ok3 |= through[:, None, :, :]
