@@ -6,17 +6,24 @@ every ring is assigned at once: each point may take one of the
 :data:`CANDIDATES` nodes nearest to it (cell corners and side midpoints, not
 the box and not another ring's), consecutive points must take two nodes
 joined by a grid edge (a cell side, or either diagonal of a leaf without a
-finer neighbour), and among those assignments the one with the least summed
-squared distance, in units of each point's local size, is found by dynamic
-programming around the ring.  A node taken twice is given to the nearer
-point and the ring assigned again.
+finer neighbour), and no step may cut a corner (its two neighbours joined by
+an edge too: three consecutive path nodes in one triangle) but an L-turn
+along two sides of a leaf.  Among those assignments the one with the least
+summed squared distance, in units of each point's local size, is found by
+dynamic programming over pairs of consecutive candidates.  A node taken
+twice is given to the nearer point and the ring assigned again.
 
 Then the path fixes the leaves' diagonals: a diagonal step forces its leaf's
 diagonal, and an L-turn along two sides of a leaf forces the diagonal through
-the corner, so no triangle has three path nodes.  Anything that cannot be
-met (no assignment, two forced diagonals in one leaf, a path that is not a
-simple counter-clockwise ring) is a :class:`~deformesh_cli.errors.SelectionError`,
-and the caller falls back to the other grids.
+the corner (a U-turn along three sides takes either and leaves one ear,
+accepted when its contour points make a fair triangle).
+
+``slide``: the path is fitted to the points evenly re-spaced between
+corners and the deformation slides each node to its point, as on the
+adapted grid.  ``extra``: a step may go through up to two grid nodes, extra
+boundary nodes on that contour edge.  Anything that cannot be met is a
+:class:`~deformesh_cli.errors.SelectionError`, and the caller falls back to
+the other grids.
 """
 
 from __future__ import annotations
@@ -202,7 +209,7 @@ def select_graded(
         rs = respace(contour)
         if rs is None:
             raise SelectionError(f"{contour.source}: the evenly re-spaced copy is not valid")
-        real, contour = contour, rs.copy
+        contour = rs.copy  # the path is fitted to the copy; targets go back to the points
     s = graded.local_sizes(contour)
     lo, hi = contour.points.min(axis=0), contour.points.max(axis=0)
     given = box is not None
@@ -259,7 +266,6 @@ def select_graded(
             "graded grid on the points evenly re-spaced between corners; the deformation "
             "slides each node along the contour to its point",
         )
-        del real
     return sel
 
 
@@ -407,7 +413,7 @@ def _assign(contour, order, points, free, edges, turns, s, hop2=None) -> np.ndar
     cand = idx[near.reshape(m, k)]
     cost = (dist.reshape(m, k) / s[:, None]) ** 2
     for _ in range(MAX_ROUNDS):
-        path = _viterbi2(cand, cost, edges, turns, n, hop2)
+        path = _viterbi(cand, cost, edges, turns, n, hop2)
         if path is None:
             raise SelectionError(
                 f"{contour.source}: no graded-grid path gives every point of "
@@ -435,7 +441,7 @@ STARTS = 3
 EXTRA_COST = 1e3
 
 
-def _viterbi2(cand, cost, edges, turns, n, hop2=None) -> np.ndarray | None:
+def _viterbi(cand, cost, edges, turns, n, hop2=None) -> np.ndarray | None:
     """The cheapest closed sequence of candidates with consecutive ones adjacent and no
     step ``a -> b -> c`` whose ends ``a`` and ``c`` are adjacent too (it would cut a
     corner: a triangle of three path nodes, or a cell needing both diagonals), but an
@@ -500,38 +506,6 @@ def _viterbi2(cand, cost, edges, turns, n, hop2=None) -> np.ndarray | None:
     for t in range(m - 1, 1, -1):
         sel[t - 2] = back[t, si, sel[t - 1], sel[t]]
     return cand[np.arange(m), sel]
-
-
-def _viterbi(cand, cost, edges, n) -> np.ndarray | None:
-    """The cheapest closed sequence of candidates with consecutive ones adjacent."""
-    m, k = cand.shape
-    allowed = np.empty((m, k, k), dtype=bool)  # step t -> t+1 (cyclic)
-    nxt = np.roll(cand, -1, axis=0)
-    allowed[:] = _adjacent(
-        edges, n, np.repeat(cand, k, axis=1).ravel(), np.tile(nxt, (1, k)).ravel()
-    ).reshape(m, k, k)
-    inf = np.inf
-    # every start at once: d[a, j] = cheapest cost of the points so far, the first on
-    # candidate a, the last on candidate j
-    d = np.full((k, k), inf)
-    d[np.arange(k), np.arange(k)] = cost[0]
-    back = np.empty((m, k, k), dtype=np.int8)
-    for t in range(1, m):
-        step = np.where(allowed[t - 1][None, :, :], d[:, :, None], inf)  # (start, from, to)
-        j = np.argmin(step, axis=1)
-        back[t] = j
-        d = np.take_along_axis(step, j[:, None, :], axis=1)[:, 0, :] + cost[t][None, :]
-    close = np.where(allowed[m - 1].T, d, inf)  # the last node next to the first
-    a, end = np.unravel_index(int(np.argmin(close)), close.shape)
-    best_total = close[a, end]
-    best_path = None
-    if np.isfinite(best_total):
-        sel = np.empty(m, dtype=np.int64)
-        sel[m - 1] = end
-        for t in range(m - 1, 0, -1):
-            sel[t - 1] = back[t, a, sel[t]]
-        best_path = cand[np.arange(m), sel]
-    return best_path if np.isfinite(best_total) else None
 
 
 def _force_diagonals(contour, tree, lay, keys, path_nodes, path_ring) -> np.ndarray:
