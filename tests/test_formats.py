@@ -23,8 +23,20 @@ def mesh():
     return m
 
 
-def test_the_registry_is_keyed_by_the_formats_own_names():
-    assert FORMATS and all(name == f.name for name, f in FORMATS.items())
+def test_every_format_module_is_registered():
+    """Adding a format is a module and its line in the registry: a module defining a
+    FORMAT that the registry misses is caught here."""
+    import importlib
+    import pkgutil
+
+    import deformesh_cli.formats as package
+
+    defined = set()
+    for info in pkgutil.iter_modules(package.__path__):
+        module = importlib.import_module(f"deformesh_cli.formats.{info.name}")
+        if hasattr(module, "FORMAT"):
+            defined.add(module.FORMAT.name)
+    assert defined == set(FORMATS)
     assert all(f.description and callable(f.write) for f in FORMATS.values())
 
 

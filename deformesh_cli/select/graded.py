@@ -30,7 +30,7 @@ the box's extent).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -131,6 +131,7 @@ class Quadtree:
     level: np.ndarray
     i: np.ndarray
     j: np.ndarray
+    _sorted: tuple | None = field(default=None, init=False, repr=False, compare=False)
 
     @property
     def box(self) -> tuple[float, float, float, float]:
@@ -154,9 +155,11 @@ class Quadtree:
     def leaf_index(self, level: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
         """The leaf that holds cell ``(level, i, j)`` (the cell itself or an ancestor),
         or -1 where the cell is split into finer leaves or lies outside the box."""
-        keys = self._keys(self.level, self.i, self.j)
-        order = np.argsort(keys)
-        skeys = keys[order]
+        if self._sorted is None:  # the leaves do not change: sort their keys once
+            keys = self._keys(self.level, self.i, self.j)
+            order = np.argsort(keys)
+            self._sorted = (order, keys[order])
+        order, skeys = self._sorted
         out = np.full(len(level), -1, dtype=np.int64)
         width, height = self.nx * 2**self.top, self.ny * 2**self.top
         inside = (i >= 0) & (j >= 0) & (i * 2**level < width) & (j * 2**level < height)
@@ -210,15 +213,15 @@ class Quadtree:
         centre = np.column_stack([x + half, y + half])
         return Layout(corners, mids, centre, finer, 2 * height + 1)
 
-    def triangulate(self, diagonals: np.ndarray | None = None):
+    def triangulate(self, diagonals: np.ndarray | None = None, layout: Layout | None = None):
         """The conforming triangulation: ``(points, triangles, cell)``.
 
         ``diagonals`` (per leaf, 0 for ``/`` or 1 for ``\\``; default all ``/``) is
         used by leaves without a finer neighbour.  ``cell[t]`` is the leaf of
         triangle ``t``.  Triangles are counter-clockwise.  The node numbering does
-        not depend on ``diagonals``.
+        not depend on ``diagonals``.  ``layout``: :meth:`layout`, if already made.
         """
-        lay = self.layout()
+        lay = self.layout() if layout is None else layout
         n = self.n_leaves
         corners, mids, centre, finer = lay.corners, lay.mids, lay.centre, lay.finer
         if diagonals is None:
@@ -255,10 +258,10 @@ class Quadtree:
         order = np.argsort(cell, kind="stable")
         return points, triangles[order], cell[order]
 
-    def node_keys(self) -> np.ndarray:
+    def node_keys(self, layout: Layout | None = None) -> np.ndarray:
         """The sorted lattice keys of the nodes (node ``k`` of :meth:`triangulate` has
         key ``node_keys()[k]``)."""
-        lay = self.layout()
+        lay = self.layout() if layout is None else layout
         parts = [lay.corners.reshape(-1, 2), lay.centre[~lay.plain]]
         parts += [lay.mids[lay.finer]]
         return np.unique(lay.key(np.concatenate(parts)))
@@ -291,6 +294,7 @@ def build(
     factor: float | None = None,
     box_given: bool = False,
     max_nodes: int | None = None,
+    local: np.ndarray | None = None,
 ) -> Quadtree:
     """The balanced quadtree over ``box`` for ``contour``.
 
@@ -304,7 +308,9 @@ def build(
     if not growth > 1.0:
         raise OptionError(f"--growth must be > 1 (cells grow away from the contour), got {growth}")
     factor = CELL_FACTOR if factor is None else factor
-    s = graded_sizes(contour.points, local_sizes(contour), growth) * factor
+    if local is None:  # (a caller that needs them too passes them)
+        local = local_sizes(contour)
+    s = graded_sizes(contour.points, local, growth) * factor
     xmin, ymin, xmax, ymax = box
     w, h = xmax - xmin, ymax - ymin
     nx, ny, top, h0 = root_cells(w, h, float(s.min()), max_h, exact=box_given)

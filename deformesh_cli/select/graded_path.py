@@ -210,7 +210,8 @@ def select_graded(
         if rs is None:
             raise SelectionError(f"{contour.source}: the evenly re-spaced copy is not valid")
         contour = rs.copy  # the path is fitted to the copy; targets go back to the points
-    s = graded.local_sizes(contour)
+    local = graded.local_sizes(contour)
+    s = local  # (the assignment's unit of distance)
     lo, hi = contour.points.min(axis=0), contour.points.max(axis=0)
     given = box is not None
     if box is None:
@@ -218,14 +219,21 @@ def select_graded(
             margin = float((hi - lo).max()) if exterior else 3.0 * float(s.max())
         box = (lo[0] - margin, lo[1] - margin, hi[0] + margin, hi[1] + margin)
     tree = graded.build(
-        contour, box, growth=growth, max_h=max_h, box_given=given, max_nodes=max_nodes
+        contour,
+        box,
+        growth=growth,
+        max_h=max_h,
+        box_given=given,
+        max_nodes=max_nodes,
+        local=local,
     )
     lay = tree.layout()
-    points, tri0, cell0 = tree.triangulate()
-    keys = tree.node_keys()
+    points, tri0, _ = tree.triangulate(layout=lay)
+    keys = tree.node_keys(layout=lay)
     grid = GradedGrid(tree, points)
-    edges = _allowed_edges(tri0, cell0, lay, keys, len(points))
-    turns = _l_turns(lay, keys, len(points))
+    plain = _plain_leaves(lay, keys)
+    edges = _allowed_edges(tri0, plain)
+    turns = plain.turn_keys
     free = np.ones(len(points), dtype=bool)
     free[grid.boundary_nodes()] = False
     centres = np.searchsorted(keys, lay.key(lay.centre[~lay.plain]))
@@ -243,7 +251,7 @@ def select_graded(
         rings.append(np.full(len(path), r))
     path_nodes = np.concatenate(nodes)
     path_ring = np.concatenate(rings)
-    diagonals = _force_diagonals(contour, tree, lay, keys, path_nodes, path_ring)
+    diagonals = _force_diagonals(contour, tree.n_leaves, plain, path_nodes, path_ring)
     sel = GradedSelection(
         grid,
         path_nodes,
@@ -269,35 +277,58 @@ def select_graded(
     return sel
 
 
-def _allowed_edges(tri0, cell0, lay, keys, n) -> np.ndarray:
+@dataclass
+class _Plain:
+    """The leaves without a finer neighbour, as the path sees them: their corner nodes,
+    their diagonals (keys ``lo * n + hi``, sorted, with leaf and direction) and their
+    L-turns (keys ``(a * n + b) * n + c`` of ``a -> b -> c`` along two sides, sorted,
+    with leaf and the direction of the diagonal through ``b``)."""
+
+    n: int
+    corners: np.ndarray  # (p, 4): lower-left, lower-right, upper-right, upper-left
+    diag_keys: np.ndarray
+    diag_leaf: np.ndarray
+    diag_dir: np.ndarray
+    turn_keys: np.ndarray
+    turn_leaf: np.ndarray
+    turn_dir: np.ndarray
+
+
+def _plain_leaves(lay: graded.Layout, keys: np.ndarray) -> _Plain:
+    n = len(keys)
+    leaves = np.flatnonzero(lay.plain)
+    c = np.searchsorted(keys, lay.key(lay.corners[leaves])).astype(np.int64)
+
+    def sort(k, leaf, d):
+        o = np.argsort(k, kind="stable")
+        return k[o], leaf[o], d[o]
+
+    dk = [np.minimum(c[:, 0], c[:, 2]) * n + np.maximum(c[:, 0], c[:, 2]),
+          np.minimum(c[:, 1], c[:, 3]) * n + np.maximum(c[:, 1], c[:, 3])]  # fmt: skip
+    diag = sort(np.concatenate(dk), np.tile(leaves, 2), np.repeat([0, 1], len(leaves)))
+    tk, tl, td = [], [], []
+    for s in range(4):  # the diagonal through corner s: '/' at LL and UR, '\\' else
+        a, b, d = c[:, (s - 1) % 4], c[:, s], c[:, (s + 1) % 4]
+        tk += [(a * n + b) * n + d, (d * n + b) * n + a]
+        tl += [leaves, leaves]
+        td += [np.full(len(leaves), s % 2)] * 2
+    turn = sort(np.concatenate(tk), np.concatenate(tl), np.concatenate(td))
+    return _Plain(n, c, *diag, *turn)
+
+
+def _allowed_edges(tri0, plain: _Plain) -> np.ndarray:
     """Sorted keys ``lo * n + hi`` of the node pairs a path step may join: the
     triangulation's edges, and both diagonals of every leaf without a finer
     neighbour."""
+    n = plain.n
     e = np.concatenate([tri0[:, [0, 1]], tri0[:, [1, 2]], tri0[:, [2, 0]]])
-    plain = np.flatnonzero(lay.plain)
-    c = np.searchsorted(keys, lay.key(lay.corners[plain]))  # (p, 4) node ids
-    e = np.concatenate([e, c[:, [0, 2]], c[:, [1, 3]]])
     lo, hi = np.minimum(e[:, 0], e[:, 1]), np.maximum(e[:, 0], e[:, 1])
-    return np.unique(lo * n + hi)
-
-
-def _l_turns(lay, keys, n) -> np.ndarray:
-    """Sorted keys ``(a * n + b) * n + c`` of the steps ``a -> b -> c`` along two sides of
-    a leaf without a finer neighbour (``b`` the corner between them), both ways round."""
-    plain = np.flatnonzero(lay.plain)
-    c = np.searchsorted(keys, lay.key(lay.corners[plain])).astype(np.int64)
-    out = []
-    for s in range(4):
-        a, b, d = c[:, (s - 1) % 4], c[:, s], c[:, (s + 1) % 4]
-        out += [(a * n + b) * n + d, (d * n + b) * n + a]
-    return np.unique(np.concatenate(out))
+    return np.union1d(lo * n + hi, plain.diag_keys)
 
 
 def _l_turn(a, b, c, turns, n) -> np.ndarray:
-    """``a -> b -> c`` is one of :func:`_l_turns`."""
-    k = (a * n + b) * n + c
-    pos = np.clip(np.searchsorted(turns, k), 0, max(len(turns) - 1, 0))
-    return (turns[pos] == k) if len(turns) else np.zeros(len(a), dtype=bool)
+    """``a -> b -> c`` is an L-turn (one of the sorted ``turns`` keys)."""
+    return _lookup(turns, (a * n + b) * n + c)[0]
 
 
 def _adjacent(edges: np.ndarray, n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -508,63 +539,49 @@ def _viterbi(cand, cost, edges, turns, n, hop2=None) -> np.ndarray | None:
     return cand[np.arange(m), sel]
 
 
-def _force_diagonals(contour, tree, lay, keys, path_nodes, path_ring) -> np.ndarray:
-    """Each leaf's diagonal: forced by a diagonal path step or an L-turn along two of its
-    sides (the diagonal through the corner), '/' elsewhere; two forces disagreeing in
-    one leaf are a SelectionError."""
-    n_leaves = tree.n_leaves
-    plain = np.flatnonzero(lay.plain)
-    c = np.searchsorted(keys, lay.key(lay.corners[plain]))  # (p, 4): LL, LR, UR, UL
+def _force_diagonals(contour, n_leaves, plain: _Plain, path_nodes, path_ring) -> np.ndarray:
+    """Each leaf's diagonal: forced by a diagonal path step, or else by an L-turn along
+    two of its sides (the diagonal through the corner; of a U-turn's two, the first),
+    '/' elsewhere.  Two diagonal steps in one leaf are a SelectionError; a diagonal
+    step against an L-turn leaves an ear, which :func:`_check` judges."""
+    n = plain.n
+    nodes, ring = path_nodes, path_ring
+    nxt = np.empty_like(nodes)
+    prv = np.empty_like(nodes)
+    for r in np.unique(ring):
+        on = np.flatnonzero(ring == r)
+        nxt[on], prv[on] = np.roll(nodes[on], -1), np.roll(nodes[on], 1)
     force = np.full(n_leaves, -1, dtype=np.int64)
-    # a step's leaf by its two nodes: a lookup from unordered corner pairs
-    pair_leaf = {}
-    for d, (u, v) in ((0, (0, 2)), (1, (1, 3))):
-        for leaf, a, b in zip(plain, c[:, u], c[:, v]):
-            pair_leaf[(min(a, b), max(a, b))] = (leaf, d)
-    side_leaves: dict[tuple[int, int], list[int]] = {}
-    for s_ in range(4):
-        a, b = c[:, s_], c[:, (s_ + 1) % 4]
-        for leaf, x, y in zip(plain, a, b):
-            side_leaves.setdefault((min(x, y), max(x, y)), []).append(leaf)
-    corner_of = {}
-    for col, d in ((0, 0), (2, 0), (1, 1), (3, 1)):  # the diagonal through this corner
-        for leaf, node in zip(plain, c[:, col]):
-            corner_of[(leaf, int(node))] = d
-
-    turn_only = np.zeros(n_leaves, dtype=bool)  # forced by L-turns alone
-
-    def want(leaf, d, where, turn=False):
-        if force[leaf] >= 0 and force[leaf] != d and turn and turn_only[leaf]:
-            return  # a U-turn (three sides of one cell): either split leaves one ear
-        if force[leaf] >= 0 and force[leaf] != d and not turn and turn_only[leaf]:
-            turn_only[leaf] = False  # a diagonal step decides
-            force[leaf] = d
-            return
-        if force[leaf] >= 0 and force[leaf] != d:
-            raise SelectionError(
-                f"{contour.source}: the graded-grid path needs both diagonals of one cell "
-                f"near {where}"
-            )
-        if force[leaf] < 0:
-            turn_only[leaf] = turn
-        force[leaf] = d
-
-    for r in np.unique(path_ring):
-        ring = path_nodes[path_ring == r]
-        prev, nxt = np.roll(ring, 1), np.roll(ring, -1)
-        for t, (a, b) in enumerate(zip(ring, nxt)):
-            key = (min(a, b), max(a, b))
-            if key in pair_leaf:
-                leaf, d = pair_leaf[key]
-                want(leaf, d, f"path node {t} of ring {r}")
-        for t, (a, b, cc) in enumerate(zip(prev, ring, nxt)):
-            s1 = side_leaves.get((min(a, b), max(a, b)), [])
-            s2 = side_leaves.get((min(b, cc), max(b, cc)), [])
-            for leaf in set(s1) & set(s2):
-                want(leaf, corner_of[(leaf, int(b))], f"path node {t} of ring {r}", turn=True)
+    # diagonal steps
+    k = np.minimum(nodes, nxt) * n + np.maximum(nodes, nxt)
+    hit, at = _lookup(plain.diag_keys, k)
+    leaf, d = plain.diag_leaf[at[hit]], plain.diag_dir[at[hit]]
+    both = np.unique(leaf[d == 1])
+    clash = np.intersect1d(np.unique(leaf[d == 0]), both)
+    if len(clash):
+        t = int(np.flatnonzero(hit)[np.isin(leaf, clash)][0])
+        raise SelectionError(
+            f"{contour.source}: the graded-grid path needs both diagonals of one cell "
+            f"near path node {t} of ring {int(ring[t])}"
+        )
+    force[leaf] = d
+    # L-turns, where no diagonal step decided (a U-turn: the first of its two)
+    hit, at = _lookup(plain.turn_keys, (prv * n + nodes) * n + nxt)
+    leaf, d = plain.turn_leaf[at[hit]], plain.turn_dir[at[hit]]
+    first = np.unique(leaf, return_index=True)[1]
+    leaf, d = leaf[first], d[first]
+    undecided = force[leaf] < 0
+    force[leaf[undecided]] = d[undecided]
     out = np.zeros(n_leaves, dtype=np.uint8)
     out[force >= 0] = force[force >= 0]
     return out
+
+
+def _lookup(sorted_keys: np.ndarray, k: np.ndarray):
+    """``(found, position)`` of each of ``k`` in ``sorted_keys``."""
+    pos = np.clip(np.searchsorted(sorted_keys, k), 0, max(len(sorted_keys) - 1, 0))
+    found = sorted_keys[pos] == k if len(sorted_keys) else np.zeros(len(k), dtype=bool)
+    return found, pos
 
 
 def _fair_ears(sel: GradedSelection, ears: np.ndarray) -> np.ndarray:
