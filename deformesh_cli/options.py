@@ -149,8 +149,9 @@ class MeshOptions:
     )
     size: str | None = _opt(
         None,
-        "Size function f: cells end with areas proportional to f. A numpy "
-        "expression in x, y and d (distance to the contour), e.g. '0.2 + d'.",
+        "Size function f: cells end with areas proportional to f. An expression "
+        "in x, y and d (distance to the contour), e.g. '0.2 + d': numbers, arithmetic, "
+        "comparisons and the functions listed in docs/method.md.",
         metavar="EXPR",
     )
     size_field: str | None = _opt(

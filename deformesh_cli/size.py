@@ -1,12 +1,13 @@
 """Size functions (paper section 3.2): where cells should be small.
 
 The deformation makes ``det grad phi = f``: a cell of the background grid
-ends with ``f`` times its area.  A user gives ``f`` up to a constant, as a
-numpy expression in ``x``, ``y`` and ``d`` (distance to the contour) or as
-values on a regular grid; it is normalised so that the integral of ``1/f``
-over the background box equals the box's area (the box's boundary does not
-move, so the cells' areas must still add up to it).  The deformation then
-needs ``g1 = 1/f`` (normalised) at the moving nodes: :meth:`SizeFunction.g1`.
+ends with ``f`` times its area.  A user gives ``f`` up to a constant, as an
+expression in ``x``, ``y`` and ``d`` (distance to the contour), checked and
+evaluated without ``eval`` by :mod:`.expression`, or as values on a regular
+grid.  It is normalised so that the integral of ``1/f`` over the background
+box equals the box's area (the box's boundary does not move, so the cells'
+areas must still add up to it).  The deformation then needs ``g1 = 1/f``
+(normalised) at the moving nodes: :meth:`SizeFunction.g1`.
 """
 
 from __future__ import annotations
@@ -20,32 +21,8 @@ import numpy as np
 
 from .contour import Contour
 from .errors import InputError, OptionError
+from .expression import Expression
 from .geometry import next_on_ring, signed_areas
-
-#: Names an expression may use besides x, y and d.
-_NAMESPACE = {
-    name: getattr(np, name)
-    for name in (
-        "sqrt",
-        "exp",
-        "log",
-        "log10",
-        "sin",
-        "cos",
-        "tan",
-        "arctan2",
-        "tanh",
-        "abs",
-        "minimum",
-        "maximum",
-        "where",
-        "clip",
-        "hypot",
-        "pi",
-        "e",
-    )
-}
-_NAMESPACE.update(min=np.minimum, max=np.maximum)
 
 
 class ContourDistance:
@@ -137,35 +114,24 @@ class SizeFunction:
         return 1.0 / (self.scale * self.values(q))
 
 
-def compile_expression(expr: str):
-    """``--size EXPR`` compiled, or an :class:`OptionError` (syntax, unknown names)."""
-    try:
-        code = compile(expr, "--size", "eval")
-    except SyntaxError as exc:
-        raise OptionError(f"--size {expr!r} is not an expression: {exc.msg}") from None
-    names = set(code.co_names) - set(_NAMESPACE) - {"x", "y", "d"}
-    if names:
-        raise OptionError(
-            f"--size {expr!r} uses unknown name(s) {', '.join(sorted(names))}; "
-            f"allowed: x, y, d, {', '.join(sorted(_NAMESPACE))}"
-        )
-    return code
+def compile_expression(expr: str, label: str = "--size") -> Expression:
+    """``--size EXPR`` parsed and checked (:mod:`.expression`), or an :class:`OptionError`."""
+    return Expression(expr, label)
 
 
-def from_expression(expr: str, contour: Contour) -> SizeFunction:
-    """``--size EXPR``: a numpy expression in x, y and d (distance to the contour)."""
-    code = compile_expression(expr)
-    dist = ContourDistance(contour) if "d" in code.co_names else None
+def from_expression(expr: str, contour: Contour, label: str = "--size") -> SizeFunction:
+    """``--size EXPR``: an expression in x, y and d (distance to the contour)."""
+    code = compile_expression(expr, label)
+    dist = ContourDistance(contour) if code.uses_distance else None
 
     def raw(q):
-        ns = dict(_NAMESPACE, x=q[:, 0], y=q[:, 1])
+        env = {"x": q[:, 0], "y": q[:, 1]}
         if dist is not None:
-            ns["d"] = dist(q)
+            env["d"] = dist(q)
         try:
-            with np.errstate(all="ignore"):
-                return eval(code, {"__builtins__": {}}, ns)
-        except Exception as exc:
-            raise OptionError(f"--size {expr!r} fails: {type(exc).__name__}: {exc}") from None
+            return code(**env)
+        except (ArithmeticError, ValueError, TypeError) as exc:
+            raise OptionError(f"{label} {expr!r} fails: {type(exc).__name__}: {exc}") from None
 
     return SizeFunction(raw, repr(expr))
 
@@ -180,7 +146,7 @@ def from_field(path: str) -> SizeFunction:
         raise InputError(f"{path}: no such file")
     try:
         if p.suffix.lower() == ".npy":
-            rows = np.load(p, allow_pickle=False)
+            rows = np.load(p)  # numpy refuses object arrays by default
         else:
             rows = np.genfromtxt(
                 p,

@@ -18,7 +18,8 @@ import numpy as np
 
 from . import __version__
 from .contour import Contour, make_contour
-from .errors import InputError
+from .errors import InputError, OptionError, WriteError
+from .expression import Expression
 from .select import Grid, Selection
 from .select.graded import Quadtree
 from .select.graded_path import GradedGrid, GradedSelection
@@ -101,9 +102,17 @@ def dumps(state: State) -> bytes:
         )
         for name, arr in arrays.items():
             b = io.BytesIO()
-            np.lib.format.write_array(b, np.ascontiguousarray(arr), allow_pickle=False)
+            np.lib.format.write_array(b, _plain(arr))
             zf.writestr(zipfile.ZipInfo(f"{name}.npy", _EPOCH), b.getvalue())
     return buf.getvalue()
+
+
+def _plain(arr: np.ndarray) -> np.ndarray:
+    """An array as stored: contiguous numbers only (never Python objects)."""
+    a = np.ascontiguousarray(arr)
+    if a.dtype.kind not in "biuf":
+        raise WriteError(f"a state file stores numbers only, not {a.dtype}")
+    return a
 
 
 def loads(data: bytes, name: str = "<state>", want: str | None = None) -> State:
@@ -142,7 +151,7 @@ def loads(data: bytes, name: str = "<state>", want: str | None = None) -> State:
     try:
         for key, (kind, ndim, tail) in spec.items():
             with zf.open(f"{key}.npy") as fh:
-                a = np.lib.format.read_array(io.BytesIO(fh.read()), allow_pickle=False)
+                a = np.lib.format.read_array(io.BytesIO(fh.read()))  # refuses objects
             if (
                 a.dtype.kind not in (kind, "i" if kind == "u" else kind)
                 or a.ndim != ndim
@@ -242,9 +251,19 @@ def loads(data: bytes, name: str = "<state>", want: str | None = None) -> State:
 
 
 def _options(meta: dict, name: str) -> dict:
+    """The state's recorded options.  A size expression is data too: it is checked by the
+    same parser as ``--size`` (never evaluated by Python), and refused as a bad state."""
     options = meta.get("options", {})
     if not isinstance(options, dict):
         raise InputError(f"{name}: inconsistent state file (options is not a mapping)")
+    for key in ("size", "size_field"):
+        if options.get(key) is not None and not isinstance(options[key], str):
+            raise InputError(f"{name}: inconsistent state file (options.{key} is not a string)")
+    if options.get("size") is not None:
+        try:
+            Expression(options["size"], "size")
+        except OptionError as exc:
+            raise InputError(f"{name}: the state file's {exc}") from None
     return options
 
 
