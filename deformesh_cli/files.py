@@ -2,19 +2,59 @@
 
 Every file is written to a temporary file in the target's folder, then moved
 into place with ``os.replace``: a failure leaves no partial file behind.
-``-`` is stdin or stdout.
+``-`` is stdin or stdout.  Outputs are regular files only: a path that is a
+device, FIFO, socket or folder is refused, and a symbolic link is written
+through (next to its target) only when it points to a regular file.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import stat
 import sys
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-from .errors import ReadError, WriteError
+from .errors import OptionError, ReadError, WriteError
+
+_KINDS = (
+    (stat.S_ISDIR, "a directory"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISFIFO, "a FIFO (named pipe)"),
+    (stat.S_ISSOCK, "a socket"),
+)
+
+
+def _kind(mode: int) -> str:
+    return next((name for test, name in _KINDS if test(mode)), "not a regular file")
+
+
+def output_target(path: str) -> Path:
+    """The regular file that writing ``path`` replaces: ``path`` itself, or the file a
+    symbolic link points to.  :class:`OptionError` if ``path`` exists and is not a regular
+    file, or is a link to anything else (``-`` for stdout is the caller's business)."""
+    p = Path(path)
+    link = p.is_symlink()
+    try:
+        mode = p.stat().st_mode  # the link's target's, for a link
+    except FileNotFoundError:
+        if link:
+            raise OptionError(
+                f"{path}: is a symbolic link to {os.readlink(p)}, which does not exist; "
+                "refusing to write through it"
+            ) from None
+        return p
+    except OSError as exc:
+        raise WriteError(f"{path}: cannot write: {exc.strerror}") from None
+    if not stat.S_ISREG(mode):
+        what = f"a symbolic link to {_kind(mode)}" if link else _kind(mode)
+        raise OptionError(f"{path}: is {what}; outputs are regular files only")
+    if link:
+        return Path(os.path.realpath(p))
+    return p
 
 
 def check_folder(path: str) -> Path:
@@ -27,9 +67,10 @@ def check_folder(path: str) -> Path:
 
 @contextlib.contextmanager
 def atomic_path(path: str) -> Iterator[str]:
-    """Yield a temporary path next to ``path``; move it into place on success only."""
-    target = Path(path)
-    folder = check_folder(path)
+    """Yield a temporary path next to ``path`` (next to a symbolic link's target); move it
+    into place on success only.  :func:`output_target` says what may be replaced."""
+    target = output_target(path)
+    folder = check_folder(str(target))
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
     except OSError as exc:

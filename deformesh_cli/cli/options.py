@@ -15,6 +15,8 @@ from typing import Any
 
 import click
 
+from .. import files
+from ..errors import OptionError
 from ..options import STAGES, MeshOptions, flag
 from ..options import fields as option_fields
 
@@ -93,13 +95,32 @@ def take(cls: type, kwargs: dict) -> Any:
     return cls(**{name: kwargs.pop(name) for name in option_fields(cls) if name in kwargs})
 
 
+class OutputPath(click.Path):
+    """A file to write: ``-`` (if allowed), a new file, a regular file, or a symbolic link
+    to one; a device, FIFO, socket or folder is a usage error before any work is done."""
+
+    def __init__(self, allow_dash: bool = True):
+        super().__init__(dir_okay=False, allow_dash=allow_dash)
+
+    def convert(self, value, param, ctx):
+        value = super().convert(value, param, ctx)
+        if value == "-" and self.allow_dash:
+            return value
+        try:
+            files.output_target(value)
+        except OptionError as exc:
+            hint = " (use '-' for stdout)" if self.allow_dash else ""
+            self.fail(f"{exc}{hint}", param, ctx)
+        return value
+
+
 def output_option(help: str, required: bool = True) -> Callable:
     return click.option(
         "-o",
         "--output",
         required=required,
         default=None,
-        type=click.Path(dir_okay=False, allow_dash=True),
+        type=OutputPath(),
         help=help,
     )
 
@@ -111,7 +132,7 @@ def json_option(help: str = "Print the summary as JSON on stdout.") -> Callable:
 quiet_option = click.option("-q", "--quiet", is_flag=True, help="Print errors only.")
 png_option = click.option(
     "--png",
-    type=click.Path(dir_okay=False),
+    type=OutputPath(allow_dash=False),
     default=None,
     help="Also draw the mesh to this PNG file (needs matplotlib).",
 )

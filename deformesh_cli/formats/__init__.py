@@ -17,7 +17,7 @@ import tempfile
 from pathlib import Path
 
 from ..errors import DeformeshError, OptionError, WriteError
-from ..files import atomic_path, check_folder, write_bytes
+from ..files import atomic_path, check_folder, output_target, write_bytes
 from ..mesh import Mesh
 from . import gmsh, obj, ply, su2, vtk, vtu, xdmf
 from .format import Format
@@ -103,9 +103,9 @@ def mesh_files(
 
 def _write_with_sidecar(form: Format, mesh: Mesh, path: str, version) -> None:
     """Write both files in a temporary folder next to ``path``, then move them into place."""
-    target = Path(path)
-    folder = check_folder(path)
-    side = target.with_suffix(form.sidecar)
+    target = output_target(path)
+    folder = check_folder(str(target))
+    side = output_target(str(target.with_suffix(form.sidecar)))
     with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=folder) as d:
         tmp = Path(d) / target.name
         _run(form, mesh, str(tmp), version, path)
