@@ -27,7 +27,12 @@ CASES = {
     ),
     "header.csv": ("a,b\n0,0\n1,0\n0,1\n", 1, r"header\.csv: line 1: header 'a,b' must name"),
     "onecolumn.csv": ("0\n1\n2\n", 1, r"onecolumn\.csv: line 1: expected 2 columns x,y, got 1"),
-    "ragged.csv": ("0,0,0\n1,0\n0,1,0\n", 1, r"ragged\.csv: line 2: expected 3 columns, got 2"),
+    "ragged.csv": ("0,0,0\n1,0\n0,1,0\n", 1, r"ragged\.csv: line 2: 2 fields, but line 1 has 3"),
+    "thousands.csv": (  # 5 x 1,500 written with a thousands separator: never 5 x 1
+        "0,0\n5,0\n5,1,500\n0,1,500\n",
+        1,
+        r"thousands\.csv: line 3: 3 fields, but line 1 has 2",
+    ),
     "word.csv": ("0,0\n1,one\n0,1\n", 1, r"word\.csv: line 2: y value 'one' is not a number"),
     "nan.csv": (
         "0,0\n1,0\nnan,1\n",

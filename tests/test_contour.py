@@ -1,5 +1,7 @@
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from deformesh_cli.contour import make_contour
 from deformesh_cli.errors import InputError
@@ -50,7 +52,7 @@ def test_clockwise_is_reoriented_but_input_order_kept():
         ("x,y\n0,0\n1,0\n1,0\n0,1\n", "point 2 (line 4) at (1, 0) repeats the previous point"),
         ("x,y\n0,0\n1,0\n2,0\n", "encloses no area"),
         ("x,y\n0,0\n1,0\n0,1\n", None),
-        ("x,y\n0,0\n1\n0,1\n", "line 3: expected 2 columns, got 1"),
+        ("x,y\n0,0\n1\n0,1\n", "line 3: 1 field, but line 1 has 2"),
     ],
 )
 def test_bad_csv_messages(text, message):
@@ -61,6 +63,27 @@ def test_bad_csv_messages(text, message):
         parse_csv(text, "f.csv")
     assert str(e.value).startswith("f.csv")
     assert message in str(e.value)
+
+
+@given(
+    n=st.integers(3, 40),
+    data=st.data(),
+    header=st.booleans(),
+    sep=st.sampled_from([",", ";", "\t", " "]),
+)
+def test_a_row_with_another_number_of_fields_is_refused_by_its_line(n, data, header, sep):
+    """No field is ever dropped or invented: one ragged row anywhere names its line."""
+    t = 2 * np.pi * np.arange(n) / n
+    rows = [[f"{np.cos(a):.6f}", f"{np.sin(a):.6f}"] for a in t]
+    bad = data.draw(st.integers(0, n - 1 if header else n - 2)) + (0 if header else 1)
+    extra = data.draw(st.booleans())
+    rows[bad] = [*rows[bad], "500"] if extra else rows[bad][:1]
+    lines = (["x,y".replace(",", sep)] if header else []) + [sep.join(r) for r in rows]
+    with pytest.raises(InputError) as e:
+        parse_csv("\n".join(lines) + "\n", "f.csv")
+    line = bad + 1 + header
+    assert f"f.csv: line {line}: {3 if extra else 1} field" in str(e.value)
+    assert "but line 1 has 2" in str(e.value)
 
 
 def test_self_intersection_names_edges_and_place():

@@ -15,6 +15,10 @@ _DELIMITERS = (",", ";", "\t")
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^[+-]?(nan|inf|infinity)$", re.I)
 
 
+def _fields(n: int) -> str:
+    return f"{n} field" if n == 1 else f"{n} fields"
+
+
 def _split(line: str, delim: str | None) -> list[str]:
     if delim is None:
         return line.split()
@@ -87,15 +91,15 @@ def parse_csv(text: str, source: str = "<contour>", decimal: str = ".") -> Conto
             raise InputError(f"{source}: line {first_line}: expected 2 columns x,y, got {ncols}")
         if ncols >= 3:
             ring_col = 2
-    need = max(max(cols.values()), ring_col if ring_col is not None else 0) + 1
 
     xy = np.empty((len(rows), 2))
     lines = np.empty(len(rows), dtype=np.int64)
     rings = np.zeros(len(rows), dtype=np.int64)
     for r, (lineno, fields) in enumerate(rows):
-        if len(fields) < need or (len(fields) != ncols and ncols > need):
+        if len(fields) != ncols:  # a stray field (a thousands separator?) is never dropped
             raise InputError(
-                f"{source}: line {lineno}: expected {ncols} columns, got {len(fields)}"
+                f"{source}: line {lineno}: {_fields(len(fields))}, but line {first_line} has "
+                f"{ncols}; every row must have the same number of fields"
             )
         for c, key in enumerate(("x", "y")):
             f = fields[cols[key]]
