@@ -41,6 +41,9 @@ _SOLVER_HELP = (
     "Linear solver per step: sparse LDL^T ('direct'), multigrid-preconditioned CG ('amg'), "
     "or 'auto' (direct on the band, and up to 60,000 free nodes on a whole grid)."
 )
+#: ``merge_extra`` choices (:mod:`.merge`).
+MERGE_EXTRA = ("auto", "merge", "keep")
+
 _DECIMAL_HELP = "Decimal mark of the CSV numbers; with ',' the delimiter is ';', tab or spaces."
 
 
@@ -52,7 +55,7 @@ class MeshOptions:
     ``resample``.  Stage 1 (select): ``h``, ``box``, ``margin``, ``strict``,
     ``max_nodes``, ``exterior``, ``grid``.  Stage 2 (deform): ``steps``,
     ``solver``, ``solve``, ``size``, ``size_field``.  Stage 3 (triangulate):
-    ``improve``.  Writing: ``fmt``, ``msh_version``.
+    ``improve``, ``merge_extra``.  Writing: ``fmt``, ``msh_version``.
     """
 
     # reading the contour
@@ -168,6 +171,15 @@ class MeshOptions:
         "never move).",
         "switch",
     )
+    merge_extra: str = _opt(
+        "auto",
+        "Extra boundary nodes (where the grid path needed nodes between two consecutive "
+        "contour points): 'merge' them into their neighbouring contour points where the "
+        "triangles stay valid, or 'keep' them; 'auto' keeps them on the uniform grid "
+        "(--grid uniform or --h, the paper's form) and merges them elsewhere.",
+        "choice",
+        choices=MERGE_EXTRA,
+    )
     # writing
     fmt: str | None = _opt(
         None,
@@ -208,7 +220,7 @@ STAGES: dict[str, tuple[str, ...]] = {
         "max_h",
     ),  # fmt: skip
     "deform": ("steps", "solver", "solve", "size", "size_field"),
-    "triangulate": ("improve",),
+    "triangulate": ("improve", "merge_extra"),
     "write": ("fmt", "msh_version"),
 }
 

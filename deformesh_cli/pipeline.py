@@ -15,6 +15,7 @@ import numpy as np
 from . import deform as _deform
 from . import forced, geometry, quality, triangulate
 from . import improve as _improve
+from . import merge as _merge
 from . import size as _size
 from .contour import Contour
 from .deform import SOLVES, DeformStats
@@ -266,6 +267,11 @@ def run_triangulate(
         cut = triangulate.cut(contour, sel)
     mesh = triangulate.place(contour, sel, cut, d.points)
     edges = cut.edges
+    merged = None
+    if mesh.n_extra and _merges(o):
+        mesh, merged = _merge.merge_extra_nodes(mesh)
+        if merged.merged:
+            edges = None  # (the contract check counts the new triangles' edges)
     better = None
     if o.improve:
         before = mesh
@@ -286,6 +292,7 @@ def run_triangulate(
         quality.check_contract(mesh, contour, sel.grid.box if sel.exterior else None, edges)
         report = summary.result()
     report["contract"] = "ok"
+    report["merged_extra_nodes"] = 0 if merged is None else merged.merged
     report["improve"] = (
         None
         if better is None
@@ -312,6 +319,14 @@ def run_triangulate(
         rho = _size.spearman(mesh.points, mesh.triangles, size, exclude=mesh.lines.ravel())
         report["size_correlation"] = None if np.isnan(rho) else rho
     return mesh, report
+
+
+def _merges(o: MeshOptions) -> bool:
+    """Whether stage 3 merges extra boundary nodes (``merge_extra``; ``auto``: not on
+    the uniform grid, the paper's form)."""
+    if o.merge_extra != "auto":
+        return o.merge_extra == "merge"
+    return not (o.grid == "uniform" or o.h is not None)
 
 
 #: An adapted-grid mesh whose smallest angle is below this (degrees) gives way to the

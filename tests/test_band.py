@@ -78,9 +78,9 @@ def test_band_keeps_the_contract_and_the_smallest_angle(path):
     out = {}
     for solve in SOLVES:
         d = pipeline.run_deform(c, sel, solve=solve)
-        mesh, report = pipeline.run_triangulate(c, d, improve=False)
+        mesh, report = pipeline.run_triangulate(c, d, improve=False, merge_extra="keep")
         check_contract(mesh, c)
-        final = pipeline.run_triangulate(c, d)[1]  # with the quality stage
+        final = pipeline.run_triangulate(c, d, merge_extra="keep")[1]  # with the quality stage
         out[solve] = (report, d.stats.moved_nodes, final)
     band, full = out["band"], out["full"]
     assert full[1] == sel.grid.n_nodes

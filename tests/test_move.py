@@ -139,7 +139,7 @@ def test_the_pvd_lists_every_frame_in_time_order(pitching):
 def test_extra_boundary_nodes_stay_on_their_edges(tmp_path):
     # NACA 0012 with 100 cosine-spaced points, exterior: 30 extra boundary nodes
     c = load_contour(contour_file("naca0012_100.csv"))
-    res = pipeline.mesh_contour(c, exterior=True, box=(-1, -1, 2, 1))
+    res = pipeline.mesh_contour(c, exterior=True, box=(-1, -1, 2, 1), merge_extra="keep")
     m = res.mesh
     assert m.n_extra > 0
     motion = move.prepare(m.points, m.triangles, c, "mesh")

@@ -1,0 +1,223 @@
+"""Removing extra boundary nodes from a finished mesh.
+
+Where a grid path could not give two consecutive contour points neighbouring
+grid nodes, it runs through grid nodes between them: extra boundary nodes,
+placed on that contour edge ``A-B``.  This stage takes them out again.  For
+each run of extra nodes between two contour points ``A`` and ``B``:
+
+1. the *cavity* is the union of the triangles touching those nodes: a
+   polygon bounded by the contour edge ``A-B`` (the extra nodes lie on it,
+   so the domain does not change) and the path of other nodes around them;
+2. the cavity is triangulated again without the extra nodes, by dynamic
+   programming over its vertices: of all the triangulations whose diagonals
+   lie inside it, the one with the largest smallest angle.
+
+A run is left as it is when its cavity is not a simple polygon (it touches
+itself), has more than :data:`MAX_CAVITY` vertices, or its best
+triangulation has an angle under :data:`MIN_ANGLE` degrees; those extra
+nodes stay and are reported.  The quality stage then works on the new mesh
+as on any other.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .geometry import signed_areas
+from .mesh import Mesh
+from .quality import measures
+
+#: A run is re-meshed only if its new triangles have no angle under this (degrees);
+#: the quality stage raises the angles afterwards.
+MIN_ANGLE = 20.0
+
+#: Cavities with more vertices than this are left alone (the triangulation costs
+#: their cube).
+MAX_CAVITY = 40
+
+
+@dataclass
+class Merged:
+    """What :func:`merge_extra_nodes` did: extra nodes removed, and the ones left."""
+
+    merged: int
+    left: int
+
+
+def merge_extra_nodes(mesh: Mesh) -> tuple[Mesh, Merged]:
+    """``mesh`` without the extra boundary nodes that can be taken out (see the module
+    docstring), renumbered; and what was done."""
+    m, e = mesh.n_contour, mesh.n_extra
+    if e == 0:
+        return mesh, Merged(0, 0)
+    pts, tri = mesh.points, mesh.triangles
+    n = len(pts)
+    nxt = np.full(n, -1, dtype=np.int64)
+    nxt[mesh.lines[:, 0]] = mesh.lines[:, 1]
+    extra = np.zeros(n, dtype=bool)
+    extra[m : m + e] = True
+    # the triangles of each node that is extra or next to one
+    near = extra | extra[np.maximum(nxt, 0)]
+    near[nxt[extra]] = True
+    t_idx, corner = np.nonzero(near[tri])
+    star: dict[int, list[int]] = {}
+    for v, t in zip(tri[t_idx, corner].tolist(), t_idx.tolist()):
+        star.setdefault(v, []).append(t)
+    dead = np.zeros(len(tri), dtype=bool)
+    gone = np.zeros(n, dtype=bool)
+    added = []
+    for a in np.flatnonzero(~extra & extra[np.maximum(nxt, 0)] & (nxt >= 0)):
+        run = [int(nxt[a])]
+        while extra[nxt[run[-1]]]:
+            run.append(int(nxt[run[-1]]))
+        b = int(nxt[run[-1]])
+        cavity = sorted({t for x in run for t in star[x]})
+        if dead[cavity].any():  # (two runs never share triangles, but be sure)
+            continue
+        new = _retriangulate(pts, tri[cavity], int(a), b, set(run))
+        if new is None:
+            continue
+        dead[cavity] = True
+        gone[run] = True
+        added.append(new)
+    merged = int(gone.sum())
+    if merged == 0:
+        return mesh, Merged(0, e)
+    triangles = np.concatenate([tri[~dead], *added])
+    return _renumber(mesh, triangles, gone), Merged(merged, e - merged)
+
+
+def _retriangulate(pts, cavity: np.ndarray, a: int, b: int, run: set[int]):
+    """The cavity's triangles without the ``run`` nodes, the best by smallest angle,
+    or None (see the module docstring)."""
+    ring = _outline(cavity, a, b, run)
+    if ring is None or len(ring) > MAX_CAVITY:
+        return None
+    best = _best_triangulation(pts[ring])
+    if best is None:
+        return None
+    local, smallest = best
+    if smallest < MIN_ANGLE:
+        return None
+    return np.asarray(ring, dtype=np.int64)[local]
+
+
+def _outline(cavity: np.ndarray, a: int, b: int, run: set[int]) -> list[int] | None:
+    """The cavity's boundary counter-clockwise from ``a``: ``a, b``, then the nodes
+    around the run back to ``a``; None if that is not one simple closed path."""
+    edges = [
+        (u, v)
+        for t in cavity.tolist()
+        for u, v in ((t[0], t[1]), (t[1], t[2]), (t[2], t[0]))
+        if u not in run and v not in run
+    ]
+    both = set(edges)
+    after: dict[int, int] = {}
+    for u, v in edges:
+        if (v, u) in both:  # inside the cavity
+            continue
+        if u in after:  # the path around the run passes a node twice
+            return None
+        after[u] = v
+    if a in after:
+        return None
+    ring = [a]
+    v = b
+    while v != a:
+        if v in ring or v not in after:
+            return None
+        ring.append(v)
+        v = after[v]
+    if len(after) != len(ring) - 1:  # edges around the run that the path missed
+        return None
+    return ring
+
+
+def _best_triangulation(p: np.ndarray) -> tuple[np.ndarray, float] | None:
+    """The triangulation of the simple counter-clockwise polygon ``p`` (k, 2) whose
+    smallest angle is largest (dynamic programming over its chords), as ``(triangles
+    in local indices, smallest angle)``; None if none has positive areas."""
+    k = len(p)
+    if k < 3:
+        return None
+    chord = _chords(p)
+    i, mid, j = np.array([(i, m, j) for i in range(k) for j in range(i + 2, k)
+                          for m in range(i + 1, j)]).T  # fmt: skip
+    angle = np.full((k, k, k), -1.0)
+    tri = np.column_stack([i, mid, j])
+    ok = (signed_areas(p, tri) > 0) & chord[i, mid] & chord[mid, j] & chord[i, j]
+    angle[i[ok], mid[ok], j[ok]] = measures(p, tri[ok])[0]
+    best = np.full((k, k), -1.0)
+    pick = np.full((k, k), -1, dtype=np.int64)
+    for i in range(k - 1):
+        best[i, i + 1] = 180.0
+    for span in range(2, k):
+        for i in range(k - span):
+            j = i + span
+            ms = np.arange(i + 1, j)
+            val = np.minimum(np.minimum(angle[i, ms, j], best[i, ms]), best[ms, j])
+            at = int(np.argmax(val))
+            if val[at] > 0:
+                best[i, j], pick[i, j] = val[at], ms[at]
+    if best[0, k - 1] <= 0:
+        return None
+    out, todo = [], [(0, k - 1)]
+    while todo:
+        i, j = todo.pop()
+        if j - i < 2:
+            continue
+        m = int(pick[i, j])
+        out.append((i, m, j))
+        todo += [(i, m), (m, j)]
+    return np.array(out, dtype=np.int64), float(best[0, k - 1])
+
+
+def _chords(p: np.ndarray) -> np.ndarray:
+    """``chord[i, j]``: the segment ``p[i] - p[j]`` lies inside the polygon ``p`` (its
+    sides count)."""
+    import shapely
+
+    k = len(p)
+    poly = shapely.Polygon(p)
+    ok = np.zeros((k, k), dtype=bool)
+    idx = np.arange(k)
+    ok[idx, (idx + 1) % k] = ok[(idx + 1) % k, idx] = True
+    pairs = [(i, j) for i in range(k) for j in range(i + 2, k) if not (i == 0 and j == k - 1)]
+    if pairs:
+        ij = np.array(pairs)
+        lines = shapely.linestrings(np.stack([p[ij[:, 0]], p[ij[:, 1]]], axis=1))
+        inside = shapely.covers(poly, lines)
+        # and not along the boundary: a chord through another vertex is not a chord
+        touches = shapely.intersection(shapely.boundary(poly), lines)
+        clean = (shapely.get_type_id(touches) == 4) & (shapely.get_num_geometries(touches) == 2)
+        good = inside & clean & shapely.contains_xy(poly, *(0.5 * (p[ij[:, 0]] + p[ij[:, 1]])).T)
+        ok[ij[good, 0], ij[good, 1]] = ok[ij[good, 1], ij[good, 0]] = True
+    return ok
+
+
+def _renumber(mesh: Mesh, tri: np.ndarray, gone: np.ndarray) -> Mesh:
+    """The mesh without the ``gone`` nodes: later nodes move down, boundary edges
+    through a gone node join its neighbours (keeping the first edge's group)."""
+    keep = ~gone
+    new_id = np.cumsum(keep) - 1
+    lines, groups = mesh.lines, mesh.line_group
+    after = np.full(len(gone), -1, dtype=np.int64)
+    after[lines[:, 0]] = lines[:, 1]
+    start = ~gone[lines[:, 0]]
+    ends = lines[start, 1].copy()
+    while gone[ends].any():  # follow the boundary past removed nodes
+        g = gone[ends]
+        ends[g] = after[ends[g]]
+    return Mesh(
+        points=mesh.points[keep],
+        triangles=new_id[tri],
+        lines=np.column_stack([new_id[lines[start, 0]], new_id[ends]]),
+        n_contour=mesh.n_contour,
+        n_extra=mesh.n_extra - int(gone.sum()),
+        line_group=groups[start],
+        groups=mesh.groups,
+        n_box=mesh.n_box,
+        point_data={k: v[keep] for k, v in mesh.point_data.items()},
+    )
