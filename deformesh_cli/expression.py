@@ -215,9 +215,11 @@ class Expression:
         if all(a.value is not None for a in args):  # no variable below: compute it now
             try:
                 with np.errstate(all="ignore"):
-                    v = out({})
-                v = float(v)
+                    v = out({})  # kept as computed (a bool, a numpy scalar), as eval has it
+                finite = bool(np.isfinite(v))
             except (ArithmeticError, ValueError, TypeError):
+                finite = False
+            if not finite:
                 v = math.nan
             return self._constant(v, self._source(node))
         return out
@@ -225,8 +227,8 @@ class Expression:
     def _source(self, node: ast.AST) -> str:
         return _short(ast.get_source_segment(self.text.strip(), node) or "?", 40)
 
-    def _constant(self, v: float, source: str) -> _Node:
-        if not math.isfinite(v):
+    def _constant(self, v, source: str) -> _Node:
+        if not np.isfinite(v):
             raise OptionError(self._say(f"has a part that is not a finite number ({source})"))
         return _Node(value=v)
 

@@ -62,6 +62,18 @@ def grid_mode(
     return "adapt" if _respace.spacing_ratio(contour) > EVEN_SPACING_RATIO else "uniform"
 
 
+#: The graded grid's selections, tried in this order (:func:`.select_graded`'s ways):
+#: the points as given, evenly re-spaced and slid, slid to a grid fitted to them; then,
+#: for far fields only, with extra boundary nodes.
+GRADED_ATTEMPTS = (
+    {},
+    {"slide": True},
+    {"fit": True},
+    {"extra": True},
+    {"slide": True, "extra": True},
+)
+
+
 def _options(options: MeshOptions | None, changes: dict) -> MeshOptions:
     """``options`` (default: :class:`MeshOptions`'s defaults) with ``changes`` applied."""
     options = MeshOptions() if options is None else options
@@ -81,10 +93,11 @@ def candidate_selections(
     mode = grid_mode(contour, o.grid, o.h, o.exterior)
     fell_back = None
     if mode == "graded":
-        # as given, then slid; for a far field (which the other grids would mesh with
-        # one step for the whole box) then with extra boundary nodes, unless --strict
-        for slide, extra in ((False, False), (True, False), (False, True), (True, True)):
-            if extra and (o.strict or not o.exterior):
+        # as given, slid, fitted to the points; for a far field (which the other grids
+        # would mesh with one step for the whole box) then with extra boundary nodes,
+        # unless --strict
+        for attempt in GRADED_ATTEMPTS:
+            if attempt.get("extra") and (o.strict or not o.exterior):
                 break
             try:
                 yield select_graded(
@@ -93,10 +106,9 @@ def candidate_selections(
                     margin=o.margin,
                     exterior=o.exterior,
                     max_nodes=o.max_nodes,
-                    slide=slide,
-                    extra=extra,
                     growth=o.growth,
                     max_h=o.max_h,
+                    **attempt,
                 )
                 fell_back = "the graded grid's deformation folded"
             except (SelectionError, LimitError) as exc:

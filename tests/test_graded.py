@@ -13,8 +13,10 @@ from deformesh_cli.quality import measures
 from deformesh_cli.readers import load_contour
 from deformesh_cli.select import graded
 
-from .conftest import SAMPLES, contour_file, solver_read
+from .conftest import ROOT, SAMPLES, contour_file, solver_read
 from .test_properties import star_polygons
+
+CORPUS = ROOT / "tests" / "data" / "corpus"
 
 CONTOURS = [
     SAMPLES / "peanut.csv",
@@ -230,12 +232,13 @@ def test_graded_exterior_and_size_function():
 
 
 def test_graded_falls_back_with_a_note():
-    """Where no path fits (here: a blunt trailing edge 0.0025 thick between points far
-    more apart), 'all' meshes on the other grids and says so."""
+    """Where no path fits (here: an airfoil of 80 points whose sharp trailing edge asks
+    for cells far smaller than its points are apart), 'all' meshes on the other grids and
+    says so."""
     from deformesh_cli import mesh_contour
 
-    res = mesh_contour(load_contour(SAMPLES / "naca0012.csv"), grid="graded")
-    assert res.report["h_rule"] != "graded"
+    res = mesh_contour(load_contour(CORPUS / "airfoil_dae11.csv"), grid="graded")
+    assert not res.report["h_rule"].startswith("graded")
     assert res.report["notes"][0].startswith("the graded grid did not work here")
 
 
@@ -344,3 +347,75 @@ def test_growth_and_max_h_shape_the_graded_grid():
     assert res.mesh.n_nodes > nodes[1]
     with pytest.raises(OptionError, match="--growth"):
         mesh_contour(c, grid="graded", growth=1.0)
+
+
+FIT = [
+    SAMPLES / "naca0012.csv",
+    CORPUS / "airfoil_n0012.csv",
+    CORPUS / "airfoil_sc20714.csv",
+    CORPUS / "icon_si_apple.svg",
+    CORPUS / "icon_bi_cloud-fill.svg",
+]
+
+
+@pytest.mark.parametrize("path", FIT, ids=lambda p: p.name)
+def test_graded_fits_the_grid_to_the_points_where_nothing_else_keeps_them(path):
+    """Where neither the points as given nor evenly re-spaced find a path (a blunt
+    trailing edge, spacing that jumps), the grid is fitted to the number of points and
+    the path to the points slid to equal cell steps: no extra node, fewer nodes than
+    the default grid, and no smaller angle than the default grid's less 5 degrees."""
+    from deformesh_cli import mesh_contour
+
+    c = load_contour(path)
+    res = mesh_contour(c, grid="graded")
+    assert res.report["h_rule"] == "graded-fit"
+    assert res.report["extra_boundary_nodes"] == 0
+    default = mesh_contour(c)
+    assert res.mesh.n_nodes < default.mesh.n_nodes
+    assert res.report["min_angle"] >= default.report["min_angle"] - 5.0
+    assert np.array_equal(res.mesh.points[: c.n], c.points)
+
+
+def test_the_fitted_copy_keeps_corners_order_and_equal_cell_steps():
+    from deformesh_cli.select import graded_fit
+
+    c = load_contour(SAMPLES / "naca0012.csv")
+    lo, hi = c.points.min(axis=0), c.points.max(axis=0)
+    box = (lo[0] - 0.3, lo[1] - 0.3, hi[0] + 0.3, hi[1] + 0.3)
+    tree = graded.build(c, box, local=graded_fit.initial_sizes(c), roots=graded_fit.ROOTS)
+    before = [graded_fit.measure(tree, p, a)[0][-1] / (j - i)
+              for _, i, j, p, a in graded_fit.pieces(c)]  # fmt: skip
+    tree, rho = graded_fit.fit_tree(c, tree)
+    assert min(before) < graded_fit.RHO_LOW  # the fit had work to do
+    for (_, _, _, poly, arc), r in zip(graded_fit.pieces(c), rho):
+        # every piece reaches the measure, or crosses only the finest cells already
+        leaves = graded_fit.measure(tree, poly, arc)[2]
+        assert r >= graded_fit.RHO_LOW or (tree.level[leaves] == 0).all()
+    assert rho.max() <= 1.1
+    rs = graded_fit.copy(c, tree)
+    for a, i, j, poly, arc in graded_fit.pieces(c):
+        # the piece's ends stay; inside, equal steps of the cell measure, in order
+        assert rs.s_copy[a + i] == rs.s_real[a + i]
+        mu, sarc, _, _ = graded_fit.measure(tree, poly, arc)
+        at = np.interp(rs.s_copy[a + i : a + j], sarc, mu)
+        steps = np.diff(np.append(at, mu[-1]))
+        assert np.allclose(steps, mu[-1] / (j - i), rtol=1e-6)
+    # and every copied point lies on the contour's polyline
+    from shapely import LinearRing, distance, points
+
+    ring = LinearRing(c.points)
+    assert distance(ring, points(rs.copy.points)).max() < 1e-9
+
+
+def test_cell_measure_counts_cell_steps():
+    from deformesh_cli.select import graded_fit
+
+    square = make_contour(np.array([[0, 0], [4, 0], [4, 4], [0, 4]], dtype=float))
+    tree = graded.build(square, (-2, -2, 6, 6), local=np.full(4, 1.0))
+    h = float(tree.sizes().max())
+    assert np.allclose(tree.sizes(), h)  # one level here
+    mu = graded_fit.measure(tree, np.array([[0.1, 0.3], [3.1, 0.3]]), np.array([0.0, 3.0]))[0]
+    assert mu[-1] == pytest.approx(3.0 / h)  # along an axis: its length in cells
+    diag = np.array([[0.1, 0.3], [2.1, 2.3]])
+    mu = graded_fit.measure(tree, diag, np.array([0.0, np.hypot(2, 2)]))[0]
+    assert mu[-1] == pytest.approx(2.0 / h)  # a diagonal: one cell per cell crossed

@@ -295,6 +295,7 @@ def build(
     box_given: bool = False,
     max_nodes: int | None = None,
     local: np.ndarray | None = None,
+    roots: int | None = None,
 ) -> Quadtree:
     """The balanced quadtree over ``box`` for ``contour``.
 
@@ -303,7 +304,7 @@ def build(
     :data:`SPLIT_ABOVE` times ``factor`` times the smallest graded local size.
     Without ``box_given`` the box is grown to a whole number of root cells, keeping
     its centre, so cells are square; a given box is kept and the finest cell
-    stretched along one axis to fit.
+    stretched along one axis to fit.  ``roots``: :func:`root_cells`'.
     """
     if not growth > 1.0:
         raise OptionError(f"--growth must be > 1 (cells grow away from the contour), got {growth}")
@@ -313,7 +314,7 @@ def build(
     s = graded_sizes(contour.points, local, growth) * factor
     xmin, ymin, xmax, ymax = box
     w, h = xmax - xmin, ymax - ymin
-    nx, ny, top, h0 = root_cells(w, h, float(s.min()), max_h, exact=box_given)
+    nx, ny, top, h0 = root_cells(w, h, float(s.min()), max_h, exact=box_given, roots=roots)
     if box_given:
         hx, hy = w / (nx * 2**top), h / (ny * 2**top)
         x0, y0 = xmin, ymin
@@ -339,19 +340,24 @@ MAX_STRETCH = 1.0 / (2 * ROOTS) + 1e-9
 
 
 def root_cells(
-    w: float, h: float, target: float, max_h: float | None = None, exact: bool = False
+    w: float,
+    h: float,
+    target: float,
+    max_h: float | None = None,
+    exact: bool = False,
+    roots: int | None = None,
 ) -> tuple[int, int, int, float]:
     """``(nx, ny, top, h0)``: root cells of ``2**top`` finest cells of side ``h0`` about
     ``target``, tiling a ``w`` by ``h`` box.
 
-    At least :data:`ROOTS` root cells along the shorter side (and none larger than
-    ``max_h``).  For an ``exact`` box the root cells divide it, so ``h0`` is within
+    At least ``roots`` (default :data:`ROOTS`) root cells along the shorter side (and
+    none larger than ``max_h``).  For an ``exact`` box the root cells divide it, so ``h0`` is within
     ``1 / (2 * ROOTS)`` of ``target`` and the two axes within :data:`MAX_STRETCH`;
     otherwise ``h0`` is ``target`` and the box is to grow to a whole number of root
     cells (less than one root cell more along each axis).
     """
     short, long_ = min(w, h), max(w, h)
-    top = max(0, math.floor(math.log2(short / (ROOTS * target))))
+    top = max(0, math.floor(math.log2(short / ((roots or ROOTS) * target))))
     if max_h is not None:
         while top > 0 and target * 2**top > max_h:
             top -= 1

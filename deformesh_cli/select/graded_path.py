@@ -36,7 +36,7 @@ import shapely
 from ..contour import Contour
 from ..errors import SelectionError
 from ..geometry import signed_area
-from . import graded
+from . import graded, graded_fit
 from .respace import path_arclengths, respace
 
 #: Nodes a contour point may take: the nearest this many.
@@ -191,6 +191,7 @@ def select_graded(
     slide: bool = False,
     extra: bool = False,
     max_h: float | None = None,
+    fit: bool = False,
 ) -> GradedSelection:
     """Lay the graded grid over ``contour`` and fit each ring's path to its points.
 
@@ -198,6 +199,10 @@ def select_graded(
     corners (:func:`.respace.respace`), and let the deformation slide each node along
     the contour to its point, as the adapted grid does: for contours whose spacing
     changes faster than the cells can follow.
+
+    ``fit``: lay a grid of one cell per point along each piece between corners and
+    fit the path to the points slid to equal cell steps (:mod:`.graded_fit`); the
+    deformation slides each node to its point.
 
     ``extra``: where two consecutive points have no neighbouring candidates, let
     the path step through one grid node between them, an extra boundary node on
@@ -211,22 +216,24 @@ def select_graded(
             raise SelectionError(f"{contour.source}: the evenly re-spaced copy is not valid")
         contour = rs.copy  # the path is fitted to the copy; targets go back to the points
     local = graded.local_sizes(contour)
-    s = local  # (the assignment's unit of distance)
     lo, hi = contour.points.min(axis=0), contour.points.max(axis=0)
     given = box is not None
     if box is None:
         if margin is None:
-            margin = float((hi - lo).max()) if exterior else 3.0 * float(s.max())
+            margin = float((hi - lo).max()) if exterior else 3.0 * float(local.max())
         box = (lo[0] - margin, lo[1] - margin, hi[0] + margin, hi[1] + margin)
-    tree = graded.build(
-        contour,
-        box,
-        growth=growth,
-        max_h=max_h,
-        box_given=given,
-        max_nodes=max_nodes,
-        local=local,
-    )
+    build = {"growth": growth, "max_h": max_h, "box_given": given, "max_nodes": max_nodes}
+    if fit:
+        tree = graded.build(
+            contour, box, local=graded_fit.initial_sizes(contour), roots=graded_fit.ROOTS, **build
+        )
+        tree, _ = graded_fit.fit_tree(contour, tree, max_nodes)
+        rs = graded_fit.copy(contour, tree)
+        contour = rs.copy
+        local = graded.local_sizes(contour)
+    else:
+        tree = graded.build(contour, box, local=local, **build)
+    s = local  # (the assignment's unit of distance)
     lay = tree.layout()
     points, tri0, _ = tree.triangulate(layout=lay)
     keys = tree.node_keys(layout=lay)
@@ -268,11 +275,14 @@ def select_graded(
             rs, sel.path_source, sel.path_ring, sel.path_targets
         )
         sel.path_slide = np.column_stack([s0, s1])
-        sel.h_rule = "graded-slid"
+        sel.h_rule = "graded-fit" if fit else "graded-slid"
         sel.notes.insert(
             0,
-            "graded grid on the points evenly re-spaced between corners; the deformation "
-            "slides each node along the contour to its point",
+            "graded grid of one cell per point, on the points slid to equal cell steps "
+            "between corners; the deformation slides each node along the contour to its point"
+            if fit
+            else "graded grid on the points evenly re-spaced between corners; the "
+            "deformation slides each node along the contour to its point",
         )
     return sel
 

@@ -1,0 +1,168 @@
+"""A graded grid fitted to the number of points: the copy the path follows is spaced
+one cell per point.
+
+A grid path moves one cell per step (a side or a diagonal of a leaf: both cover
+one cell width along the axis the step mostly follows).  So a contour piece
+whose points are, on average, further apart than the cells they cross, measured
+that way, cannot give every point a node next to its neighbour's: the path
+falls behind, a little at each step, until no candidate is left.  That is what
+happens on airfoils and icons, whose spacing changes faster than cells can.
+
+Here the grid and the points are made to agree, piece by piece (a piece runs
+between two corners, or a corner and the ring's first point, as in
+:mod:`.respace`):
+
+1. the quadtree is laid for cells one to two times each point's spacing,
+   measured in the larger of its two axis components (:func:`initial_tree`);
+2. each piece's *cell measure* ``mu`` is the number of cell steps the contour
+   takes along it: the integral of ``max(|dx|, |dy|) / (leaf side)``
+   (:func:`measure`).  Where ``mu`` is below :data:`RHO_LOW` times the piece's
+   number of edges, the leaves it crosses are split, coarsest first, until it
+   is about :data:`RHO_TARGET` times (:func:`fit_tree`);
+3. the points are slid along each piece to equal steps of ``mu``
+   (:func:`copy`): the path is fitted to that copy, and the deformation carries
+   each node along the contour to its real point, as on the adapted grid.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..contour import Contour, make_contour, ring_corners
+from ..errors import InputError, SelectionError
+from ..geometry import next_on_ring
+from . import graded
+from .respace import Respaced, _ring_polyline, arclengths
+
+#: A piece whose cell measure is under this fraction of its edges gets finer cells.
+RHO_LOW = 0.8
+#: ... up to about this fraction.
+RHO_TARGET = 0.95
+#: Rounds of splitting before the grid is taken as it is.
+ROUNDS = 10
+#: Root cells along the box's shorter side: few, so that cells can grow as large as
+#: the spacing of a thin body's contour (an airfoil's box is a few chords by a tenth).
+ROOTS = 2
+
+
+def leaf_at(tree: graded.Quadtree, xy: np.ndarray) -> np.ndarray:
+    """The leaf holding each point (points outside the box: the nearest leaf on its
+    edge)."""
+    width, height = tree.nx * 2**tree.top, tree.ny * 2**tree.top
+    ci = np.clip(np.floor((xy[:, 0] - tree.x0) / tree.hx).astype(np.int64), 0, width - 1)
+    cj = np.clip(np.floor((xy[:, 1] - tree.y0) / tree.hy).astype(np.int64), 0, height - 1)
+    return tree.leaf_index(np.zeros(len(xy), dtype=np.int64), ci, cj)
+
+
+def pieces(contour: Contour):
+    """``(ring start, first, last, polyline, arc lengths)`` of every piece: points
+    ``first..last`` of a ring (``last`` may be the ring's size: its first point
+    again)."""
+    s, lengths = arclengths(contour)
+    out = []
+    for r in range(contour.n_rings):
+        a, b = contour.starts[r], contour.starts[r + 1]
+        q, cum = _ring_polyline(contour, s, lengths, r)
+        ends = np.union1d([0, b - a], ring_corners(q[:-1]))
+        for i, j in zip(ends[:-1], ends[1:]):
+            out.append((int(a), int(i), int(j), q[i : j + 1], cum[i : j + 1]))
+    return out
+
+
+def measure(tree: graded.Quadtree, poly: np.ndarray, arc: np.ndarray):
+    """A piece's polyline cut into sub-segments of at most a quarter of the leaf they
+    start in: ``(cumulative cell measure, arc length, leaf, measure)`` per sub-segment
+    (the first two with one more entry, at the piece's start)."""
+    sizes = tree.sizes()
+    at = sizes[leaf_at(tree, poly)]
+    d = np.diff(poly, axis=0)
+    linf = np.abs(d).max(axis=1)
+    nsub = np.maximum(1, np.ceil(4 * linf / np.minimum(at[:-1], at[1:]))).astype(np.int64)
+    e = np.repeat(np.arange(len(d)), nsub)
+    k = np.repeat(nsub, nsub)
+    u0 = (np.arange(int(nsub.sum())) - np.repeat(np.cumsum(nsub) - nsub, nsub)) / k
+    mid = poly[e] + (u0 + 0.5 / k)[:, None] * d[e]
+    leaf = leaf_at(tree, mid)
+    dmu = linf[e] / k / sizes[leaf]
+    mu = np.concatenate([[0.0], np.cumsum(dmu)])
+    sarc = np.concatenate([arc[e] + u0 * (arc[e + 1] - arc[e]), [arc[-1]]])
+    return mu, sarc, leaf, dmu
+
+
+def split(tree: graded.Quadtree, leaves: np.ndarray) -> graded.Quadtree:
+    """``tree`` with ``leaves`` split in four, balanced again."""
+    keep = np.ones(tree.n_leaves, dtype=bool)
+    keep[leaves] = False
+    ls, is_, js = tree.level[leaves] - 1, tree.i[leaves], tree.j[leaves]
+    lv = np.concatenate([tree.level[keep], np.repeat(ls, 4)])
+    i = np.concatenate([tree.i[keep], np.repeat(is_, 4) * 2 + np.tile([0, 1, 0, 1], len(is_))])
+    j = np.concatenate([tree.j[keep], np.repeat(js, 4) * 2 + np.tile([0, 0, 1, 1], len(js))])
+    t = graded.Quadtree(tree.x0, tree.y0, tree.hx, tree.hy, tree.top, tree.nx, tree.ny, lv, i, j)
+    return graded.balance(t)
+
+
+def initial_sizes(contour: Contour) -> np.ndarray:
+    """Per point: the cell it asks for, ``sqrt(2)`` times the larger axis component of
+    its longer edge (cells end one to two times that component), but no more than its
+    distance to other parts of the contour (:func:`.graded.local_sizes`)."""
+    s = graded.local_sizes(contour)
+    edge = contour.edge_lengths()
+    prev = graded._prev_on_ring(contour)
+    feature = np.where(s < np.minimum(edge, edge[prev]) * (1 - 1e-12), s, np.inf)
+    nxt = next_on_ring(contour.ring)
+    linf = np.abs(contour.points[nxt] - contour.points).max(axis=1)
+    return np.minimum(np.sqrt(2.0) * np.maximum(linf, linf[prev]), feature)
+
+
+def fit_tree(contour: Contour, tree: graded.Quadtree, max_nodes: int | None = None):
+    """Split leaves along the pieces whose cell measure is under :data:`RHO_LOW` times
+    their edges; ``(tree, each piece's measure over its edges)``."""
+    parts = pieces(contour)
+    rho = np.zeros(len(parts))
+    for _ in range(ROUNDS):
+        todo = []
+        for p, (_, i, j, poly, arc) in enumerate(parts):
+            mu, _, leaf, dmu = measure(tree, poly, arc)
+            rho[p] = mu[-1] / (j - i)
+            if rho[p] >= RHO_LOW:
+                continue
+            gain = np.bincount(leaf, weights=dmu, minlength=tree.n_leaves)
+            cand = np.flatnonzero((gain > 0) & (tree.level > 0))
+            cand = cand[np.argsort(-gain[cand], kind="stable")]
+            short = RHO_TARGET * (j - i) - mu[-1]
+            todo.append(cand[: int(np.searchsorted(np.cumsum(gain[cand]), short)) + 1])
+        if not todo:
+            break
+        tree = split(tree, np.unique(np.concatenate(todo)))
+        if max_nodes is not None and 2 * tree.n_leaves > max_nodes:
+            raise SelectionError(f"{contour.source}: the fitted graded grid is over --max-nodes")
+    return tree, rho
+
+
+def copy(contour: Contour, tree: graded.Quadtree) -> Respaced:
+    """The contour's points slid along each piece to equal steps of its cell measure
+    (corners and each ring's first point stay)."""
+    s_real, lengths = arclengths(contour)
+    s_copy = s_real.copy()
+    for a, i, j, poly, arc in pieces(contour):
+        mu, sarc, _, _ = measure(tree, poly, arc)
+        s_copy[a + i : a + j] = np.interp(mu[-1] * np.arange(j - i) / (j - i), mu, sarc)
+    new = np.empty_like(contour.points)
+    for r in range(contour.n_rings):
+        a, b = contour.starts[r], contour.starts[r + 1]
+        q, cum = _ring_polyline(contour, s_real, lengths, r)
+        new[a:b, 0] = np.interp(s_copy[a:b], cum, q[:, 0])
+        new[a:b, 1] = np.interp(s_copy[a:b], cum, q[:, 1])
+    try:
+        c = make_contour(
+            new,
+            contour.lines,
+            contour.source,
+            ring_starts=list(contour.starts[:-1]),
+            ring_labels=list(contour.ring_labels),
+        )
+    except InputError:
+        raise SelectionError(
+            f"{contour.source}: the copy fitted to the grid is not valid"
+        ) from None
+    return Respaced(contour, c, s_real, s_copy, lengths)
