@@ -57,6 +57,15 @@ def grid_mode(
         raise OptionError("--h sets the step of a uniform grid; it does not apply to --grid graded")
     if grid != "auto":
         return grid
+    if h is None and exterior:  # a far field: one step for the whole box would not fit
+        return "graded"
+    return fallback_mode(contour, h, exterior)
+
+
+def fallback_mode(contour: Contour, h: float | None = None, exterior: bool = False) -> str:
+    """``auto``'s grid for an interior mesh, and the graded grid's where it finds no
+    path: the adapted grid when the median spacing is over :data:`EVEN_SPACING_RATIO`
+    times the smallest (and no ``h``, not a far field), else the uniform one."""
     if h is not None or exterior:
         return "uniform"
     return "adapt" if _respace.spacing_ratio(contour) > EVEN_SPACING_RATIO else "uniform"
@@ -114,7 +123,7 @@ def candidate_selections(
             except (SelectionError, LimitError) as exc:
                 why = str(exc).removeprefix(f"{contour.source}: ")
                 fell_back = f"the graded grid did not work here ({why})"
-        mode = grid_mode(contour, "auto", o.h, o.exterior)
+        mode = fallback_mode(contour, o.h, o.exterior)
     for sel in _ungraded(contour, o, mode):
         if fell_back is not None:
             sel.notes.insert(0, f"{fell_back}: fell back to the {mode} grid")

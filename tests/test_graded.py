@@ -313,19 +313,22 @@ def test_graded_slides_where_the_spacing_changes_fast(path, floor):
 
 @pytest.mark.parametrize("box", [(-20, -20, 21, 20), (-50, -50, 51, 50)])
 def test_graded_far_field_opens_in_gmsh_and_scikit_fem(run, tmp_path, box):
-    """The usual CFD far field around samples/naca0012.csv: the uniform grid refuses it
-    (6.4e8 nodes); the graded grid meshes it with under 3 times Triangle's nodes, its
-    box sides and the airfoil named groups the solvers read.  (Extra boundary nodes
-    remain on the airfoil, reported.)"""
+    """The usual CFD far field around samples/naca0012.csv, at default options: the
+    uniform grid refuses it (6.4e8 nodes); the graded grid, the default for far fields,
+    meshes it with under 3 times Triangle's nodes and no extra boundary node, its box
+    sides and the airfoil named groups the solvers read."""
     import json
 
     out = tmp_path / "far.msh"
     arg = "--box=" + ",".join(str(v) for v in box)
-    r = run("all", SAMPLES / "naca0012.csv", "--grid", "graded", "--exterior", arg,
-            "-o", out, "--json", "-q")  # fmt: skip
+    r = run("all", SAMPLES / "naca0012.csv", "--exterior", arg, "-o", out, "--json", "-q")
     assert r.exit_code == 0, r.stderr
     rec = json.loads(r.stdout)
     assert rec["h_rule"].startswith("graded") and rec["contract"] == "ok"
+    assert rec["extra_boundary_nodes"] == 0 and rec["merged_extra_nodes"] == 0
+    refused = run("all", SAMPLES / "naca0012.csv", "--exterior", arg, "--grid", "uniform",
+                  "-o", tmp_path / "u.msh")  # fmt: skip
+    assert refused.exit_code == 1 and "would need" in refused.stderr
     assert rec["nodes"] < 3 * 700  # Triangle pq30Y: 654 and 668 nodes on these boxes
     c = load_contour(SAMPLES / "naca0012.csv")
     assert rec["area"] == pytest.approx((box[2] - box[0]) * (box[3] - box[1]) - c.area, rel=1e-12)

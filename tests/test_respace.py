@@ -130,7 +130,8 @@ def test_grid_mode_rules():
     assert grid_mode(even) == "uniform"
     assert grid_mode(uneven) == "adapt"
     assert grid_mode(uneven, h=0.01) == "uniform"
-    assert grid_mode(uneven, exterior=True) == "uniform"
+    assert grid_mode(uneven, exterior=True) == "graded"  # a far field
+    assert grid_mode(uneven, h=0.01, exterior=True) == "uniform"
     assert grid_mode(even, "adapt") == "adapt"
 
 

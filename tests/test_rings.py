@@ -103,8 +103,10 @@ def test_exterior_airfoil_in_a_far_field_box(run, tmp_path):
     assert r.exit_code == 0, r.stderr
     rec = json.loads(r.stdout)
     assert rec["exterior"] is True and rec["contract"] == "ok"
-    # the default step follows the spacing, not Appendix A's (5e7 nodes in this box)
-    assert rec["h_rule"] == "spacing" and rec["grid_nodes"] < 1_000_000
+    # a far field is graded by default: cells grow away from the airfoil (Appendix A's
+    # step would need 5e7 nodes in this box), every contour point a node and no other
+    assert rec["h_rule"].startswith("graded") and rec["grid_nodes"] < 20_000
+    assert rec["extra_boundary_nodes"] == 0
     c = load_contour(src)
     m, groups = _reread(out, c, rec, box=(-2.0, -2.0, 3.0, 2.0))
     assert groups == ("contour", "bottom", "right", "top", "left")
