@@ -38,7 +38,7 @@ from .geometry import touching
 from .mesh import Mesh
 
 #: Rounds of (flips, smoothing, cavities) at most; a round that changes nothing ends it.
-ROUNDS = 8
+ROUNDS = 16
 #: Triangles whose smallest angle is under this (degrees) are worked on, with their
 #: neighbours; the others are left as they are.
 TARGET = 35.0
