@@ -102,6 +102,7 @@ def candidate_selections(
     mode = grid_mode(contour, o.grid, o.h, o.exterior)
     fell_back = None
     if mode == "graded":
+        size = _size.make(o.size, o.size_field, contour) if (o.size or o.size_field) else None
         # as given, slid, fitted to the points; for a far field (which the other grids
         # would mesh with one step for the whole box) then with extra boundary nodes,
         # unless --strict
@@ -117,6 +118,7 @@ def candidate_selections(
                     max_nodes=o.max_nodes,
                     growth=o.growth,
                     max_h=o.max_h,
+                    size=size,
                     **attempt,
                 )
                 fell_back = "the graded grid's deformation folded"

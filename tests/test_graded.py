@@ -422,3 +422,44 @@ def test_cell_measure_counts_cell_steps():
     diag = np.array([[0.1, 0.3], [2.1, 2.3]])
     mu = graded_fit.measure(tree, diag, np.array([0.0, np.hypot(2, 2)]))[0]
     assert mu[-1] == pytest.approx(2.0 / h)  # a diagonal: one cell per cell crossed
+
+
+@pytest.mark.parametrize(
+    "path,expr,apart",
+    [
+        (SAMPLES / "peanut.csv", "1 + x**2", True),
+        (SAMPLES / "peanut.csv", "0.1 + d", False),
+        (SAMPLES / "circle.csv", "0.02 + hypot(x - 0.4, y - 0.2)", True),
+    ],
+    ids=["peanut-x2", "peanut-d", "circle-point"],
+)
+def test_a_size_function_grades_the_graded_grid_too(path, expr, apart):
+    """The quadtree is refined where f asks for smaller cells, then the deformation
+    smooths it: areas follow f.  Where f does not grow with the distance to the contour
+    (``apart``), deforming the unrefined graded grid follows it less well."""
+    from deformesh_cli import mesh_contour, pipeline
+
+    c = load_contour(path)
+    res = mesh_contour(c, grid="graded", size=expr)
+    assert res.report["h_rule"].startswith("graded")
+    assert res.report["extra_boundary_nodes"] == 0
+    assert res.report["size_correlation"] >= 0.9
+    assert res.report["min_angle"] >= 35.0
+    # the same graded selection without the refinement follows f less well
+    plain = next(pipeline.candidate_selections(c, grid="graded"))
+    d = pipeline.run_deform(c, plain, size=expr)
+    unrefined = pipeline.run_triangulate(c, d, size=expr)[1]["size_correlation"]
+    if apart:
+        assert unrefined < res.report["size_correlation"] - 0.1
+
+
+def test_a_size_field_file_grades_the_graded_grid(tmp_path):
+    from deformesh_cli import mesh_contour
+
+    xs, ys = np.meshgrid(np.linspace(-3, 3, 31), np.linspace(-2, 2, 21), indexing="ij")
+    rows = np.column_stack([xs.ravel(), ys.ravel(), 1 + xs.ravel() ** 2])
+    path = tmp_path / "f.csv"
+    np.savetxt(path, rows, delimiter=",", header="x,y,f", comments="")
+    res = mesh_contour(load_contour(SAMPLES / "peanut.csv"), grid="graded", size_field=str(path))
+    assert res.report["h_rule"].startswith("graded")
+    assert res.report["size_correlation"] >= 0.9

@@ -296,6 +296,7 @@ def build(
     max_nodes: int | None = None,
     local: np.ndarray | None = None,
     roots: int | None = None,
+    field=None,
 ) -> Quadtree:
     """The balanced quadtree over ``box`` for ``contour``.
 
@@ -304,7 +305,9 @@ def build(
     :data:`SPLIT_ABOVE` times ``factor`` times the smallest graded local size.
     Without ``box_given`` the box is grown to a whole number of root cells, keeping
     its centre, so cells are square; a given box is kept and the finest cell
-    stretched along one axis to fit.  ``roots``: :func:`root_cells`'.
+    stretched along one axis to fit.  ``roots``: :func:`root_cells`'.  ``field``: a
+    further size field (points (k, 2) -> sizes (k,)) the cells must not exceed, as a
+    size function asks (:func:`refine`).
     """
     if not growth > 1.0:
         raise OptionError(f"--growth must be > 1 (cells grow away from the contour), got {growth}")
@@ -327,7 +330,7 @@ def build(
         x0, y0, hx, hy, top, nx, ny,
         np.full(nx * ny, top, np.int64), i.ravel().astype(np.int64), j.ravel().astype(np.int64),
     )  # fmt: skip
-    tree = refine(tree, contour.points, s, growth, max_nodes)
+    tree = refine(tree, contour.points, s, growth, max_nodes, field)
     return balance(tree)
 
 
@@ -377,10 +380,11 @@ def refine(
     s: np.ndarray,
     growth: float,
     max_nodes: int | None = None,
+    field=None,
 ) -> Quadtree:
     """Split every leaf larger than the size field ``min over q of s_q + (growth - 1)
-    d(q, cell)`` (``d`` the distance from point ``q`` to the cell), level by level
-    from the root."""
+    d(q, cell)`` (``d`` the distance from point ``q`` to the cell), and than ``field``
+    at its centre if given, level by level from the root."""
     from scipy.spatial import cKDTree
 
     alpha = growth - 1.0
@@ -400,6 +404,8 @@ def refine(
         dx = np.maximum(np.abs(q[..., 0] - cx[:, None]) - w[:, None] / 2, 0.0)
         dy = np.maximum(np.abs(q[..., 1] - cy[:, None]) - hgt[:, None] / 2, 0.0)
         need = np.min(s[idx] + alpha * np.hypot(dx, dy), axis=1)
+        if field is not None:
+            need = np.minimum(need, field(np.column_stack([cx, cy])))
         split = (np.maximum(w, hgt) > SPLIT_ABOVE * need) & (lv > 0)
         keep_l.append(lv[~split])
         keep_i.append(i[~split])

@@ -192,6 +192,7 @@ def select_graded(
     extra: bool = False,
     max_h: float | None = None,
     fit: bool = False,
+    size=None,
 ) -> GradedSelection:
     """Lay the graded grid over ``contour`` and fit each ring's path to its points.
 
@@ -203,6 +204,12 @@ def select_graded(
     ``fit``: lay a grid of one cell per point along each piece between corners and
     fit the path to the points slid to equal cell steps (:mod:`.graded_fit`); the
     deformation slides each node to its point.
+
+    ``size`` (a :class:`~deformesh_cli.size.SizeFunction`): cells also no wider than
+    ``lambda sqrt(f)``, ``lambda`` the median over the points of their cell size over
+    ``sqrt(f)`` there, so the grid already grades as ``f`` asks and the deformation
+    only smooths it (without it the cells start with areas 4 times apart across a
+    level change, and the deformation multiplies them by ``f``).
 
     ``extra``: where two consecutive points have no neighbouring candidates, let
     the path step through one grid node between them, an extra boundary node on
@@ -223,6 +230,8 @@ def select_graded(
             margin = float((hi - lo).max()) if exterior else 3.0 * float(local.max())
         box = (lo[0] - margin, lo[1] - margin, hi[0] + margin, hi[1] + margin)
     build = {"growth": growth, "max_h": max_h, "box_given": given, "max_nodes": max_nodes}
+    if size is not None:
+        build["field"] = _size_field(contour, local, growth, size)
     if fit:
         tree = graded.build(
             contour, box, local=graded_fit.initial_sizes(contour), roots=graded_fit.ROOTS, **build
@@ -285,6 +294,15 @@ def select_graded(
             "deformation slides each node along the contour to its point",
         )
     return sel
+
+
+def _size_field(contour: Contour, local: np.ndarray, growth: float, size):
+    """Cell sizes as a size function asks: ``lambda sqrt(f(x))``, anchored at the
+    contour (``lambda`` the median over its points of their graded size over
+    ``sqrt(f)``)."""
+    s = graded.graded_sizes(contour.points, local, growth)
+    scale = float(np.median(s / np.sqrt(size.values(contour.points))))
+    return lambda xy: scale * np.sqrt(size.values(xy))
 
 
 @dataclass
