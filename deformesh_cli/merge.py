@@ -58,10 +58,8 @@ def merge_extra_nodes(mesh: Mesh) -> tuple[Mesh, Merged]:
     nxt[mesh.lines[:, 0]] = mesh.lines[:, 1]
     extra = np.zeros(n, dtype=bool)
     extra[m : m + e] = True
-    # the triangles of each node that is extra or next to one
-    near = extra | extra[np.maximum(nxt, 0)]
-    near[nxt[extra]] = True
-    t_idx, corner = np.nonzero(near[tri])
+    # the triangles of each extra node
+    t_idx, corner = np.nonzero(extra[tri])
     star: dict[int, list[int]] = {}
     for v, t in zip(tri[t_idx, corner].tolist(), t_idx.tolist()):
         star.setdefault(v, []).append(t)
@@ -74,7 +72,7 @@ def merge_extra_nodes(mesh: Mesh) -> tuple[Mesh, Merged]:
             run.append(int(nxt[run[-1]]))
         b = int(nxt[run[-1]])
         cavity = sorted({t for x in run for t in star[x]})
-        if dead[cavity].any():  # (two runs never share triangles, but be sure)
+        if dead[cavity].any():  # shares a triangle with the run before (around A): stays
             continue
         new = _retriangulate(pts, tri[cavity], int(a), b, set(run))
         if new is None:
