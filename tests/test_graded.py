@@ -463,3 +463,28 @@ def test_a_size_field_file_grades_the_graded_grid(tmp_path):
     res = mesh_contour(load_contour(SAMPLES / "peanut.csv"), grid="graded", size_field=str(path))
     assert res.report["h_rule"].startswith("graded")
     assert res.report["size_correlation"] >= 0.9
+
+
+def test_a_size_function_given_to_select_reaches_the_pipeline(sh, tmp_path):
+    """select --size refines the graded grid and records f for deform, so the pipeline
+    writes the bytes 'all' writes; deform's own --size overrides it."""
+    src = SAMPLES / "peanut.csv"
+    f = "--size '1 + x**2'"
+    r = sh(
+        f"deformesh select {src} --grid graded {f} -o - -q | deformesh deform - -o - -q | "
+        f"deformesh triangulate - -o {tmp_path}/p.vtk --json -q"
+    )
+    import json
+
+    rec = json.loads(r.stdout)
+    assert rec["size"] == "'1 + x**2'" and rec["size_correlation"] >= 0.9
+    sh(f"deformesh all {src} --grid graded {f} -o {tmp_path}/a.vtk -q")
+    assert (tmp_path / "p.vtk").read_bytes() == (tmp_path / "a.vtk").read_bytes()
+    r = sh(
+        f"deformesh select {src} --grid graded {f} -o - -q | "
+        "deformesh deform - -o - -q --size '2 + y' | "
+        f"deformesh triangulate - -o {tmp_path}/q.vtk --json -q"
+    )
+    assert json.loads(r.stdout)["size"] == "'2 + y'"
+    both = sh(f"deformesh select {src} {f} --size-field x.csv -o {tmp_path}/s", check=False)
+    assert both.returncode == 2 and b"not both" in both.stderr

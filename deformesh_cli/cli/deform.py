@@ -29,7 +29,10 @@ def command(state_in: str, output: str, quiet: bool, **kwargs) -> None:
     check_binary_stdout(output)
     name = "<stdin>" if state_in == "-" else state_in
     st = state.loads(files.read_bytes(state_in), name, want="selected")
-    o = from_record(MeshOptions, st.options).replace(**take(MeshOptions, kwargs).stage("deform"))
+    given = take(MeshOptions, kwargs).stage("deform")
+    if given["size"] is None and given["size_field"] is None:  # select's, if it had one
+        del given["size"], given["size_field"]
+    o = from_record(MeshOptions, st.options).replace(**given)
     with steps_bar(quiet) as progress:
         d = pipeline.run_deform(st.contour, st.selection, o, callback=progress)
     options = {**st.options, **o.stage("deform")}

@@ -5,25 +5,33 @@ from __future__ import annotations
 import click
 
 from .. import files, pipeline, state
+from .. import size as _size
 from ..options import MeshOptions
 from ..readers import load_contour
 from .errors import handle_errors
-from .options import check_binary_stdout, output_option, quiet_option, say, stages, take
+from .options import check_binary_stdout, fields, output_option, quiet_option, say, stages, take
 
 
 @click.command("select")
 @click.argument("contour", type=click.Path(dir_okay=False, allow_dash=True))
 @output_option("State file to write ('-' for stdout).")
 @stages("select", "read")
+@fields(MeshOptions, "size", "size_field")
 @quiet_option
 @handle_errors
 def command(contour: str, output: str, quiet: bool, **kwargs) -> None:
-    """Lay the background grid and pick one grid node per contour point (stage 1)."""
+    """Lay the background grid and pick one grid node per contour point (stage 1).
+
+    A size function given here is recorded for ``deform`` (which uses it unless given
+    one of its own) and, on the graded grid, refines the quadtree where it asks for
+    smaller cells."""
     check_binary_stdout(output)
     o = take(MeshOptions, kwargs)
+    _size.check_options(o.size, o.size_field)
     c = load_contour(contour, None, o.decimal, o.tolerance, o.element_id, o.resample)
     sel = pipeline.run_select(c, o)
     options = {**o.stage("read"), **o.stage("select")}
+    options.update({k: v for k, v in (("size", o.size), ("size_field", o.size_field)) if v})
     files.write_bytes(state.dumps(state.State("selected", c, sel, options=options)), output)
     g = sel.grid
     say(
