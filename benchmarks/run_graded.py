@@ -79,10 +79,6 @@ def triangle_run(c, box=None) -> dict:
     }
 
 
-def triangle_nodes(c, box=None) -> int:
-    return triangle_run(c, box)["nodes"]
-
-
 def domain_nodes(c, pts, box=None) -> int:
     rings = [c.points[c.starts[r] : c.starts[r + 1]] for r in range(c.n_rings)]
     polys = [shapely.Polygon(r) for r in rings]
@@ -186,7 +182,7 @@ def main() -> None:
         lo, hi = c.points.min(axis=0), c.points.max(axis=0)
         e = float((hi - lo).max())
         grid_box = box or (lo[0] - 0.1 * e, lo[1] - 0.1 * e, hi[0] + 0.1 * e, hi[1] + 0.1 * e)
-        tri = triangle_nodes(c, box)
+        tri = triangle_run(c, box)["nodes"]
         cells = []
         for growth, factor in SETTINGS:
             t0 = time.perf_counter()

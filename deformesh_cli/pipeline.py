@@ -90,19 +90,25 @@ def _options(options: MeshOptions | None, changes: dict) -> MeshOptions:
 
 
 def candidate_selections(
-    contour: Contour, options: MeshOptions | None = None, **changes
+    contour: Contour,
+    options: MeshOptions | None = None,
+    *,
+    size_function: SizeFunction | None = None,
+    **changes,
 ) -> Iterator[Selection]:
     """The selections ``all`` tries in turn.
 
     On an adapted grid: the re-spaced ones (:func:`.respace.candidate_selections`),
     then, if none could be selected or all of them folded, Appendix A's uniform grid
     (whose errors are the ones reported).  ``changes``: :class:`MeshOptions` fields.
+    The graded grid is refined for the size function (``size_function``, else the
+    options' ``size`` or ``size_field``).
     """
     o = _options(options, changes)
     mode = grid_mode(contour, o.grid, o.h, o.exterior)
     fell_back = None
     if mode == "graded":
-        size = _size.make(o.size, o.size_field, contour) if (o.size or o.size_field) else None
+        size = size_function or _size.make(o.size, o.size_field, contour)
         # as given, slid, fitted to the points; for a far field (which the other grids
         # would mesh with one step for the whole box) then with extra boundary nodes,
         # unless --strict
@@ -384,7 +390,7 @@ def mesh_contour(
         size = _size.make(o.size, o.size_field, contour)
     fold = flat = None
     try:
-        for sel in candidate_selections(contour, o):
+        for sel in candidate_selections(contour, o, size_function=size):
             # stage 3's topology (which triangles, numbered how, and their edges) needs
             # only the selection: it runs on the second core while the deformation runs
             # (``benchmarks/MEASURED.md``)

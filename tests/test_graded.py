@@ -488,3 +488,16 @@ def test_a_size_function_given_to_select_reaches_the_pipeline(sh, tmp_path):
     assert json.loads(r.stdout)["size"] == "'2 + y'"
     both = sh(f"deformesh select {src} {f} --size-field x.csv -o {tmp_path}/s", check=False)
     assert both.returncode == 2 and b"not both" in both.stderr
+
+
+def test_a_python_size_function_refines_the_graded_grid_as_the_expression_does():
+    from deformesh_cli import mesh_contour
+    from deformesh_cli.size import SizeFunction
+
+    c = load_contour(SAMPLES / "peanut.csv")
+    f = SizeFunction(lambda q: 1 + q[:, 0] ** 2, "1 + x**2 in Python")
+    py = mesh_contour(c, grid="graded", size_function=f)
+    expr = mesh_contour(c, grid="graded", size="1 + x**2")
+    assert py.mesh.n_nodes == expr.mesh.n_nodes
+    assert py.report["size_correlation"] == pytest.approx(expr.report["size_correlation"])
+    assert py.report["size_correlation"] >= 0.9

@@ -9,8 +9,8 @@ falls behind, a little at each step, until no candidate is left.  That is what
 happens on airfoils and icons, whose spacing changes faster than cells can.
 
 Here the grid and the points are made to agree, piece by piece (a piece runs
-between two corners, or a corner and the ring's first point, as in
-:mod:`.respace`):
+between two corners, or a corner and the ring's first point:
+:func:`.respace.pieces`):
 
 1. the quadtree is laid for cells one to two times each point's spacing,
    measured in the larger of its two axis components (:func:`initial_tree`);
@@ -28,11 +28,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..contour import Contour, make_contour, ring_corners
-from ..errors import InputError, SelectionError
+from ..contour import Contour
+from ..errors import SelectionError
 from ..geometry import next_on_ring
 from . import graded
-from .respace import Respaced, _ring_polyline, arclengths
+from .respace import Respaced, arclengths, pieces, slid_copy
 
 #: A piece whose cell measure is under this fraction of its edges gets finer cells.
 RHO_LOW = 0.8
@@ -52,21 +52,6 @@ def leaf_at(tree: graded.Quadtree, xy: np.ndarray) -> np.ndarray:
     ci = np.clip(np.floor((xy[:, 0] - tree.x0) / tree.hx).astype(np.int64), 0, width - 1)
     cj = np.clip(np.floor((xy[:, 1] - tree.y0) / tree.hy).astype(np.int64), 0, height - 1)
     return tree.leaf_index(np.zeros(len(xy), dtype=np.int64), ci, cj)
-
-
-def pieces(contour: Contour):
-    """``(ring start, first, last, polyline, arc lengths)`` of every piece: points
-    ``first..last`` of a ring (``last`` may be the ring's size: its first point
-    again)."""
-    s, lengths = arclengths(contour)
-    out = []
-    for r in range(contour.n_rings):
-        a, b = contour.starts[r], contour.starts[r + 1]
-        q, cum = _ring_polyline(contour, s, lengths, r)
-        ends = np.union1d([0, b - a], ring_corners(q[:-1]))
-        for i, j in zip(ends[:-1], ends[1:]):
-            out.append((int(a), int(i), int(j), q[i : j + 1], cum[i : j + 1]))
-    return out
 
 
 def measure(tree: graded.Quadtree, poly: np.ndarray, arc: np.ndarray):
@@ -142,27 +127,11 @@ def fit_tree(contour: Contour, tree: graded.Quadtree, max_nodes: int | None = No
 def copy(contour: Contour, tree: graded.Quadtree) -> Respaced:
     """The contour's points slid along each piece to equal steps of its cell measure
     (corners and each ring's first point stay)."""
-    s_real, lengths = arclengths(contour)
-    s_copy = s_real.copy()
+    s_copy = arclengths(contour)[0]
     for a, i, j, poly, arc in pieces(contour):
         mu, sarc, _, _ = measure(tree, poly, arc)
         s_copy[a + i : a + j] = np.interp(mu[-1] * np.arange(j - i) / (j - i), mu, sarc)
-    new = np.empty_like(contour.points)
-    for r in range(contour.n_rings):
-        a, b = contour.starts[r], contour.starts[r + 1]
-        q, cum = _ring_polyline(contour, s_real, lengths, r)
-        new[a:b, 0] = np.interp(s_copy[a:b], cum, q[:, 0])
-        new[a:b, 1] = np.interp(s_copy[a:b], cum, q[:, 1])
-    try:
-        c = make_contour(
-            new,
-            contour.lines,
-            contour.source,
-            ring_starts=list(contour.starts[:-1]),
-            ring_labels=list(contour.ring_labels),
-        )
-    except InputError:
-        raise SelectionError(
-            f"{contour.source}: the copy fitted to the grid is not valid"
-        ) from None
-    return Respaced(contour, c, s_real, s_copy, lengths)
+    rs = slid_copy(contour, s_copy)
+    if rs is None:
+        raise SelectionError(f"{contour.source}: the copy fitted to the grid is invalid")
+    return rs

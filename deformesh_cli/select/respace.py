@@ -75,16 +75,38 @@ def respace(contour: Contour) -> Respaced | None:
     cutting a corner made two rings touch, or a ring cross itself); the
     caller then selects on the real points.
     """
+    s_real, lengths = arclengths(contour)
+    s_copy = s_real.copy()
+    for a, i, j, _, cum in pieces(contour):  # points i..j-1 between piece ends i and j
+        s_copy[a + i : a + j] = cum[0] + (cum[-1] - cum[0]) * np.arange(j - i) / (j - i)
+    return slid_copy(contour, s_copy)
+
+
+def pieces(contour: Contour):
+    """``(ring start, first, last, polyline, arc lengths)`` of every piece between two
+    corners (or a corner and its ring's first point, kept so that arc lengths never
+    wrap): points ``first..last`` of a ring, ``last`` possibly the ring's size (its
+    first point again)."""
+    s, lengths = arclengths(contour)
+    out = []
+    for r in range(contour.n_rings):
+        a, b = contour.starts[r], contour.starts[r + 1]
+        q, cum = _ring_polyline(contour, s, lengths, r)
+        ends = np.union1d([0, b - a], corners(q[:-1]))
+        for i, j in zip(ends[:-1], ends[1:]):
+            out.append((int(a), int(i), int(j), q[i : j + 1], cum[i : j + 1]))
+    return out
+
+
+def slid_copy(contour: Contour, s_copy: np.ndarray) -> Respaced | None:
+    """The contour with each point slid along its ring to arc length ``s_copy`` (from
+    the ring's first point), or None when that copy is not a valid contour."""
     c = contour
     s_real, lengths = arclengths(c)
-    s_copy = s_real.copy()
     new = np.empty_like(c.points)
     for r in range(c.n_rings):
         a, b = c.starts[r], c.starts[r + 1]
         q, cum = _ring_polyline(c, s_real, lengths, r)
-        ends = np.union1d([0, b - a], corners(q[:-1]))
-        for i, j in zip(ends[:-1], ends[1:]):  # points i..j-1 between piece ends i and j
-            s_copy[a + i : a + j] = cum[i] + (cum[j] - cum[i]) * np.arange(j - i) / (j - i)
         new[a:b, 0] = np.interp(s_copy[a:b], cum, q[:, 0])
         new[a:b, 1] = np.interp(s_copy[a:b], cum, q[:, 1])
     try:
