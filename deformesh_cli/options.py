@@ -119,12 +119,12 @@ class MeshOptions:
     )
     grid: str = _opt(
         "auto",
-        "'adapt': select on the points evenly re-spaced between corners with h "
-        "their median spacing, then slide each node along the contour to its "
-        "point; 'uniform': Appendix A's grid; 'auto': adapt when the median "
-        "spacing is over 4x the smallest (and no --h, not --exterior); 'graded': "
-        "a quadtree grid whose cells follow the contour's spacing and grow away "
-        "from it, no extra boundary node (falls back to 'auto' where it finds no path).",
+        "'graded': a quadtree grid whose cells follow the contour's spacing and grow "
+        "away from it, no extra boundary node (where it finds no path: 'adapt' when "
+        "the median spacing is over 4x the smallest, else 'uniform'); 'adapt': select "
+        "on the points evenly re-spaced between corners with h their median spacing, "
+        "then slide each node along the contour to its point; 'uniform': Appendix A's "
+        "grid; 'auto': graded, or uniform with --h.",
         "choice",
         choices=GRIDS,
     )

@@ -51,21 +51,21 @@ class MeshResult:
 def grid_mode(
     contour: Contour, grid: str = "auto", h: float | None = None, exterior: bool = False
 ) -> str:
+    """The grid ``all`` lays first: ``grid``, where ``auto`` is the graded grid (the
+    uniform one with ``h``)."""
     if grid not in GRIDS:
         raise OptionError(f"--grid must be one of {', '.join(GRIDS)}, got {grid!r}")
     if grid == "graded" and h is not None:
         raise OptionError("--h sets the step of a uniform grid; it does not apply to --grid graded")
     if grid != "auto":
         return grid
-    if h is None and exterior:  # a far field: one step for the whole box would not fit
-        return "graded"
-    return fallback_mode(contour, h, exterior)
+    return "graded" if h is None else "uniform"
 
 
 def fallback_mode(contour: Contour, h: float | None = None, exterior: bool = False) -> str:
-    """``auto``'s grid for an interior mesh, and the graded grid's where it finds no
-    path: the adapted grid when the median spacing is over :data:`EVEN_SPACING_RATIO`
-    times the smallest (and no ``h``, not a far field), else the uniform one."""
+    """The graded grid's fallback where it finds no path: the adapted grid when the
+    median spacing is over :data:`EVEN_SPACING_RATIO` times the smallest (and no ``h``,
+    not a far field), else the uniform one."""
     if h is not None or exterior:
         return "uniform"
     return "adapt" if _respace.spacing_ratio(contour) > EVEN_SPACING_RATIO else "uniform"
@@ -248,18 +248,33 @@ def run_deform(
             contour, sel.path_ring, sel.path_slide[:, 0], sel.path_slide[:, 1], sel.path_targets
         ),
     }
+    args = (pts0, tri, sel.path_nodes, sel.path_targets, grid.boundary_nodes())
     try:
-        if band is None:
-            pos, st = _deform.deform(
-                pts0, tri, sel.path_nodes, sel.path_targets, grid.boundary_nodes(), **kwargs
-            )
-        else:
-            pos, st = _deform.deform_band(
-                pts0, tri, sel.path_nodes, sel.path_targets, grid.boundary_nodes(), band, **kwargs
-            )
+        try:
+            if band is None:
+                pos, st = _deform.deform(*args, **kwargs)
+            else:
+                pos, st = _deform.deform_band(*args, band, **kwargs)
+        except FoldError:
+            if size is None or not isinstance(sel, GradedSelection):
+                raise
+            # f asks for more than the graded grid's cells can give by the contour:
+            # from the grid's own density to f's, kept within a factor of it
+            kwargs["size"] = _limited_size_path(size, sel)
+            pos, st = _deform.deform(*args, **kwargs)
     except SolverError as exc:
         raise SolverError(f"{contour.source}: deformation failed: {exc}") from None
     return Deformed(sel, pos, st)
+
+
+def _limited_size_path(size: SizeFunction, sel: GradedSelection) -> _size.SizePath:
+    """A graded grid's path of target densities when the plain one folds: from the
+    grid's own density to ``size``'s, kept within :data:`.size.MAX_DENSITY_RATIO` of
+    the grid's (so the cells by the contour, which its points fix, are not squeezed
+    against it)."""
+    box = sel.grid.box
+    g0 = _size.grid_density(sel.grid.coords(), sel.triangles(), box)
+    return _size.SizePath(_size.limited_target(size.g1, g0, box), box, g0=g0)
 
 
 def _describer(contour: Contour, sel: Selection):

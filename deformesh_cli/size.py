@@ -240,31 +240,91 @@ def make(expr: str | None, field_path: str | None, contour: Contour) -> SizeFunc
 
 
 class SizePath:
-    """``g(x, t)``, the target ``1/f`` along pseudo-time, from 1 at t = 0 to ``g1`` at t = 1.
+    """``g(x, t)``, the target ``1/f`` along pseudo-time, from ``g0`` at t = 0 to ``g1``
+    at t = 1.
 
-    ``linear`` (the paper): ``g = (1-t) + t g1``, whose box mean stays 1 when
-    ``g1``'s is.  ``geometric``: ``g = g1^t / mean(g1^t)``, renormalised at
-    every ``t`` (the mean over the fixed box, sampled ``n x n``): cells change
-    area by the same factor at every step, which large ratios need (a linear
-    path asks for nearly all of a 1000-fold shrink in the first step).
+    ``g0`` is the background grid's own density (1 on a uniform grid; on a graded
+    one, :func:`grid_density`), so the deformation takes the grid from the cells it
+    has to the cells ``f`` asks for, not from uniform ones.  ``linear`` (the paper):
+    ``g = (1-t) g0 + t g1``, whose box mean stays 1 when ``g0``'s and ``g1``'s are.
+    ``geometric``: ``g = g0^(1-t) g1^t / mean(g0^(1-t) g1^t)``, renormalised at
+    every ``t`` (the mean over the fixed box, sampled ``n x n``): cells change area
+    by the same factor at every step, which large ratios need (a linear path asks
+    for nearly all of a 1000-fold shrink in the first step).
     """
 
     def __init__(
-        self, g1: Callable[[np.ndarray], np.ndarray], box, geometric: bool = False, n: int = 256
+        self,
+        g1: Callable[[np.ndarray], np.ndarray],
+        box,
+        geometric: bool = False,
+        n: int = 256,
+        g0: Callable[[np.ndarray], np.ndarray] | None = None,
     ):
         self.g1 = g1
+        self.g0 = g0
         self.geometric = geometric
         if geometric:
-            self._log_samples = np.log(g1(box_samples(box, n)))
+            q = box_samples(box, n)
+            self._log1 = np.log(g1(q))
+            self._log0 = np.zeros(len(q)) if g0 is None else np.log(g0(q))
 
     def g_and_rate(self, q: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
         """``g`` and ``dg/dt`` at points ``q`` and pseudo-time ``t``."""
         g1 = self.g1(q)
         if not self.geometric:
-            return (1.0 - t) + t * g1, g1 - 1.0
-        ls = self._log_samples
-        w = np.exp(t * ls)
-        mean, mean_log = w.mean(), (w * ls).mean()
-        h = np.exp(t * np.log(g1))
-        g = h / mean
-        return g, g * (np.log(g1) - mean_log / mean)
+            if self.g0 is None:
+                return (1.0 - t) + t * g1, g1 - 1.0
+            g0 = self.g0(q)
+            return (1.0 - t) * g0 + t * g1, g1 - g0
+        l0, l1 = self._log0, self._log1
+        w = np.exp((1.0 - t) * l0 + t * l1)
+        mean, mean_log = w.mean(), (w * (l1 - l0)).mean()
+        log0 = 0.0 if self.g0 is None else np.log(self.g0(q))
+        log1 = np.log(g1)
+        g = np.exp((1.0 - t) * log0 + t * log1) / mean
+        return g, g * (log1 - log0 - mean_log / mean)
+
+
+#: On a graded grid the deformation asks each place for at most this factor more or
+#: fewer nodes than the grid has there (its cells already follow f, to a level of the
+#: quadtree; beyond that a size function asks for more than the contour's spacing
+#: allows, and the nodes by the contour fold against it).
+MAX_DENSITY_RATIO = 4.0
+
+
+def limited_target(g1, g0, box, ratio: float = MAX_DENSITY_RATIO, n: int = 256):
+    """``g1`` kept within ``ratio`` of the grid's density ``g0`` (after scaling ``g1`` to
+    ``g0`` by their geometric means), then normalised to box mean 1 again."""
+    q = box_samples(box, n)
+    log_k = float(np.mean(np.log(g1(q)) - np.log(g0(q))))
+    lo, hi = -np.log(ratio), np.log(ratio)
+
+    def raw(p):
+        return g0(p) * np.exp(np.clip(np.log(g1(p)) - np.log(g0(p)) - log_k, lo, hi))
+
+    scale = float(np.mean(raw(q)))
+    return lambda p: raw(p) / scale
+
+
+def grid_density(points: np.ndarray, triangles: np.ndarray, box, n: int = 256):
+    """A graded grid's own density, as a function of position: at each node one over
+    a third of the area of its triangles, linear in between (over the grid's own
+    triangles), scaled so its mean over ``box`` is 1 as :meth:`SizeFunction.g1`'s is."""
+    from scipy.interpolate import LinearNDInterpolator
+    from scipy.spatial import Delaunay
+
+    from .geometry import signed_areas
+
+    third = np.abs(signed_areas(points, triangles)) / 3.0
+    dual = np.bincount(triangles.ravel(), np.repeat(third, 3), minlength=len(points))
+    # (a Delaunay of the nodes: the graded grid's hanging midpoints make its own
+    # triangles a conforming mesh, but the interpolator wants a simplex structure)
+    rho = 1.0 / dual
+    interp = LinearNDInterpolator(Delaunay(points), rho, fill_value=float(np.median(rho)))
+    scale = float(np.mean(interp(box_samples(box, n))))
+
+    def g0(q: np.ndarray) -> np.ndarray:
+        return interp(q) / scale
+
+    return g0

@@ -299,16 +299,17 @@ def test_graded_slides_where_the_spacing_changes_fast(path, floor):
     """Points clustered at an airfoil's ends, or long edges beside short ones: the path is
     fitted to the points evenly re-spaced between corners and the deformation slides
     each node to its point; still no extra node, and no worse angles than the other
-    grids give (floor: what the default grid gives today)."""
+    grids give (floor: what the adapted or uniform grid gives)."""
     from deformesh_cli import mesh_contour
+    from deformesh_cli.pipeline import fallback_mode
 
     c = load_contour(path)
-    res = mesh_contour(c, grid="graded")
+    res = mesh_contour(c)
     assert res.report["h_rule"] == "graded-slid"
     assert res.report["extra_boundary_nodes"] == 0
     assert res.report["min_angle"] >= floor
     assert np.array_equal(res.mesh.points[: c.n], c.points)
-    assert res.mesh.n_nodes < mesh_contour(c).mesh.n_nodes
+    assert res.mesh.n_nodes < mesh_contour(c, grid=fallback_mode(c)).mesh.n_nodes
 
 
 @pytest.mark.parametrize("box", [(-20, -20, 21, 20), (-50, -50, 51, 50)])
@@ -366,14 +367,15 @@ def test_graded_fits_the_grid_to_the_points_where_nothing_else_keeps_them(path):
     """Where neither the points as given nor evenly re-spaced find a path (a blunt
     trailing edge, spacing that jumps), the grid is fitted to the number of points and
     the path to the points slid to equal cell steps: no extra node, fewer nodes than
-    the default grid, and no smaller angle than the default grid's less 5 degrees."""
+    the adapted or uniform grid, and no smaller angle than theirs less 5 degrees."""
     from deformesh_cli import mesh_contour
+    from deformesh_cli.pipeline import fallback_mode
 
     c = load_contour(path)
-    res = mesh_contour(c, grid="graded")
+    res = mesh_contour(c)
     assert res.report["h_rule"] == "graded-fit"
     assert res.report["extra_boundary_nodes"] == 0
-    default = mesh_contour(c)
+    default = mesh_contour(c, grid=fallback_mode(c), merge_extra="merge")
     assert res.mesh.n_nodes < default.mesh.n_nodes
     assert res.report["min_angle"] >= default.report["min_angle"] - 5.0
     assert np.array_equal(res.mesh.points[: c.n], c.points)

@@ -61,8 +61,9 @@ def _grow(mask, tri):
 
 
 def test_the_stage_only_touches_the_neighbourhood_of_bad_triangles():
+    # on one step for the whole domain, most of the grid is far from the contour
     c = load_contour(contour_file("circle_1000.csv"))
-    plain = pipeline.mesh_contour(c, improve=False).mesh
+    plain = pipeline.mesh_contour(c, improve=False, grid="uniform").mesh
     better, stats = improve.improve(plain)
     n = len(plain.points)
     boundary = np.zeros(n, dtype=bool)
@@ -92,8 +93,8 @@ def test_squeezed_cells_of_an_adapted_grid_are_lifted_too():
     # NACA 0012 with 1,000 cosine-spaced points: the adapted grid squeezes the cells of
     # the thin aft part to 29 degrees, far from the contour (5,837 triangles under 30)
     c = load_contour(contour_file("naca0012_1000.csv"))
-    plain = pipeline.mesh_contour(c, improve=False)
-    better = pipeline.mesh_contour(c)
+    plain = pipeline.mesh_contour(c, improve=False, grid="adapt")
+    better = pipeline.mesh_contour(c, grid="adapt")
     ang = measures(better.mesh.points, better.mesh.triangles)[0]
     before = measures(plain.mesh.points, plain.mesh.triangles)[0]
     assert (before < 30).sum() > 1000 and (ang < 30).sum() < 20
@@ -295,7 +296,7 @@ def test_uniform_wedges_get_their_corner_angle():
                 np.column_stack([s, s * np.tan(t / 2)])[::-1][:-1],
             ]
         )
-        res = pipeline.mesh_contour(make_contour(pts, source="wedge"))
+        res = pipeline.mesh_contour(make_contour(pts, source="wedge"), grid="uniform")
         m = res.mesh
         assert (m.triangles == 0).any(axis=1).sum() == 1
         assert res.report["min_angle"] == pytest.approx(degrees, abs=1e-6)

@@ -90,17 +90,24 @@ def test_merging_keeps_the_domain_and_the_contract(pts):
 
 def test_auto_keeps_the_uniform_grid_as_the_paper_has_it(run, tmp_path):
     out = tmp_path / "m.vtk"
-    uniform = json.loads(run("all", SAMPLES / "peanut.csv", "-o", out, "--grid", "uniform",
-                             "--json").stdout)  # fmt: skip
+
+    def report(*args):
+        r = run("all", SAMPLES / "peanut.csv", "-o", out, "--json", *args)
+        assert r.exit_code == 0, r.stderr
+        return json.loads(r.stdout)
+
+    uniform = report("--grid", "uniform")
     assert uniform["extra_boundary_nodes"] > 100 and uniform["merged_extra_nodes"] == 0
-    default = json.loads(run("all", SAMPLES / "peanut.csv", "-o", out, "--json").stdout)
-    assert default["merged_extra_nodes"] > 50
-    assert default["extra_boundary_nodes"] < uniform["extra_boundary_nodes"]
+    merged = report("--grid", "uniform", "--merge-extra", "merge")
+    assert merged["merged_extra_nodes"] > 50
     assert (
-        default["extra_boundary_nodes"] + default["merged_extra_nodes"]
+        merged["extra_boundary_nodes"] + merged["merged_extra_nodes"]
         == (uniform["extra_boundary_nodes"])
     )
-    kept = json.loads(run("all", SAMPLES / "peanut.csv", "-o", out, "--merge-extra", "keep",
-                          "--json").stdout)  # fmt: skip
-    assert kept["merged_extra_nodes"] == 0
-    assert kept["extra_boundary_nodes"] == uniform["extra_boundary_nodes"]
+    adapt = report("--grid", "adapt")  # auto merges on the other grids
+    kept = report("--grid", "adapt", "--merge-extra", "keep")
+    assert kept["merged_extra_nodes"] == 0 and adapt["merged_extra_nodes"] > 0
+    assert (
+        adapt["extra_boundary_nodes"] + adapt["merged_extra_nodes"]
+        == (kept["extra_boundary_nodes"])
+    )

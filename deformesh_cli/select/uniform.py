@@ -29,14 +29,14 @@ from ..geometry import next_on_ring, signed_area, signed_areas
 #: this machine's 24 GiB while leaving room for the rest of the pipeline.
 DEFAULT_MAX_NODES = 8_000_000
 
-#: ``--grid`` choices: ``adapt`` selects on the evenly re-spaced contour and slides
-#: (:mod:`.respace`); ``uniform`` is Appendix A's grid; ``auto`` adapts when the
-#: median spacing is over :data:`EVEN_SPACING_RATIO` times the smallest
-#: (Appendix A's grid would be that squared times bigger), ``--h`` is not given
-#: and the mesh is not exterior.  Icons (long edges, even small spacing: median
-#: / smallest 1.1-2) keep Appendix A's grid, which gave them 15-21 degrees.
-#: ``graded`` is the graded quadtree grid (:mod:`.graded_path`), falling back to what
-#: ``auto`` chooses where it finds no path.
+#: ``--grid`` choices: ``graded`` is the graded quadtree grid (:mod:`.graded_path`);
+#: where it finds no path it falls back to ``adapt`` when the median spacing is over
+#: :data:`EVEN_SPACING_RATIO` times the smallest (Appendix A's grid would be that
+#: squared times bigger) and the mesh is not exterior, else to ``uniform``.  Icons
+#: (long edges, even small spacing: median / smallest 1.1-2) fall back to Appendix
+#: A's grid, which gave them 15-21 degrees.  ``adapt`` selects on the evenly
+#: re-spaced contour and slides (:mod:`.respace`); ``uniform`` is Appendix A's grid;
+#: ``auto`` is ``graded``, or ``uniform`` when ``--h`` is given.
 GRIDS = ("auto", "adapt", "uniform", "graded")
 
 #: Default margin between the contour's bounding box and the background box, in cells.
