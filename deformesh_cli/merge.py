@@ -1,4 +1,5 @@
-"""Removing extra boundary nodes from a finished mesh.
+"""Removing nodes from a finished mesh: extra boundary nodes, and inner nodes in
+sharp corners.
 
 Where a grid path could not give two consecutive contour points neighbouring
 grid nodes, it runs through grid nodes between them: extra boundary nodes,
@@ -17,6 +18,13 @@ itself), has more than :data:`MAX_CAVITY` vertices, or its best
 triangulation has an angle under :data:`MIN_ANGLE` degrees; those extra
 nodes stay and are reported.  The quality stage then works on the new mesh
 as on any other.
+
+:func:`clear_sharp_corners` does the same for an inner node in the tip of a
+sharp corner (under :data:`SHARP` degrees), where a coarse cell left the
+corner split between two or more triangles: the corner's triangles and that
+node's are triangulated again without it, by the same dynamic programming,
+and kept only if their smallest angle grows.  The best a corner can have is
+one triangle there with the corner's whole angle.
 """
 
 from __future__ import annotations
@@ -36,6 +44,15 @@ MIN_ANGLE = 20.0
 #: Cavities with more vertices than this are left alone (the triangulation costs
 #: their cube).
 MAX_CAVITY = 40
+
+
+#: Boundary corners under this angle (degrees) are worked on by
+#: :func:`clear_sharp_corners` (two triangles there give at most half of it).
+SHARP = 60.0
+
+#: A corner's new triangles must raise its cavity's smallest angle by more than this
+#: (degrees).
+GAIN = 0.01
 
 
 @dataclass
@@ -219,3 +236,97 @@ def _renumber(mesh: Mesh, tri: np.ndarray, gone: np.ndarray) -> Mesh:
         n_box=mesh.n_box,
         point_data={k: v[keep] for k, v in mesh.point_data.items()},
     )
+
+
+def clear_sharp_corners(mesh: Mesh) -> tuple[Mesh, int]:
+    """``mesh`` with inner nodes taken out of sharp corners where that raises the
+    smallest angle there (see the module docstring), renumbered; and how many."""
+    from .forced import corner_angles
+
+    pts, tri = mesh.points, mesh.triangles
+    ends, angle = corner_angles(pts, mesh.lines)
+    sharp = np.flatnonzero(angle < SHARP)
+    if len(sharp) == 0:
+        return mesh, 0
+    free = np.ones(len(pts), dtype=bool)
+    free[mesh.lines.ravel()] = False
+    star = _stars(tri)
+    smallest = measures(pts, tri)[0]
+    dead = np.zeros(len(tri), dtype=bool)
+    gone = np.zeros(len(pts), dtype=bool)
+    added = []
+    for p in sharp.tolist():
+        around = star(p)
+        if len(around) < 2:
+            continue
+        best = None
+        for x in sorted({int(v) for v in tri[around].ravel() if free[v] and not gone[v]}):
+            cav = sorted(set(around) | set(star(x)))
+            if dead[cav].any():
+                continue
+            ring = _loop(tri[cav], x)
+            if ring is None or len(ring) > MAX_CAVITY:
+                continue
+            got = _best_triangulation(pts[ring])
+            if got is None or got[1] <= smallest[cav].min() + GAIN:
+                continue
+            if best is None or got[1] > best[0]:
+                best = (got[1], cav, np.asarray(ring, dtype=np.int64)[got[0]], x)
+        if best is not None:
+            _, cav, new, x = best
+            dead[cav] = True
+            gone[x] = True
+            added.append(new)
+    if not added:
+        return mesh, 0
+    keep = ~gone
+    new_id = np.cumsum(keep) - 1
+    out = Mesh(
+        points=pts[keep],
+        triangles=new_id[np.concatenate([tri[~dead], *added])],
+        lines=new_id[mesh.lines],
+        n_contour=mesh.n_contour,
+        n_extra=mesh.n_extra,
+        line_group=mesh.line_group,
+        groups=mesh.groups,
+        n_box=mesh.n_box,
+        point_data={k: v[keep] for k, v in mesh.point_data.items()},
+    )
+    return out, len(added)
+
+
+def _stars(tri: np.ndarray):
+    """A lookup: node -> the rows of ``tri`` it is a corner of (a list)."""
+    flat = tri.ravel()
+    order = np.argsort(flat, kind="stable")
+    nodes = flat[order]
+    rows = (order // 3).tolist()
+
+    def star(v: int) -> list[int]:
+        lo, hi = np.searchsorted(nodes, [v, v + 1])
+        return rows[lo:hi]
+
+    return star
+
+
+def _loop(cavity: np.ndarray, inner: int) -> list[int] | None:
+    """The outline of the triangles ``cavity`` counter-clockwise, if it is one simple
+    loop through every node of them but ``inner``; else None."""
+    edges = [(int(t[k]), int(t[(k + 1) % 3])) for t in cavity for k in range(3)]
+    both = set(edges)
+    after: dict[int, int] = {}
+    for u, v in edges:
+        if (v, u) in both:
+            continue
+        if u in after:
+            return None
+        after[u] = v
+    start = next(iter(after))
+    ring = [start]
+    while after.get(ring[-1], start) != start:
+        ring.append(after[ring[-1]])
+        if len(ring) > len(after):
+            return None
+    if len(ring) != len(after) or set(cavity.ravel().tolist()) - set(ring) != {inner}:
+        return None
+    return ring

@@ -258,23 +258,35 @@ def run_deform(
         except FoldError:
             if size is None or not isinstance(sel, GradedSelection):
                 raise
-            # f asks for more than the graded grid's cells can give by the contour:
-            # from the grid's own density to f's, kept within a factor of it
-            kwargs["size"] = _limited_size_path(size, sel)
-            pos, st = _deform.deform(*args, **kwargs)
+            pos, st = _fit_then_size(args, kwargs, size, sel)
     except SolverError as exc:
         raise SolverError(f"{contour.source}: deformation failed: {exc}") from None
     return Deformed(sel, pos, st)
 
 
-def _limited_size_path(size: SizeFunction, sel: GradedSelection) -> _size.SizePath:
-    """A graded grid's path of target densities when the plain one folds: from the
-    grid's own density to ``size``'s, kept within :data:`.size.MAX_DENSITY_RATIO` of
-    the grid's (so the cells by the contour, which its points fix, are not squeezed
-    against it)."""
+def _fit_then_size(args: tuple, kwargs: dict, size: SizeFunction, sel: GradedSelection):
+    """The graded grid's deformation in two parts, where one with ``size`` folds:
+    first onto the contour without it, then, the path nodes held, from the grid's
+    own density (:func:`.size.grid_density`) to ``size``'s, kept within
+    :data:`.size.MAX_DENSITY_RATIO` of it (:func:`.size.limited_target`).
+
+    One part folds where ``f`` asks by the contour for cells smaller than its points
+    allow, or where the graded grid's density varies so much that the contour's
+    displacement, scaled by it, runs away from the contour.  Returns the positions
+    and the two parts' statistics summed."""
+    pts0, tri, path_nodes, _, fixed = args
+    pos, fit = _deform.deform(*args, **{**kwargs, "size": None})
     box = sel.grid.box
-    g0 = _size.grid_density(sel.grid.coords(), sel.triangles(), box)
-    return _size.SizePath(_size.limited_target(size.g1, g0, box), box, g0=g0)
+    g0 = _size.grid_density(pos, tri, box)
+    path = _size.SizePath(_size.limited_target(size.g1, g0, box), box, g0=g0)
+    held = pos[path_nodes]
+    pos, st = _deform.deform(
+        pos, tri, path_nodes, held, fixed, **{**kwargs, "size": path, "slide": None}
+    )
+    st.solves += fit.solves
+    st.halvings += fit.halvings
+    st.iterations = fit.iterations + st.iterations
+    return pos, st
 
 
 def _describer(contour: Contour, sel: Selection):
@@ -319,8 +331,10 @@ def run_triangulate(
     better = None
     if o.improve:
         before = mesh
-        mesh, better = _improve.improve(mesh)
-        if len(better.changed) and edges is not None:  # the changed triangles' edges
+        mesh, better = _improve.improve(mesh, clear_corners=not _paper_form(o))
+        if better.corners:  # nodes taken out: the contract check counts afresh
+            edges = None
+        elif len(better.changed) and edges is not None:  # the changed triangles' edges
             old = len(before.triangles)
             edges = geometry.patch_edge_uses(
                 edges,
@@ -345,6 +359,7 @@ def run_triangulate(
             "flips": better.flips,
             "node_moves": better.moves,
             "nodes_added": better.added,
+            "corner_nodes_removed": better.corners,
             "rounds": better.rounds,
         }
     )
@@ -370,7 +385,13 @@ def _merges(o: MeshOptions) -> bool:
     the uniform grid, the paper's form)."""
     if o.merge_extra != "auto":
         return o.merge_extra == "merge"
-    return not (o.grid == "uniform" or o.h is not None)
+    return not _paper_form(o)
+
+
+def _paper_form(o: MeshOptions) -> bool:
+    """Appendix A's uniform grid asked for (``--grid uniform`` or ``--h``): its meshes
+    stay as the paper builds them (no merging, no clearing of sharp corners)."""
+    return o.grid == "uniform" or o.h is not None
 
 
 #: An adapted-grid mesh whose smallest angle is below this (degrees) gives way to the

@@ -286,11 +286,11 @@ class SizePath:
         return g, g * (log1 - log0 - mean_log / mean)
 
 
-#: On a graded grid the deformation asks each place for at most this factor more or
-#: fewer nodes than the grid has there (its cells already follow f, to a level of the
-#: quadtree; beyond that a size function asks for more than the contour's spacing
-#: allows, and the nodes by the contour fold against it).
-MAX_DENSITY_RATIO = 4.0
+#: Where a graded grid's deformation with f folds, its second part asks each place for
+#: at most this factor more or fewer nodes than the grid has there (the grid already
+#: follows f to a level of the quadtree, a factor of 4 in area; more, and the nodes by
+#: the contour, which its points hold, fold against it: ``benchmarks/MEASURED.md``).
+MAX_DENSITY_RATIO = 2.0
 
 
 def limited_target(g1, g0, box, ratio: float = MAX_DENSITY_RATIO, n: int = 256):

@@ -243,3 +243,77 @@ def test_the_papers_printed_sign_grows_the_cells_it_should_shrink():
         f = size.values(pos[tri].mean(axis=1))
         rho[name] = spearmanr(signed_areas(pos, tri), f).statistic
     assert rho["ours"] > 0.85 and rho["printed"] < 0, rho  # measured 0.91 and -0.71
+
+
+def _far_field_field(path, box, fn):
+    # a rectilinear grid, fine over the airfoil (chord 0..1) and coarse beyond
+    xs = np.unique(
+        np.r_[np.linspace(box[0], -1, 20), np.linspace(-1, 2, 151), np.linspace(2, box[2], 20)]
+    )
+    ys = np.unique(
+        np.r_[
+            np.linspace(box[1], -0.5, 20), np.linspace(-0.5, 0.5, 101), np.linspace(0.5, box[3], 20)
+        ]
+    )
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    rows = np.column_stack([X.ravel(), Y.ravel(), fn(X, Y).ravel()])
+    np.savetxt(path, rows, delimiter=",", header="x,y,f", comments="")
+
+
+FAR = (-20, -20, 21, 20)
+
+
+@pytest.mark.parametrize("kind", ["expression", "field"])
+def test_size_functions_on_far_fields_do_not_fold(run, tmp_path, kind):
+    """A far field whose cells grow 20 times faster than the contour's grading asks:
+    deformed in one go with f, the cells by the airfoil fold against it; the graded
+    grid then deforms onto the contour first and to f's density second."""
+    out = tmp_path / "far.vtk"
+    if kind == "expression":
+        opt = ["--size", "0.002 + d"]
+    else:
+        import shapely
+
+        foil = shapely.LinearRing(load_contour(SAMPLES / "naca0012.csv").points)
+
+        def near(x, y):  # 0.002 + the distance to the airfoil, sampled on a grid
+            return 0.002 + shapely.distance(foil, shapely.points(x, y))
+
+        _far_field_field(tmp_path / "f.csv", FAR, near)
+        opt = ["--size-field", tmp_path / "f.csv"]
+    box = "--box=" + ",".join(map(str, FAR))
+    r = run("all", SAMPLES / "naca0012.csv", "--exterior", box, "-o", out, "--json", *opt)
+    assert r.exit_code == 0, r.stderr
+    rec = json.loads(r.stdout)
+    assert rec["contract"] == "ok" and rec["h_rule"].startswith("graded")
+    assert rec["extra_boundary_nodes"] == 0
+    assert rec["size_correlation"] >= 0.9
+    assert rec["nodes"] < 10_000
+
+
+def test_a_size_function_that_folds_in_one_go_meshes_in_two_parts():
+    from deformesh_cli import mesh_contour, pipeline
+    from deformesh_cli.errors import FoldError
+    from deformesh_cli.options import MeshOptions
+
+    c = load_contour(SAMPLES / "peanut.csv")
+    o = MeshOptions(size="0.002 + d")
+    sel = pipeline.run_select(c, o)
+    size = from_expression("0.002 + d", c)
+    size.normalise(sel.grid.box)
+    # one go, as on the uniform grid: folds by the contour
+    from deformesh_cli import deform
+    from deformesh_cli.size import SizePath
+
+    with pytest.raises(FoldError):
+        deform.deform(
+            sel.grid.coords(),
+            sel.triangles(),
+            sel.path_nodes,
+            sel.path_targets,
+            sel.grid.boundary_nodes(),
+            size=SizePath(size.g1, sel.grid.box),
+        )
+    res = mesh_contour(c, o)
+    assert res.report["size_correlation"] >= 0.9 and res.report["min_angle"] >= 35
+    assert res.deform_stats.solves == 2 * o.steps  # the two parts
