@@ -503,3 +503,26 @@ def test_a_python_size_function_refines_the_graded_grid_as_the_expression_does()
     assert py.mesh.n_nodes == expr.mesh.n_nodes
     assert py.report["size_correlation"] == pytest.approx(expr.report["size_correlation"])
     assert py.report["size_correlation"] >= 0.9
+
+
+def test_where_every_grid_splits_edges_the_graded_grid_splits_fewer():
+    """A coastline where no graded path keeps every edge: the adapted grid it falls
+    back to splits hundreds of edges; the graded grid with extra boundary nodes (as few
+    as it can) goes first when it has at most half as many."""
+    from deformesh_cli import mesh_contour
+    from deformesh_cli.pipeline import EXTRA_SHARE, _extra_nodes, candidate_selections
+
+    c = load_contour(CORPUS / "coast_madagascar.csv")
+    sels = candidate_selections(c)
+    first = next(sels)
+    assert first.h_rule == "graded" and first.extra_nodes > 0
+    fallback = next(sels)
+    assert fallback.h_rule == "typical-spacing"
+    assert first.extra_nodes <= EXTRA_SHARE * _extra_nodes(fallback)
+    assert "where the adapt grid has" in first.notes[0]
+    res = mesh_contour(c)
+    adapted = mesh_contour(c, grid="adapt")
+    assert res.report["h_rule"] == "graded"
+    assert res.report["extra_boundary_nodes"] < adapted.report["extra_boundary_nodes"] / 2
+    assert res.mesh.n_nodes < adapted.mesh.n_nodes / 2
+    assert np.array_equal(res.mesh.points[: c.n], c.points)
