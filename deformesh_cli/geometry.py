@@ -118,3 +118,17 @@ def touching(mask: np.ndarray, tri: np.ndarray) -> np.ndarray:
     million triangles (a reduction over a length-3 axis).
     """
     return mask[tri[:, 0]] | mask[tri[:, 1]] | mask[tri[:, 2]]
+
+
+def node_stars(tri: np.ndarray):
+    """A lookup: node -> the rows of ``tri`` it is a corner of (a list)."""
+    flat = tri.ravel()
+    order = np.argsort(flat, kind="stable")
+    nodes = flat[order]
+    rows = (order // 3).tolist()
+
+    def star(v: int) -> list[int]:
+        lo, hi = np.searchsorted(nodes, [v, v + 1])
+        return rows[lo:hi]
+
+    return star

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .forced import corner_angles
-from .geometry import touching
+from .geometry import node_stars, touching
 from .mesh import Mesh
 
 #: Rounds of (flips, smoothing, cavities) at most; a round that changes nothing ends it.
@@ -316,7 +316,7 @@ def _insert(
         if far:
             consider(s, [s] + ring + sorted(set(far)))
     if len(corners):
-        star = _stars(tri)
+        star = node_stars(tri)
     for p in corners.tolist():
         around = star(p)
         ear = (p, int(ends[p, 0]), int(ends[p, 1]))
@@ -388,20 +388,6 @@ def _insert(
     if new_pts:
         pts = np.concatenate([pts, np.array(new_pts)])
     return pts, np.concatenate(extra), len(new_pts), len(chosen)
-
-
-def _stars(tri: np.ndarray):
-    """A lookup: node -> the rows of ``tri`` it is a corner of (a list)."""
-    flat = tri.ravel()
-    order = np.argsort(flat, kind="stable")
-    nodes = flat[order]
-    rows = (order // 3).tolist()
-
-    def star(v: int) -> list[int]:
-        lo, hi = np.searchsorted(nodes, [v, v + 1])
-        return rows[lo:hi]
-
-    return star
 
 
 def _outline(tri: np.ndarray, nb: np.ndarray, cav: list[int], ear=None):

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .geometry import signed_areas
+from .geometry import node_stars, signed_areas
 from .mesh import Mesh
 from .quality import measures
 
@@ -250,7 +250,7 @@ def clear_sharp_corners(mesh: Mesh) -> tuple[Mesh, int]:
         return mesh, 0
     free = np.ones(len(pts), dtype=bool)
     free[mesh.lines.ravel()] = False
-    star = _stars(tri)
+    star = node_stars(tri)
     smallest = measures(pts, tri)[0]
     dead = np.zeros(len(tri), dtype=bool)
     gone = np.zeros(len(pts), dtype=bool)
@@ -293,20 +293,6 @@ def clear_sharp_corners(mesh: Mesh) -> tuple[Mesh, int]:
         point_data={k: v[keep] for k, v in mesh.point_data.items()},
     )
     return out, len(added)
-
-
-def _stars(tri: np.ndarray):
-    """A lookup: node -> the rows of ``tri`` it is a corner of (a list)."""
-    flat = tri.ravel()
-    order = np.argsort(flat, kind="stable")
-    nodes = flat[order]
-    rows = (order // 3).tolist()
-
-    def star(v: int) -> list[int]:
-        lo, hi = np.searchsorted(nodes, [v, v + 1])
-        return rows[lo:hi]
-
-    return star
 
 
 def _loop(cavity: np.ndarray, inner: int) -> list[int] | None:

@@ -158,10 +158,10 @@ def candidate_selections(
                 sel = graded(attempt)
             except (SelectionError, LimitError):
                 continue
-            if sel.extra_nodes <= EXTRA_SHARE * _extra_nodes(first):
+            if _extra_nodes(sel) <= EXTRA_SHARE * _extra_nodes(first):
                 sel.notes.insert(
                     0,
-                    f"{fell_back}; with extra boundary nodes, {sel.extra_nodes} where the "
+                    f"{fell_back}; with extra boundary nodes, {_extra_nodes(sel)} where the "
                     f"{mode} grid has {_extra_nodes(first)}",
                 )
                 yield sel
