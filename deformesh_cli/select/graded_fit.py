@@ -58,20 +58,34 @@ def measure(tree: graded.Quadtree, poly: np.ndarray, arc: np.ndarray):
     """A piece's polyline cut into sub-segments of at most a quarter of the leaf they
     start in: ``(cumulative cell measure, arc length, leaf, measure)`` per sub-segment
     (the first two with one more entry, at the piece's start)."""
+    return measure_all(tree, [(poly, arc)])[0]
+
+
+def measure_all(tree: graded.Quadtree, polys: list) -> list:
+    """:func:`measure` of each ``(poly, arc)``, the leaf lookups of all of them at once
+    (one lookup per piece is most of the time on a coastline's hundreds of pieces)."""
     sizes = tree.sizes()
-    at = sizes[leaf_at(tree, poly)]
-    d = np.diff(poly, axis=0)
-    linf = np.abs(d).max(axis=1)
-    nsub = np.maximum(1, np.ceil(4 * linf / np.minimum(at[:-1], at[1:]))).astype(np.int64)
-    e = np.repeat(np.arange(len(d)), nsub)
-    k = np.repeat(nsub, nsub)
-    u0 = (np.arange(int(nsub.sum())) - np.repeat(np.cumsum(nsub) - nsub, nsub)) / k
-    mid = poly[e] + (u0 + 0.5 / k)[:, None] * d[e]
-    leaf = leaf_at(tree, mid)
-    dmu = linf[e] / k / sizes[leaf]
-    mu = np.concatenate([[0.0], np.cumsum(dmu)])
-    sarc = np.concatenate([arc[e] + u0 * (arc[e + 1] - arc[e]), [arc[-1]]])
-    return mu, sarc, leaf, dmu
+    ends = np.cumsum([len(poly) for poly, _ in polys])
+    at_all = np.split(sizes[leaf_at(tree, np.concatenate([p for p, _ in polys]))], ends[:-1])
+    cut = []
+    for (poly, arc), at in zip(polys, at_all):
+        d = np.diff(poly, axis=0)
+        linf = np.abs(d).max(axis=1)
+        nsub = np.maximum(1, np.ceil(4 * linf / np.minimum(at[:-1], at[1:]))).astype(np.int64)
+        e = np.repeat(np.arange(len(d)), nsub)
+        k = np.repeat(nsub, nsub)
+        u0 = (np.arange(int(nsub.sum())) - np.repeat(np.cumsum(nsub) - nsub, nsub)) / k
+        mid = poly[e] + (u0 + 0.5 / k)[:, None] * d[e]
+        cut.append((arc, linf, e, k, u0, mid))
+    ends = np.cumsum([len(c[5]) for c in cut])
+    leaves = np.split(leaf_at(tree, np.concatenate([c[5] for c in cut])), ends[:-1])
+    out = []
+    for (arc, linf, e, k, u0, _), leaf in zip(cut, leaves):
+        dmu = linf[e] / k / sizes[leaf]
+        mu = np.concatenate([[0.0], np.cumsum(dmu)])
+        sarc = np.concatenate([arc[e] + u0 * (arc[e + 1] - arc[e]), [arc[-1]]])
+        out.append((mu, sarc, leaf, dmu))
+    return out
 
 
 def split(tree: graded.Quadtree, leaves: np.ndarray) -> graded.Quadtree:
@@ -106,8 +120,8 @@ def fit_tree(contour: Contour, tree: graded.Quadtree, max_nodes: int | None = No
     rho = np.zeros(len(parts))
     for _ in range(ROUNDS):
         todo = []
-        for p, (_, i, j, poly, arc) in enumerate(parts):
-            mu, _, leaf, dmu = measure(tree, poly, arc)
+        measured = measure_all(tree, [(poly, arc) for _, _, _, poly, arc in parts])
+        for p, ((_, i, j, _, _), (mu, _, leaf, dmu)) in enumerate(zip(parts, measured)):
             rho[p] = mu[-1] / (j - i)
             if rho[p] >= RHO_LOW:
                 continue
@@ -128,8 +142,9 @@ def copy(contour: Contour, tree: graded.Quadtree) -> Respaced:
     """The contour's points slid along each piece to equal steps of its cell measure
     (corners and each ring's first point stay)."""
     s_copy = arclengths(contour)[0]
-    for a, i, j, poly, arc in pieces(contour):
-        mu, sarc, _, _ = measure(tree, poly, arc)
+    parts = pieces(contour)
+    measured = measure_all(tree, [(poly, arc) for _, _, _, poly, arc in parts])
+    for (a, i, j, _, _), (mu, sarc, _, _) in zip(parts, measured):
         s_copy[a + i : a + j] = np.interp(mu[-1] * np.arange(j - i) / (j - i), mu, sarc)
     rs = slid_copy(contour, s_copy)
     if rs is None:
