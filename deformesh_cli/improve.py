@@ -38,6 +38,7 @@ import numpy as np
 
 from .forced import corner_angles
 from .geometry import node_stars, touching
+from .merge import clear_sharp_corners
 from .mesh import Mesh
 
 #: Rounds of (flips, smoothing, cavities) at most; a round that changes nothing ends it.
@@ -96,19 +97,12 @@ def improve(
     and what was done.  ``clear_corners``: first take inner nodes out of sharp
     corners (:func:`.merge.clear_sharp_corners`); then ``stats.changed`` refers to
     that mesh's triangles, not ``mesh``'s."""
-    tan = np.concatenate(
-        [
-            _tan_min(mesh.points, mesh.triangles[k : k + CHUNK])
-            for k in range(0, len(mesh.triangles), CHUNK)
-        ]
-    )
+    tan = _tan_all(mesh.points, mesh.triangles)
     stats = ImproveStats(min_angle_before=_degrees(tan.min()))
     if clear_corners:
-        from .merge import clear_sharp_corners
-
         mesh, stats.corners = clear_sharp_corners(mesh)
         if stats.corners:
-            tan = _tan_min(mesh.points, mesh.triangles)
+            tan = _tan_all(mesh.points, mesh.triangles)
     pts = np.array(mesh.points, dtype=np.float64, copy=True)
     tri = np.array(mesh.triangles, copy=True)
     n = len(pts)
@@ -183,6 +177,11 @@ def improve(
         n_box=mesh.n_box,
     )
     return out, stats
+
+
+def _tan_all(pts, tri):
+    """:func:`_tan_min` of every triangle, :data:`CHUNK` at a time."""
+    return np.concatenate([_tan_min(pts, tri[k : k + CHUNK]) for k in range(0, len(tri), CHUNK)])
 
 
 def _degrees(tan_angle: float) -> float:

@@ -251,7 +251,6 @@ def clear_sharp_corners(mesh: Mesh) -> tuple[Mesh, int]:
     free = np.ones(len(pts), dtype=bool)
     free[mesh.lines.ravel()] = False
     star = node_stars(tri)
-    smallest = measures(pts, tri)[0]
     dead = np.zeros(len(tri), dtype=bool)
     gone = np.zeros(len(pts), dtype=bool)
     added = []
@@ -268,7 +267,7 @@ def clear_sharp_corners(mesh: Mesh) -> tuple[Mesh, int]:
             if ring is None or len(ring) > MAX_CAVITY:
                 continue
             got = _best_triangulation(pts[ring])
-            if got is None or got[1] <= smallest[cav].min() + GAIN:
+            if got is None or got[1] <= measures(pts, tri[cav])[0].min() + GAIN:
                 continue
             if best is None or got[1] > best[0]:
                 best = (got[1], cav, np.asarray(ring, dtype=np.int64)[got[0]], x)

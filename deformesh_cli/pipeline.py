@@ -62,11 +62,11 @@ def grid_mode(
     return "graded" if h is None else "uniform"
 
 
-def fallback_mode(contour: Contour, h: float | None = None, exterior: bool = False) -> str:
+def fallback_mode(contour: Contour, exterior: bool = False) -> str:
     """The graded grid's fallback where it finds no path: the adapted grid when the
-    median spacing is over :data:`EVEN_SPACING_RATIO` times the smallest (and no ``h``,
-    not a far field), else the uniform one."""
-    if h is not None or exterior:
+    median spacing is over :data:`EVEN_SPACING_RATIO` times the smallest (and not a far
+    field), else the uniform one."""
+    if exterior:
         return "uniform"
     return "adapt" if _respace.spacing_ratio(contour) > EVEN_SPACING_RATIO else "uniform"
 
@@ -145,11 +145,11 @@ def candidate_selections(
         except (SelectionError, LimitError) as exc:
             why = str(exc).removeprefix(f"{contour.source}: ")
             fell_back = f"the graded grid did not work here ({why})"
-    mode = fallback_mode(contour, o.h, o.exterior)
+    mode = fallback_mode(contour, o.exterior)
     rest = _ungraded(contour, o, mode)
     first = next(rest)
     first.notes.insert(0, f"{fell_back}: fell back to the {mode} grid")
-    if not o.exterior and extra and _extra_nodes(first):
+    if not o.exterior and extra and first.extra_nodes:
         # the fallback splits contour edges too: the graded grid with as few extra
         # boundary nodes as it can, first, where that is at most EXTRA_SHARE as many
         # (merging takes more of them out on the other grids: see its docs)
@@ -158,11 +158,11 @@ def candidate_selections(
                 sel = graded(attempt)
             except (SelectionError, LimitError):
                 continue
-            if _extra_nodes(sel) <= EXTRA_SHARE * _extra_nodes(first):
+            if sel.extra_nodes <= EXTRA_SHARE * first.extra_nodes:
                 sel.notes.insert(
                     0,
-                    f"{fell_back}; with extra boundary nodes, {_extra_nodes(sel)} where the "
-                    f"{mode} grid has {_extra_nodes(first)}",
+                    f"{fell_back}; with extra boundary nodes, {sel.extra_nodes} where the "
+                    f"{mode} grid has {first.extra_nodes}",
                 )
                 yield sel
             break
@@ -170,11 +170,6 @@ def candidate_selections(
     for sel in rest:
         sel.notes.insert(0, f"{fell_back}: fell back to the {mode} grid")
         yield sel
-
-
-def _extra_nodes(sel: Selection) -> int:
-    """The extra boundary nodes of a selection's path (nodes no contour point took)."""
-    return int(np.count_nonzero(sel.path_source < 0))
 
 
 def _ungraded(contour: Contour, o: MeshOptions, mode: str) -> Iterator[Selection]:
@@ -313,7 +308,7 @@ def _fit_then_size(args: tuple, kwargs: dict, size: SizeFunction, sel: GradedSel
     allow, or where the graded grid's density varies so much that the contour's
     displacement, scaled by it, runs away from the contour.  Returns the positions
     and the two parts' statistics summed."""
-    pts0, tri, path_nodes, _, fixed = args
+    _, tri, path_nodes, _, fixed = args
     pos, fit = _deform.deform(*args, **{**kwargs, "size": None})
     box = sel.grid.box
     g0 = _size.grid_density(pos, tri, box)

@@ -308,20 +308,20 @@ def limited_target(g1, g0, box, ratio: float = MAX_DENSITY_RATIO, n: int = 256):
 
 
 def grid_density(points: np.ndarray, triangles: np.ndarray, box, n: int = 256):
-    """A graded grid's own density, as a function of position: at each node one over
-    a third of the area of its triangles, linear in between (over the grid's own
-    triangles), scaled so its mean over ``box`` is 1 as :meth:`SizeFunction.g1`'s is."""
+    """A graded grid's own density, as a function of position: at each node the mean
+    of one over the areas of its triangles (a node on the box's sides has half the
+    triangles of one inside, not twice the density), linear in between, scaled so its
+    mean over ``box`` is 1 as :meth:`SizeFunction.g1`'s is."""
     from scipy.interpolate import LinearNDInterpolator
-    from scipy.spatial import Delaunay
 
     from .geometry import signed_areas
 
-    third = np.abs(signed_areas(points, triangles)) / 3.0
-    dual = np.bincount(triangles.ravel(), np.repeat(third, 3), minlength=len(points))
-    # (a Delaunay of the nodes: the graded grid's hanging midpoints make its own
-    # triangles a conforming mesh, but the interpolator wants a simplex structure)
-    rho = 1.0 / dual
-    interp = LinearNDInterpolator(Delaunay(points), rho, fill_value=float(np.median(rho)))
+    inv = np.repeat(1.0 / np.abs(signed_areas(points, triangles)), 3)
+    count = np.bincount(triangles.ravel(), minlength=len(points))
+    rho = np.bincount(triangles.ravel(), inv, minlength=len(points)) / np.maximum(count, 1)
+    # linear over the Delaunay triangulation scipy builds of the nodes: nearly the
+    # grid's own triangles
+    interp = LinearNDInterpolator(points, rho, fill_value=float(np.median(rho)))
     scale = float(np.mean(interp(box_samples(box, n))))
 
     def g0(q: np.ndarray) -> np.ndarray:

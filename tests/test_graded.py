@@ -512,7 +512,7 @@ def test_where_every_grid_splits_edges_the_graded_grid_splits_fewer(name):
     as it can) goes first when it has at most half as many.  (Australia's spikes make
     U-turn ears whose points' triangles have angles of 5 to 10 degrees.)"""
     from deformesh_cli import mesh_contour
-    from deformesh_cli.pipeline import EXTRA_SHARE, _extra_nodes, candidate_selections
+    from deformesh_cli.pipeline import EXTRA_SHARE, candidate_selections
 
     c = load_contour(CORPUS / name)
     if name == "coast_australia.csv":  # its adapted grid takes 10 s: the mesh only
@@ -527,7 +527,7 @@ def test_where_every_grid_splits_edges_the_graded_grid_splits_fewer(name):
     assert first.h_rule == "graded" and first.extra_nodes > 0
     fallback = next(sels)
     assert fallback.h_rule == "typical-spacing"
-    assert first.extra_nodes <= EXTRA_SHARE * _extra_nodes(fallback)
+    assert first.extra_nodes <= EXTRA_SHARE * fallback.extra_nodes
     assert "where the adapt grid has" in first.notes[0]
     res = mesh_contour(c)
     assert res.report["h_rule"] == "graded"

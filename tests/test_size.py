@@ -191,18 +191,28 @@ def test_pipe_carries_the_size_function_to_triangulate(sh, tmp_path):
     assert rec["size"] == "'exp(x)'" and rec["size_correlation"] >= 0.9
 
 
-def test_geometric_path_keeps_the_box_mean_and_ends_at_g1():
+@pytest.mark.parametrize("geometric", [True, False])
+@pytest.mark.parametrize("start", ["uniform", "graded"])
+def test_size_paths_keep_the_box_mean_and_run_from_g0_to_g1(geometric, start):
+    # from the grid's own density (1 on a uniform grid; a graded grid's varies) to f's
     from deformesh_cli.size import SizePath
 
     box = (0.0, 0.0, 2.0, 1.0)
     s = SizeFunction(lambda q: 0.01 + q[:, 0] ** 2, "x^2")
     s.normalise(box)
-    path = SizePath(s.g1, box, geometric=True)
+    g0 = None
+    if start == "graded":
+        d = SizeFunction(lambda q: 0.2 + q[:, 1], "y")  # finer cells at the bottom
+        d.normalise(box)
+        g0 = d.g1
+    path = SizePath(s.g1, box, geometric=geometric, g0=g0)
     q = np.random.default_rng(2).uniform([0, 0], [2, 1], (40000, 2))
     for t in (0.0, 0.3, 0.7, 1.0):
         g, rate = path.g_and_rate(q, t)
         assert g.mean() == pytest.approx(1.0, rel=0.02)
         assert rate.mean() == pytest.approx(0.0, abs=0.05 * np.abs(rate).mean())
+    g, _ = path.g_and_rate(q, 0.0)
+    np.testing.assert_allclose(g, 1.0 if g0 is None else g0(q), rtol=0.02)
     g, _ = path.g_and_rate(q, 1.0)
     np.testing.assert_allclose(g, s.g1(q), rtol=0.02)
     # the rate is the derivative of g
@@ -317,3 +327,24 @@ def test_a_size_function_that_folds_in_one_go_meshes_in_two_parts():
     res = mesh_contour(c, o)
     assert res.report["size_correlation"] >= 0.9 and res.report["min_angle"] >= 35
     assert res.deform_stats.solves == 2 * o.steps  # the two parts
+
+
+def test_grid_density_is_flat_on_a_uniform_grid_and_follows_a_graded_one():
+    from deformesh_cli import pipeline
+    from deformesh_cli.select import DIAG_SLASH, Grid, grid_triangles
+    from deformesh_cli.size import grid_density
+
+    g = Grid(0.0, 0.0, 0.1, 0.1, 20, 10)
+    tri = grid_triangles(g, np.full(g.nx * g.ny, DIAG_SLASH, dtype=np.uint8))
+    rho = grid_density(g.coords(), tri, g.box)
+    q = np.random.default_rng(3).uniform([0, 0], [2, 1], (2000, 2))
+    corners = np.array([[0.0, 0.0], [2.0, 1.0], [1.0, 0.0], [0.0, 0.5]])  # on the box sides
+    np.testing.assert_allclose(rho(np.concatenate([q, corners])), 1.0, rtol=1e-9)
+    # the graded grid: denser by the contour than in the middle
+    c = load_contour(SAMPLES / "peanut.csv")
+    sel = pipeline.run_select(c)
+    rho = grid_density(sel.grid.coords(), sel.triangles(), sel.grid.box)
+    x0, y0 = sel.grid.box[:2]
+    at_contour, middle, corner = np.median(rho(c.points)), *rho(np.array([[0.0, 0.0], [x0, y0]]))
+    assert at_contour > 2 * middle  # measured: 4 times (cells one level larger)
+    assert at_contour > 2 * corner
