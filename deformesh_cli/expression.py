@@ -104,12 +104,13 @@ class _Node:
 
 
 def _chain(ops: tuple, *operands):
-    """``a < b <= c`` as ``(a < b) & (b <= c)``."""
+    """``a < b <= c`` as ``(a < b) & (b <= c)``, as 1.0 or 0.0 (so that arithmetic on it,
+    ``-(x < 1)`` say, works, where numpy refuses it on booleans)."""
     out = None
     for op, a, b in zip(ops, operands, operands[1:]):
         r = op(a, b)
         out = r if out is None else np.logical_and(out, r)
-    return out
+    return np.asarray(out, dtype=float)
 
 
 class Expression:

@@ -122,18 +122,32 @@ def _fits(geom, a, b, apex) -> np.ndarray:
 
 
 def triangle_bound(
-    points: np.ndarray, tri: np.ndarray, lines: np.ndarray, forced: np.ndarray, reach: float = 1.0
+    points: np.ndarray,
+    tri: np.ndarray,
+    lines: np.ndarray,
+    forced: np.ndarray,
+    reach: float = 1.0,
+    tree=None,
 ) -> np.ndarray:
     """For each triangle, the smallest ``forced`` (one per boundary edge) of the edges
-    within ``reach`` times the triangle's longest edge of it (60 where there is none)."""
+    within ``reach`` times the triangle's longest edge of it (60 where there is none).
+    ``tree``: :func:`line_tree` of ``lines``, when asked about many triangle sets."""
     p = points[tri]
     longest = np.sqrt(np.max(((p - np.roll(p, 1, axis=1)) ** 2).sum(axis=2), axis=1))
     polys = shapely.polygons(np.concatenate([p, p[:, :1]], axis=1))
-    segs = shapely.linestrings(np.stack([points[lines[:, 0]], points[lines[:, 1]]], axis=1))
-    t, e = shapely.STRtree(segs).query(polys, predicate="dwithin", distance=reach * longest)
+    if tree is None:
+        tree = line_tree(points, lines)
+    t, e = tree.query(polys, predicate="dwithin", distance=reach * longest)
     out = np.full(len(tri), 60.0)
     np.minimum.at(out, t, forced[e])
     return out
+
+
+def line_tree(points: np.ndarray, lines: np.ndarray):
+    """A shapely STRtree of the boundary edges ``lines`` (for :func:`triangle_bound`)."""
+    return shapely.STRtree(
+        shapely.linestrings(np.stack([points[lines[:, 0]], points[lines[:, 1]]], axis=1))
+    )
 
 
 def weakest_bound(
@@ -167,3 +181,18 @@ def edge_bounds(
     c = np.full(len(points), 60.0)
     c[ends] = node_angles(points, lines, geom, nodes=ends)
     return np.minimum(edge_angles(points, sub, geom), np.minimum(c[sub[:, 0]], c[sub[:, 1]]))
+
+
+def under_bound(points: np.ndarray, tri: np.ndarray, lines: np.ndarray) -> int:
+    """How many triangles have a smallest angle under the bound the quality stage
+    keeps: ``min(30, B) / 3``, ``B`` the smallest :func:`edge_bounds` of the boundary
+    edges near the triangle (:func:`triangle_bound`; README, "What the boundary
+    forces, and the bound we test")."""
+    from .quality import measures
+
+    ang = measures(points, tri)[0]
+    low = np.flatnonzero(ang < 30)
+    if len(low) == 0:
+        return 0
+    near = triangle_bound(points, tri[low], lines, edge_bounds(points, lines))
+    return int(np.count_nonzero(ang[low] < np.minimum(30.0, near) / 3))

@@ -15,9 +15,13 @@ each run of extra nodes between two contour points ``A`` and ``B``:
 
 A run is left as it is when its cavity is not a simple polygon (it touches
 itself), has more than :data:`MAX_CAVITY` vertices, or its best
-triangulation has an angle under :data:`MIN_ANGLE` degrees; those extra
-nodes stay and are reported.  The quality stage then works on the new mesh
-as on any other.
+triangulation has an angle under :data:`MIN_ANGLE` degrees (on a graded
+path's extra nodes: :data:`THIN_ANGLE`, and not under a third of what the
+boundary forces there, :mod:`.forced`, so that the quality stage's bound
+holds); those extra nodes stay and are reported.  A cavity whose best
+triangulation is too thin grows by the triangles around it, their inner nodes
+taken out too, up to :data:`GROW` times.  The
+quality stage then works on the new mesh as on any other.
 
 :func:`clear_sharp_corners` does the same for an inner node in the tip of a
 sharp corner (under :data:`SHARP` degrees), where a coarse cell left the
@@ -41,6 +45,23 @@ from .quality import measures
 #: the quality stage raises the angles afterwards.
 MIN_ANGLE = 20.0
 
+#: ... or, with ``thin`` (a graded path's extra nodes, laid where a long contour edge
+#: crosses cells its short neighbours need), under this, nor under a third of what
+#: the boundary forces there.  Low, because an extra boundary node breaks the promise
+#: of the contour's points as the only boundary nodes, while a thin triangle by a long
+#: edge beside short ones is what meshes keeping those points have (Triangle
+#: ``pq30Y``: 1.3 to 10 degrees on the corpus's coastlines and icons); the bound keeps
+#: it no thinner than the boundary makes it (``benchmarks/MEASURED.md``).
+THIN_ANGLE = 1.0
+
+#: Passes of :func:`merge_extra_nodes` (runs on consecutive contour edges share a
+#: triangle at their common point: one merges per pass).
+PASSES = 3
+
+#: Times a cavity whose best triangulation is too thin grows by the triangles around
+#: it (their inner nodes taken out with the extra ones).
+GROW = 2
+
 #: Cavities with more vertices than this are left alone (the triangulation costs
 #: their cube).
 MAX_CAVITY = 40
@@ -63,9 +84,11 @@ class Merged:
     left: int
 
 
-def merge_extra_nodes(mesh: Mesh) -> tuple[Mesh, Merged]:
+def merge_extra_nodes(mesh: Mesh, passes: int = PASSES, thin: bool = False) -> tuple[Mesh, Merged]:
     """``mesh`` without the extra boundary nodes that can be taken out (see the module
-    docstring), renumbered; and what was done."""
+    docstring), renumbered; and what was done.  Up to ``passes`` passes: a run whose
+    cavity shares a triangle with one merged before it waits for the next.  ``thin``:
+    new triangles down to :data:`THIN_ANGLE` and the bound, not :data:`MIN_ANGLE`."""
     m, e = mesh.n_contour, mesh.n_extra
     if e == 0:
         return mesh, Merged(0, 0)
@@ -80,33 +103,103 @@ def merge_extra_nodes(mesh: Mesh) -> tuple[Mesh, Merged]:
     star: dict[int, list[int]] = {}
     for v, t in zip(tri[t_idx, corner].tolist(), t_idx.tolist()):
         star.setdefault(v, []).append(t)
-    dead = np.zeros(len(tri), dtype=bool)
-    gone = np.zeros(n, dtype=bool)
-    added = []
+    runs = []
     for a in np.flatnonzero(~extra & extra[np.maximum(nxt, 0)] & (nxt >= 0)):
         run = [int(nxt[a])]
         while extra[nxt[run[-1]]]:
             run.append(int(nxt[run[-1]]))
-        b = int(nxt[run[-1]])
+        runs.append((int(a), run, int(nxt[run[-1]])))
+    fair = _fair(mesh, extra, nxt, runs) if thin and runs else None
+    least = THIN_ANGLE if thin else MIN_ANGLE
+    stars = node_stars(tri)
+    on_boundary = np.zeros(n, dtype=bool)
+    on_boundary[mesh.lines.ravel()] = True
+    dead = np.zeros(len(tri), dtype=bool)
+    gone = np.zeros(n, dtype=bool)
+    added = []
+    for a, run, b in runs:
         cavity = sorted({t for x in run for t in star[x]})
-        if dead[cavity].any():  # shares a triangle with the run before (around A): stays
-            continue
-        new = _retriangulate(pts, tri[cavity], int(a), b, set(run))
+        inner: list[int] = []  # inner nodes the cavity takes in as it grows
+        for _ in range(GROW + 1):
+            if dead[cavity].any():  # shares a triangle with a run merged before: later
+                new = None
+                break
+            new = _retriangulate(pts, tri[cavity], a, b, set(run) | set(inner), least, fair)
+            if new is not None:
+                break
+            # with the cavity's inner neighbours taken out too, the triangle on A-B can
+            # reach further from it
+            cavity, inner = _grow(tri, stars, cavity, on_boundary)
+            if cavity is None:
+                break
         if new is None:
             continue
         dead[cavity] = True
         gone[run] = True
+        gone[inner] = True
         added.append(new)
-    merged = int(gone.sum())
+    merged = int(gone[extra].sum())
     if merged == 0:
         return mesh, Merged(0, e)
     triangles = np.concatenate([tri[~dead], *added])
-    return _renumber(mesh, triangles, gone), Merged(merged, e - merged)
+    out = _renumber(mesh, triangles, gone)
+    if merged < e and passes > 1:  # runs next to a merged one: their cavities changed
+        out, more = merge_extra_nodes(out, passes - 1, thin)
+        merged += more.merged
+    return out, Merged(merged, e - merged)
 
 
-def _retriangulate(pts, cavity: np.ndarray, a: int, b: int, run: set[int]):
+def _grow(tri: np.ndarray, stars, cavity: list[int], boundary: np.ndarray):
+    """``cavity`` with every triangle touching it, and the inner nodes (not on the
+    ``boundary`` mask) it then holds inside: ``(cavity, inner nodes)``, or ``(None,
+    None)`` past :data:`MAX_CAVITY` triangles."""
+    verts = np.unique(tri[cavity])
+    grown = sorted({t for v in verts.tolist() for t in stars(v)})
+    if len(grown) > MAX_CAVITY:
+        return None, None
+    held = set(grown)
+    inside = [
+        v for v in np.unique(tri[grown]).tolist() if not boundary[v] and set(stars(v)) <= held
+    ]
+    return grown, inside
+
+
+def _fair(mesh: Mesh, extra: np.ndarray, nxt: np.ndarray, runs: list):
+    """A test of new triangles: no angle under a third of what the boundary forces
+    near them (:func:`.forced.triangle_bound` of the boundary without the extra nodes
+    of ``runs``), so that the quality stage's bound (README, "What the boundary
+    forces") holds after merging; where a run stays, :func:`.pipeline.mesh_contour`
+    checks the mesh whole."""
+    from . import forced
+
+    pts = mesh.points
+    merged = nxt.copy()  # each boundary node's next one, the runs' extra nodes skipped
+    for a, _, b in runs:
+        merged[a] = b
+    keep = (merged >= 0) & ~extra
+    joined = np.column_stack([np.flatnonzero(keep), merged[keep]])
+    geom = forced.mesh_domain(pts, mesh.lines)
+    sets = [
+        (lines, forced.edge_bounds(pts, lines, geom), forced.line_tree(pts, lines))
+        for lines in (joined,)
+    ]
+
+    def fair(tri: np.ndarray) -> bool:
+        ang = measures(pts, tri)[0]
+        need = np.maximum.reduce(
+            [forced.triangle_bound(pts, tri, ln, bd, tree=tr) for ln, bd, tr in sets]
+        )
+        return bool((ang >= np.minimum(30.0, need) / 3).all())
+
+    return fair
+
+
+def _retriangulate(
+    pts, cavity: np.ndarray, a: int, b: int, run: set[int], least=MIN_ANGLE, fair=None
+):
     """The cavity's triangles without the ``run`` nodes, the best by smallest angle,
-    or None (see the module docstring)."""
+    or None (see the module docstring) if that is under ``least`` degrees or not
+    ``fair(triangles)``."""
     ring = _outline(cavity, a, b, run)
     if ring is None or len(ring) > MAX_CAVITY:
         return None
@@ -114,9 +207,10 @@ def _retriangulate(pts, cavity: np.ndarray, a: int, b: int, run: set[int]):
     if best is None:
         return None
     local, smallest = best
-    if smallest < MIN_ANGLE:
+    new = np.asarray(ring, dtype=np.int64)[local]
+    if smallest < least or (fair is not None and not fair(new)):
         return None
-    return np.asarray(ring, dtype=np.int64)[local]
+    return new
 
 
 def _outline(cavity: np.ndarray, a: int, b: int, run: set[int]) -> list[int] | None:
@@ -230,7 +324,7 @@ def _renumber(mesh: Mesh, tri: np.ndarray, gone: np.ndarray) -> Mesh:
         triangles=new_id[tri],
         lines=np.column_stack([new_id[lines[start, 0]], new_id[ends]]),
         n_contour=mesh.n_contour,
-        n_extra=mesh.n_extra - int(gone.sum()),
+        n_extra=mesh.n_extra - int(gone[mesh.n_contour : mesh.n_contour + mesh.n_extra].sum()),
         line_group=groups[start],
         groups=mesh.groups,
         n_box=mesh.n_box,

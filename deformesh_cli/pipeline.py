@@ -19,7 +19,14 @@ from . import merge as _merge
 from . import size as _size
 from .contour import Contour
 from .deform import SOLVES, DeformStats
-from .errors import FoldError, LimitError, OptionError, SelectionError, SolverError
+from .errors import (
+    ContractError,
+    FoldError,
+    LimitError,
+    OptionError,
+    SelectionError,
+    SolverError,
+)
 from .mesh import Mesh
 from .options import MeshOptions
 from .select import EVEN_SPACING_RATIO, GRIDS, Selection, select
@@ -72,23 +79,24 @@ def fallback_mode(contour: Contour, exterior: bool = False) -> str:
 
 
 #: The graded grid's selections, tried in this order (:func:`.select_graded`'s ways):
-#: the points as given, evenly re-spaced and slid, slid to a grid fitted to them; then,
-#: for far fields only, with extra boundary nodes.
+#: the points as given, evenly re-spaced and slid, slid to a grid fitted to them; then
+#: the same with extra boundary nodes where a contour edge crosses more cells than one
+#: step can (unless ``--strict``), for stage 3 to merge out again.
 GRADED_ATTEMPTS = (
     {},
     {"slide": True},
     {"fit": True},
     {"extra": True},
     {"slide": True, "extra": True},
+    {"fit": True, "extra": True},
 )
 
 
-#: An interior graded selection with extra boundary nodes goes before the fallback's
-#: only if it has at most this share of the fallback's first selection's extra nodes
-#: (measured: icon_si_spotify, 10 against 12, ends with 1 after merging where the
-#: adapted grid's 12 all merge; coast_italy, coast_madagascar, coast_sri_lanka,
-#: icon_si_github and icon_bi_star-fill end with 4 to 150 times fewer).
-EXTRA_SHARE = 0.5
+#: ``all`` keeps a graded mesh whose extra boundary nodes did not all merge, without
+#: trying the fallback grid, when they are at most this share of the contour's points
+#: (the fallback grids split more edges on every corpus contour measured, and their
+#: first rung alone took 6.6 s on coast_australia: ``benchmarks/MEASURED.md``).
+EXTRA_ENOUGH = 0.02
 
 
 def _options(options: MeshOptions | None, changes: dict) -> MeshOptions:
@@ -102,6 +110,7 @@ def candidate_selections(
     options: MeshOptions | None = None,
     *,
     size_function: SizeFunction | None = None,
+    fall_back: Callable[[], bool] | None = None,
     **changes,
 ) -> Iterator[Selection]:
     """The selections ``all`` tries in turn.
@@ -110,7 +119,8 @@ def candidate_selections(
     then, if none could be selected or all of them folded, Appendix A's uniform grid
     (whose errors are the ones reported).  ``changes``: :class:`MeshOptions` fields.
     The graded grid is refined for the size function (``size_function``, else the
-    options' ``size`` or ``size_field``).
+    options' ``size`` or ``size_field``).  ``fall_back()``, asked once the graded
+    grid's selections are done, says whether to go on to the fallback grid.
     """
     o = _options(options, changes)
     mode = grid_mode(contour, o.grid, o.h, o.exterior)
@@ -118,6 +128,7 @@ def candidate_selections(
         yield from _ungraded(contour, o, mode)
         return
     size = size_function or _size.make(o.size, o.size_field, contour)
+    grids: dict = {}  # each way's grid, laid once for it with and without extra nodes
 
     def graded(attempt: dict) -> GradedSelection:
         return select_graded(
@@ -129,45 +140,28 @@ def candidate_selections(
             growth=o.growth,
             max_h=o.max_h,
             size=size,
+            cache=grids,
             **attempt,
         )
 
-    # as given, slid, fitted to the points; for a far field (which the other grids
-    # would mesh with one step for the whole box) then with extra boundary nodes,
-    # unless --strict
-    exact = [a for a in GRADED_ATTEMPTS if not a.get("extra")]
-    extra = [] if o.strict else [a for a in GRADED_ATTEMPTS if a.get("extra")]
+    # as given, slid, fitted to the points; then with extra boundary nodes
+    attempts = [a for a in GRADED_ATTEMPTS if not (o.strict and a.get("extra"))]
     fell_back = None
-    for attempt in exact + (extra if o.exterior else []):
+    for attempt in attempts:
         try:
-            yield graded(attempt)
-            fell_back = "the graded grid's deformation folded"
+            sel = graded(attempt)
         except (SelectionError, LimitError) as exc:
             why = str(exc).removeprefix(f"{contour.source}: ")
             fell_back = f"the graded grid did not work here ({why})"
+            continue
+        if sel.extra_nodes:
+            sel.notes.insert(0, f"{fell_back}; with extra boundary nodes on the graded grid")
+        yield sel
+        fell_back = "the graded grid's deformation folded"
+    if fall_back is not None and not fall_back():
+        return
     mode = fallback_mode(contour, o.exterior)
-    rest = _ungraded(contour, o, mode)
-    first = next(rest)
-    first.notes.insert(0, f"{fell_back}: fell back to the {mode} grid")
-    if not o.exterior and extra and first.extra_nodes:
-        # the fallback splits contour edges too: the graded grid with as few extra
-        # boundary nodes as it can, first, where that is at most EXTRA_SHARE as many
-        # (merging takes more of them out on the other grids: see its docs)
-        for attempt in extra:
-            try:
-                sel = graded(attempt)
-            except (SelectionError, LimitError):
-                continue
-            if sel.extra_nodes <= EXTRA_SHARE * first.extra_nodes:
-                sel.notes.insert(
-                    0,
-                    f"{fell_back}; with extra boundary nodes, {sel.extra_nodes} where the "
-                    f"{mode} grid has {first.extra_nodes}",
-                )
-                yield sel
-            break
-    yield first
-    for sel in rest:
+    for sel in _ungraded(contour, o, mode):
         sel.notes.insert(0, f"{fell_back}: fell back to the {mode} grid")
         yield sel
 
@@ -359,7 +353,7 @@ def run_triangulate(
     edges = cut.edges
     merged = None
     if mesh.n_extra and _merges(o):
-        mesh, merged = _merge.merge_extra_nodes(mesh)
+        mesh, merged = _merge.merge_extra_nodes(mesh, thin=isinstance(sel, GradedSelection))
         if merged.merged:
             edges = None  # (the contract check counts the new triangles' edges)
     better = None
@@ -458,9 +452,20 @@ def mesh_contour(
     size = size_function
     if size is None:
         size = _size.make(o.size, o.size_field, contour)
-    fold = flat = None
+    fold = flat = best = None
+    enough = EXTRA_ENOUGH * len(contour.points)
+
+    def rank(mesh: Mesh, report: dict) -> tuple:
+        """Meshes that keep the quality stage's bound first, then fewer extra nodes."""
+        under = forced.under_bound(mesh.points, mesh.triangles, mesh.lines)
+        return (under > 0, report["extra_boundary_nodes"])
+
+    def fall_back() -> bool:  # not for a few extra nodes left: not worth its time
+        return best is None or best[0] > (False, enough)
+
     try:
-        for sel in candidate_selections(contour, o, size_function=size):
+        for sel in candidate_selections(contour, o, size_function=size, fall_back=fall_back):
+            with_extra = isinstance(sel, GradedSelection) and sel.extra_nodes > 0
             # stage 3's topology (which triangles, numbered how, and their edges) needs
             # only the selection: it runs on the second core while the deformation runs
             # (``benchmarks/MEASURED.md``)
@@ -472,18 +477,37 @@ def mesh_contour(
                 except FoldError as exc:
                     fold = exc  # the last one: the uniform grid's, when every rung folded
                     continue
-                mesh, report = run_triangulate(contour, d, o, size_function=size, cut=cut.result())
+                try:
+                    mesh, report = run_triangulate(
+                        contour, d, o, size_function=size, cut=cut.result()
+                    )
+                except ContractError as exc:
+                    if not with_extra:
+                        raise
+                    fold = exc  # a route the deformation did not carry faithfully: the next
+                    continue
+            if with_extra:
+                # the graded mesh that keeps the bound with the fewest extra nodes left
+                # after merging; the next ways, then the fallback grid, may do better
+                got = (rank(mesh, report), sel, d, mesh, report)
+                if best is None or got[0] < best[0]:
+                    best = got
+                if best[0] == (False, 0):
+                    break
+                continue
             if sel.h_rule != "typical-spacing" or report["min_angle"] >= MIN_ADAPTED_ANGLE:
                 break
             flat = flat or (sel, d, mesh, report)  # nearly flat: try the next rung first
         else:
-            if flat is None:
+            if best is None and flat is None:
                 raise fold
-            sel, d, mesh, report = flat
+            sel, d, mesh, report = best[1:] if best is not None else flat
     except (SelectionError, LimitError):  # from the uniform grid, after the rungs
-        if flat is None:
+        if best is None and flat is None:
             raise
-        sel, d, mesh, report = flat
+        sel, d, mesh, report = best[1:] if best is not None else flat
+    if best is not None and best[1] is not sel and best[0] <= rank(mesh, report):
+        sel, d, mesh, report = best[1:]  # (as good or better, on fewer nodes)
     report.update(selection_report(sel))
     if d.stats is not None:
         report["moved_nodes"] = int(d.stats.moved_nodes)  # the band's nodes, or every node

@@ -232,14 +232,16 @@ def test_graded_exterior_and_size_function():
 
 
 def test_graded_falls_back_with_a_note():
-    """Where no path fits (here: an airfoil of 80 points whose sharp trailing edge asks
-    for cells far smaller than its points are apart), 'all' meshes on the other grids and
-    says so."""
+    """Where no path keeps every edge (here: an airfoil of 80 points whose sharp
+    trailing edge asks for cells far smaller than its points are apart) and extra
+    nodes are not allowed (``--strict``), 'all' meshes on the other grids and says
+    so."""
     from deformesh_cli import mesh_contour
 
-    res = mesh_contour(load_contour(CORPUS / "airfoil_dae11.csv"), grid="graded")
+    res = mesh_contour(load_contour(CORPUS / "airfoil_dae11.csv"), grid="graded", strict=True)
     assert not res.report["h_rule"].startswith("graded")
     assert res.report["notes"][0].startswith("the graded grid did not work here")
+    assert res.report["extra_boundary_nodes"] == 0
 
 
 def test_graded_cli(run, tmp_path):
@@ -505,33 +507,143 @@ def test_a_python_size_function_refines_the_graded_grid_as_the_expression_does()
     assert py.report["size_correlation"] >= 0.9
 
 
-@pytest.mark.parametrize("name", ["coast_madagascar.csv", "coast_australia.csv"])
-def test_where_every_grid_splits_edges_the_graded_grid_splits_fewer(name):
-    """A coastline where no graded path keeps every edge: the adapted grid it falls
-    back to splits hundreds of edges; the graded grid with extra boundary nodes (as few
-    as it can) goes first when it has at most half as many.  (Australia's spikes make
-    U-turn ears whose points' triangles have angles of 5 to 10 degrees.)"""
+@pytest.mark.parametrize("name", ["coast_cuba.csv", "coast_sri_lanka.csv", "icon_bi_star-fill.svg"])
+def test_long_edges_beside_short_ones_mesh_with_their_extra_nodes_merged(name):
+    """Contours whose long edges cross several of the cells their short neighbours
+    need: no graded path keeps every edge, so the path steps through grid nodes
+    there, and stage 3 merges every one of those extra nodes out again.  The mesh is
+    a fraction of the adapted grid's, which splits hundreds of edges (measured:
+    coast_cuba 4,367 nodes and 275 extra nodes on the adapted grid)."""
     from deformesh_cli import mesh_contour
-    from deformesh_cli.pipeline import EXTRA_SHARE, candidate_selections
 
     c = load_contour(CORPUS / name)
-    if name == "coast_australia.csv":  # its adapted grid takes 10 s: the mesh only
-        res = mesh_contour(c)
-        assert res.report["h_rule"] == "graded"
-        # measured: 146 extra boundary nodes, 7,096 nodes (adapted: 1,106 and 195,415)
-        assert res.report["extra_boundary_nodes"] < 300 and res.mesh.n_nodes < 20_000
-        assert "where the adapt grid has" in res.report["notes"][0]
-        return
-    sels = candidate_selections(c)
-    first = next(sels)
-    assert first.h_rule == "graded" and first.extra_nodes > 0
-    fallback = next(sels)
-    assert fallback.h_rule == "typical-spacing"
-    assert first.extra_nodes <= EXTRA_SHARE * fallback.extra_nodes
-    assert "where the adapt grid has" in first.notes[0]
     res = mesh_contour(c)
-    assert res.report["h_rule"] == "graded"
-    adapted = mesh_contour(c, grid="adapt")
-    assert res.report["extra_boundary_nodes"] < adapted.report["extra_boundary_nodes"] / 2
-    assert res.mesh.n_nodes < adapted.mesh.n_nodes / 2
+    assert res.report["h_rule"].startswith("graded")
+    assert isinstance(res.selection.path_source, np.ndarray)
+    assert (res.selection.path_source < 0).any()  # the path had extra nodes
+    assert res.report["extra_boundary_nodes"] == 0
+    assert res.report["merged_extra_nodes"] == res.selection.extra_nodes
     assert np.array_equal(res.mesh.points[: c.n], c.points)
+    assert res.mesh.n_nodes < 3 * len(c.points) + 2000
+
+
+def test_strict_never_gives_extra_nodes_where_they_would_merge():
+    """``--strict``: no attempt with extra nodes, even where they would all merge out
+    (coast_cuba, above): a mesh keeping every edge as it is, or a refusal."""
+    from deformesh_cli import mesh_contour
+    from deformesh_cli.errors import DeformeshError
+
+    c = load_contour(CORPUS / "coast_cuba.csv")
+    try:
+        res = mesh_contour(c, strict=True)
+    except DeformeshError as exc:
+        assert str(exc).startswith(str(c.source))
+        return
+    assert res.selection.extra_nodes == 0 and res.report["merged_extra_nodes"] == 0
+
+
+# --- the path through extra nodes: hop counts, routes, and re-solving a window
+
+
+def _laid(name="circle.csv"):
+    from deformesh_cli.select import graded_path as gp
+
+    c = load_contour(SAMPLES / name)
+    prep = gp._prepare(c, None, None, False, graded.DEFAULT_GROWTH, None, False, None, False, None)
+    return c, prep, gp
+
+
+def _bfs(prep, free, s):
+    """Grid edges from ``s`` to every node, through free nodes only (a reference)."""
+    n = len(prep.grid.points)
+    nbr = {}
+    for k in prep.edges.tolist():
+        u, v = divmod(k, n)
+        nbr.setdefault(u, []).append(v)
+        nbr.setdefault(v, []).append(u)
+    dist, frontier = {s: 0}, [s]
+    while frontier:
+        nxt = []
+        for u in frontier:
+            if u != s and not free[u]:
+                continue  # reached, but not passed through
+            for v in nbr.get(u, []):
+                if v not in dist:
+                    dist[v] = dist[u] + 1
+                    nxt.append(v)
+        frontier = nxt
+    return dist
+
+
+def test_hop_counts_are_breadth_first_distances_through_free_nodes():
+    c, prep, gp = _laid()
+    n = len(prep.grid.points)
+    rng = np.random.default_rng(3)
+    free = prep.free.copy()
+    free[rng.choice(np.flatnonzero(free), size=free.sum() // 6, replace=False)] = False
+    cand = rng.choice(np.flatnonzero(free), size=(10, 4), replace=False)
+    # neighbours of the first candidates, so that short and long hops both occur
+    cand[1::2, 0] = [int(prep.edges[prep.edges // n == x][0] % n) for x in cand[0::2, 0]]
+    hops = gp._hop_counts(prep.edges, n, free, cand)
+    for t in range(len(cand)):
+        for i, a in enumerate(cand[t]):
+            dist = _bfs(prep, free, int(a))
+            for j, b in enumerate(cand[(t + 1) % len(cand)]):
+                d = dist.get(int(b), 10**9)
+                want = d if 2 <= d <= gp.MAX_HOPS and a != b else 0
+                assert hops[t, i, j] == want, (t, i, j, d)
+
+
+def test_a_route_is_shortest_cuts_no_corner_and_avoids_banned_steps():
+    c, prep, gp = _laid()
+    pts, free = prep.grid.points, prep.free
+    g = gp._Graph(prep.edges, prep.plain.turn_keys, len(pts))
+    a = int(np.flatnonzero(free)[len(pts) // 3])
+    dist = _bfs(prep, free, a)
+    for b in [v for v, d in dist.items() if d == 4 and free[v]][:5]:
+        route = gp._route(a, b, -1, -1, g.neighbours, free, set(), pts, pts[a], pts[b], g.cuts)
+        assert route is not None and len(route) == 3
+        walk = [a, *route, b]
+        for x, y in zip(walk, walk[1:]):
+            assert y in g.neighbours[x]
+        for x, y, z in zip(walk, walk[1:], walk[2:]):
+            assert not g.cuts(x, y, z)
+        n = len(pts)
+        ban = {min(a, route[0]) * n + max(a, route[0])}
+        other = gp._route(a, b, -1, -1, g.neighbours, free, set(), pts, pts[a], pts[b], g.cuts, ban)
+        if other is not None:
+            assert other[0] != route[0]
+
+
+def test_solving_a_window_again_keeps_the_rest_and_finds_a_valid_path():
+    from scipy.spatial import cKDTree
+
+    c, prep, gp = _laid("peanut.csv")
+    pts, free, n = prep.grid.points, prep.free, len(prep.grid.points)
+    idx = np.flatnonzero(free)
+    q = prep.contour.points
+    dist, near = cKDTree(pts[idx]).query(q, k=gp.CANDIDATES)
+    cand = idx[near]
+    cost = (dist / prep.local[:, None]) ** 2
+    steps = gp._Steps(cand, prep.edges, prep.plain.turn_keys, n)
+    pick = gp._viterbi(cand, cost, steps)
+    assert pick is not None
+    m = len(cand)
+
+    def total(p):
+        w = steps.weight
+        return sum(cost[t, p[t]] + w[t, p[t - 1], p[t], p[(t + 1) % m]] for t in range(m))
+
+    for t in (5, m // 2, m - 3):
+        worse = cost.copy()
+        worse[t, pick[t]] = np.inf  # that node is not to be had any more
+        got = gp._window(worse, steps, pick, t - 8, t + 8)
+        assert got is not None and got[t] != pick[t]
+        outside = np.ones(m, dtype=bool)
+        outside[np.arange(t - 8, t + 9) % m] = False
+        assert np.array_equal(got[outside], pick[outside])
+        cost_saved, cost[:] = cost.copy(), worse
+        assert np.isfinite(total(got))
+        full = gp._viterbi(cand, cost, steps)
+        assert total(full) <= total(got) + 1e-9
+        cost[:] = cost_saved

@@ -16,8 +16,10 @@ from deformesh_cli.merge import MIN_ANGLE, merge_extra_nodes
 from deformesh_cli.mesh import Mesh
 from deformesh_cli.quality import check_contract, measures
 
-from .conftest import SAMPLES
+from .conftest import ROOT, SAMPLES
 from .test_properties import MAX_NODES, star_polygons
+
+CORPUS = ROOT / "tests" / "data" / "corpus"
 
 
 def _square_with_extra(lift: float) -> Mesh:
@@ -43,12 +45,24 @@ def test_an_extra_node_is_taken_out_and_the_boundary_joined():
     assert len(mesh.triangles) == 4
 
 
-def test_a_run_without_a_fair_triangulation_stays():
+def test_a_run_without_a_fair_triangulation_stays(monkeypatch):
     # the interior node hugs the edge: every triangulation without node 4 has a sliver
+    import deformesh_cli.merge as merge
+
+    monkeypatch.setattr(merge, "GROW", 0)
     before = _square_with_extra(0.01)
     mesh, done = merge_extra_nodes(before)
     assert (done.merged, done.left) == (0, 1)
     assert mesh is before
+
+
+def test_a_cavity_grows_to_take_out_the_inner_node_hugging_the_edge():
+    before = _square_with_extra(0.01)
+    mesh, done = merge_extra_nodes(before)
+    assert (done.merged, done.left) == (1, 0)
+    assert len(mesh.points) == 4 and len(mesh.triangles) == 2  # node 5 went too
+    assert measures(mesh.points, mesh.triangles)[0].min() == pytest.approx(45.0)
+    assert signed_areas(mesh.points, mesh.triangles).sum() == pytest.approx(1.0)
 
 
 def test_nothing_to_do_without_extra_nodes():
@@ -76,7 +90,7 @@ def test_merging_keeps_the_domain_and_the_contract(pts):
     assert np.array_equal(m.points[: c.n], c.points)
     gone = k.n_extra - m.n_extra
     assert gone == merged.report["merged_extra_nodes"] >= 0
-    assert len(m.points) == len(k.points) - gone
+    assert len(m.points) <= len(k.points) - gone  # (a grown cavity takes inner nodes too)
     area = abs(signed_area(c.points))
     assert abs(signed_areas(m.points, m.triangles).sum() - area) <= 1e-10 * area
     # every triangle is one of the old ones (renumbered) or a new one of fair angles
@@ -111,3 +125,19 @@ def test_auto_keeps_the_uniform_grid_as_the_paper_has_it(run, tmp_path):
         adapt["extra_boundary_nodes"] + adapt["merged_extra_nodes"]
         == (kept["extra_boundary_nodes"])
     )
+
+
+def test_merging_counts_extra_nodes_only_and_keeps_the_contract():
+    """On a graded path with extra nodes (coast_cuba's long edges), merging may take
+    inner nodes out with them (a cavity that grows); the count is of extra nodes."""
+    from deformesh_cli.readers import load_contour
+
+    c = load_contour(CORPUS / "coast_cuba.csv")
+    kept = mesh_contour(c, merge_extra="keep", improve=False)
+    assert kept.mesh.n_extra > 0
+    mesh, done = merge_extra_nodes(kept.mesh)
+    assert done.merged == kept.mesh.n_extra - mesh.n_extra and done.left == mesh.n_extra
+    assert mesh.n_contour == kept.mesh.n_contour
+    assert len(mesh.points) <= len(kept.mesh.points) - done.merged
+    check_contract(mesh, c)
+    assert np.array_equal(mesh.points[: c.n], c.points)

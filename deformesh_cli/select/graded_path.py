@@ -20,8 +20,10 @@ accepted when its contour points make a fair triangle).
 
 ``slide``: the path is fitted to the points evenly re-spaced between
 corners and the deformation slides each node to its point, as on the
-adapted grid.  ``extra``: a step may go through up to two grid nodes, extra
-boundary nodes on that contour edge.  Anything that cannot be met is a
+adapted grid.  ``extra``: a step may go through up to :data:`MAX_HOPS` grid
+edges, its nodes extra boundary nodes on that contour edge; a route that
+cuts a corner or crosses the path is taken out and the ring assigned again
+(around the points concerned only).  Anything that cannot be met is a
 :class:`~deformesh_cli.errors.SelectionError`, and the caller falls back to
 the other grids.
 """
@@ -34,7 +36,7 @@ import numpy as np
 import shapely
 
 from ..contour import Contour
-from ..errors import SelectionError
+from ..errors import LimitError, SelectionError
 from ..geometry import signed_area
 from . import graded, graded_fit
 from .respace import path_arclengths, respace
@@ -193,6 +195,7 @@ def select_graded(
     max_h: float | None = None,
     fit: bool = False,
     size=None,
+    cache: dict | None = None,
 ) -> GradedSelection:
     """Lay the graded grid over ``contour`` and fit each ring's path to its points.
 
@@ -215,7 +218,75 @@ def select_graded(
     the path step through one grid node between them, an extra boundary node on
     that contour edge (each costs far more than any distance, so as few as
     possible); without it, such a ring is a SelectionError.
+
+    ``cache``: a dict kept between the calls for one contour with the same options
+    but ``extra``, which then lay their grids once.
     """
+    key = (slide, fit)
+    if cache is None or key not in cache:
+        try:
+            prep = _prepare(
+                contour, box, margin, exterior, growth, max_nodes, slide, max_h, fit, size
+            )
+        except (SelectionError, LimitError) as exc:
+            prep = exc
+        if cache is not None:
+            cache[key] = prep
+    prep = cache[key] if cache is not None else prep
+    if isinstance(prep, Exception):
+        raise prep
+    rs, contour, s, plain, edges = prep.rs, prep.contour, prep.local, prep.plain, prep.edges
+    turns, free = plain.turn_keys, prep.free
+    grid = GradedGrid(prep.grid.tree, prep.grid.points)
+    points = grid.points
+    graph = _Graph(edges, turns, len(points)) if extra else None
+    banned: set[int] = set()  # steps (node pair keys) found to cross or cut the path
+    for _ in range(BAN_ROUNDS):
+        try:
+            sel = _lay_path(contour, grid, plain, free, edges, s, graph, banned, exterior)
+            break
+        except _Clash as exc:
+            if graph is None or exc.pairs <= banned:
+                raise
+            banned |= exc.pairs
+    else:
+        raise SelectionError(
+            f"{contour.source}: no graded-grid path without crossing itself after "
+            f"{BAN_ROUNDS} rounds"
+        )
+    if rs is not None:
+        s0, s1, sel.path_targets = path_arclengths(
+            rs, sel.path_source, sel.path_ring, sel.path_targets
+        )
+        sel.path_slide = np.column_stack([s0, s1])
+        sel.h_rule = "graded-fit" if fit else "graded-slid"
+        sel.notes.insert(
+            0,
+            "graded grid of one cell per point, on the points slid to equal cell steps "
+            "between corners; the deformation slides each node along the contour to its point"
+            if fit
+            else "graded grid on the points evenly re-spaced between corners; the "
+            "deformation slides each node along the contour to its point",
+        )
+    return sel
+
+
+@dataclass
+class _Prepared:
+    """The graded grid an attempt lays its path on, as :func:`_prepare` builds it (the
+    same for an attempt with extra nodes and one without)."""
+
+    rs: object  # the re-spaced copy the path is fitted to, or None
+    contour: Contour  # the points the path is fitted to
+    local: np.ndarray  # their local sizes (the assignment's unit of distance)
+    grid: GradedGrid
+    plain: _Plain
+    edges: np.ndarray
+    free: np.ndarray  # nodes a path may take
+
+
+def _prepare(contour, box, margin, exterior, growth, max_nodes, slide, max_h, fit, size):
+    """Lay the graded grid for :func:`select_graded` (its arguments)."""
     rs = None
     if slide:
         rs = respace(contour)
@@ -242,24 +313,43 @@ def select_graded(
         local = graded.local_sizes(contour)
     else:
         tree = graded.build(contour, box, local=local, **build)
-    s = local  # (the assignment's unit of distance)
     lay = tree.layout()
     points, tri0, _ = tree.triangulate(layout=lay)
     keys = tree.node_keys(layout=lay)
     grid = GradedGrid(tree, points)
     plain = _plain_leaves(lay, keys)
     edges = _allowed_edges(tri0, plain)
-    turns = plain.turn_keys
     free = np.ones(len(points), dtype=bool)
     free[grid.boundary_nodes()] = False
     centres = np.searchsorted(keys, lay.key(lay.centre[~lay.plain]))
     free[centres] = False
-    hop2 = _hops(edges, len(points), free) if extra else None
+    return _Prepared(rs, contour, local, grid, plain, edges, free)
+
+
+#: Times the path is laid again with the steps that crossed it or cut a corner taken
+#: out (only with extra boundary nodes, whose routes the assignment does not see).
+BAN_ROUNDS = 12
+
+
+class _Clash(SelectionError):
+    """The path crosses itself in a leaf or leaves a triangle of three consecutive
+    nodes: ``pairs``, keys ``lo * n + hi`` of the steps involved."""
+
+    def __init__(self, message: str, pairs: set[int]):
+        super().__init__(message)
+        self.pairs = pairs
+
+
+def _lay_path(contour, grid, plain, free, edges, s, graph, banned, exterior) -> GradedSelection:
+    """Every ring's path (:func:`_assign`, without the ``banned`` steps), the
+    diagonals it forces, checked (:func:`_check`)."""
+    free = free.copy()
     nodes, sources, targets, rings = [], [], [], []
     for r in range(contour.n_rings):
         order = contour.ring_order(r)
-        path = _assign(contour, order, points, free, edges, turns, s[order], hop2)
-        path, src, tgt = _through(contour, order, path, points, free, edges)
+        path, src, tgt = _assign(
+            contour, order, grid.points, free, edges, plain.turn_keys, s[order], graph, banned
+        )
         free[path] = False
         nodes.append(path)
         sources.append(src)
@@ -267,7 +357,7 @@ def select_graded(
         rings.append(np.full(len(path), r))
     path_nodes = np.concatenate(nodes)
     path_ring = np.concatenate(rings)
-    diagonals = _force_diagonals(contour, tree.n_leaves, plain, path_nodes, path_ring)
+    diagonals = _force_diagonals(contour, grid.tree.n_leaves, plain, path_nodes, path_ring)
     sel = GradedSelection(
         grid,
         path_nodes,
@@ -275,24 +365,10 @@ def select_graded(
         np.concatenate(sources),
         path_ring,
         diagonals,
-        h=float(tree.hx),
+        h=float(grid.tree.hx),
         exterior=exterior,
     )
     _check(contour, sel)
-    if rs is not None:
-        s0, s1, sel.path_targets = path_arclengths(
-            rs, sel.path_source, sel.path_ring, sel.path_targets
-        )
-        sel.path_slide = np.column_stack([s0, s1])
-        sel.h_rule = "graded-fit" if fit else "graded-slid"
-        sel.notes.insert(
-            0,
-            "graded grid of one cell per point, on the points slid to equal cell steps "
-            "between corners; the deformation slides each node along the contour to its point"
-            if fit
-            else "graded grid on the points evenly re-spaced between corners; the "
-            "deformation slides each node along the contour to its point",
-        )
     return sel
 
 
@@ -366,49 +442,97 @@ def _adjacent(edges: np.ndarray, n: int, a: np.ndarray, b: np.ndarray) -> np.nda
 
 
 #: The most grid edges one contour edge may take (so at most this less one extra
-#: boundary nodes on it).
-MAX_HOPS = 3
+#: boundary nodes on it): a long edge beside short ones crosses several of the cells
+#: its short neighbours need (house-fill: 4.5 cells; 8 lets coast_cuba, icon_si_rust
+#: and four more through, whose extra nodes then all merge: ``benchmarks/MEASURED.md``).
+MAX_HOPS = 8
 
 
-def _hops(edges: np.ndarray, n: int, free: np.ndarray):
-    """A sparse matrix: for two nodes 2 to :data:`MAX_HOPS` grid edges apart through
-    ``free`` nodes, that number of edges (0 elsewhere)."""
+def _hop_counts(edges: np.ndarray, n: int, free: np.ndarray, cand: np.ndarray) -> np.ndarray:
+    """``hops[t, i, j]``: the grid edges from ``cand[t, i]`` to ``cand[t + 1, j]`` (the
+    next point's, cyclically) through ``free`` nodes, 2 to :data:`MAX_HOPS`, else 0.
+    A breadth-first search from the candidates only (sparse rows), so its cost grows
+    with the points, not the grid."""
     import scipy.sparse as sp
 
+    m, k = cand.shape
     lo, hi = edges // n, edges % n
     a = sp.csr_matrix((np.ones(2 * len(lo), np.int32), (np.r_[lo, hi], np.r_[hi, lo])), (n, n))
-    through = sp.diags(free.astype(np.int32), dtype=np.int32)
-    reach = (a > 0).astype(np.int32)
-    seen = reach.copy()
-    out = sp.csr_matrix((n, n), dtype=np.int32)
-    for k in range(2, MAX_HOPS + 1):
-        reach = ((reach @ through @ a) > 0).astype(np.int32)
-        new = reach - reach.multiply(seen)
-        new.setdiag(0)
-        new.eliminate_zeros()
-        out = out + k * new
-        seen = ((seen + reach) > 0).astype(np.int32)
-    return out.tocsr()
+    src, row = np.unique(cand, return_inverse=True)
+    row = row.reshape(m, k)
+    through = sp.diags(free.astype(np.int32), dtype=np.int32) @ a
+    frontier = (a[src] > 0).astype(np.int32)
+    seen = frontier.copy()
+    dist = frontier.copy()  # grid edges to each node reached (1: a neighbour)
+    for e in range(2, MAX_HOPS + 1):
+        reach = ((frontier @ through) > 0).astype(np.int32)
+        frontier = reach - reach.multiply(seen)
+        frontier.eliminate_zeros()
+        if frontier.nnz == 0:
+            break
+        seen = seen + frontier
+        dist = dist + e * frontier
+    dist = dist.tocsr()
+    nxt = np.roll(cand, -1, axis=0)
+    rows = np.repeat(row, k, axis=1).ravel()
+    cols = np.tile(nxt, (1, k)).ravel()
+    got = np.asarray(dist[rows, cols]).ravel().reshape(m, k, k)
+    same = np.repeat(cand, k, axis=1).reshape(m, k, k) == np.tile(nxt, (1, k)).reshape(m, k, k)
+    return np.where((got >= 2) & ~same, got, 0)  # (neighbours are the plain steps)
 
 
-def _through(contour, order, path, points, free, edges):
+class _Graph:
+    """The grid's edges as Python sets, for the route search's many small questions."""
+
+    def __init__(self, edges: np.ndarray, turns: np.ndarray, n: int):
+        self.n = n
+        self.edge_keys = set(edges.tolist())
+        #: each ring's assignment as last laid, keyed by its first point and the free
+        #: nodes (:func:`_assign`)
+        self.memo: dict = {}
+        self.turn_keys = set(turns.tolist())
+        lo, hi = edges // n, edges % n
+        self.neighbours: dict[int, list[int]] = {}
+        for x, y in zip(lo.tolist(), hi.tolist()):
+            self.neighbours.setdefault(x, []).append(y)
+            self.neighbours.setdefault(y, []).append(x)
+
+    def cuts(self, x: int, y: int, z: int) -> bool:
+        """``x -> y -> z`` cuts a corner (see :func:`_viterbi`); -1: no node, no cut."""
+        if x < 0 or z < 0:
+            return False
+        if x == z:
+            return True
+        n = self.n
+        if min(x, z) * n + max(x, z) not in self.edge_keys:
+            return False
+        return (x * n + y) * n + z not in self.turn_keys
+
+
+class _NoRoute(SelectionError):
+    """:func:`_through` found no route for the steps ``failed`` (positions in the ring)."""
+
+    def __init__(self, failed: list[int]):
+        super().__init__(failed)
+        self.failed = failed
+
+
+def _through(contour, order, path, points, free, edges, graph: _Graph | None, banned=frozenset()):
     """The ring's path with the fewest free grid nodes put between each two consecutive
     nodes that are not neighbours (at most :data:`MAX_HOPS` edges, nearest the contour
     edge): ``(nodes, sources, targets)``, -1 the source of an extra node, the extra
-    nodes' targets evenly spaced on their contour edge."""
+    nodes' targets evenly spaced on their contour edge.  :class:`_NoRoute` names the
+    steps with no route that cuts no corner through nodes the path leaves free."""
     n = len(points)
     q = contour.points[order]
     nxt = np.roll(path, -1)
     gap = ~_adjacent(edges, n, path, nxt)
     if not gap.any():
         return path, order, q
-    lo, hi = edges // n, edges % n
-    neighbours: dict[int, list[int]] = {}
-    for x, y in zip(lo.tolist(), hi.tolist()):
-        neighbours.setdefault(x, []).append(y)
-        neighbours.setdefault(y, []).append(x)
+    neighbours, cuts = graph.neighbours, graph.cuts
     taken = set(path.tolist())
-    nodes, sources, targets = [], [], []
+
+    nodes, sources, targets, failed = [], [], [], []
     for t in range(len(path)):
         nodes.append(path[t])
         sources.append(order[t])
@@ -417,62 +541,116 @@ def _through(contour, order, path, points, free, edges):
             continue
         a, b = int(path[t]), int(nxt[t])
         qa, qb = q[t], q[(t + 1) % len(q)]
-        route = _route(a, b, neighbours, free, taken, points, qa, qb)
+        # the path's nodes either side (-1: a route of its own, not known yet)
+        before = nodes[-2] if len(nodes) > 1 else (-1 if gap[-1] else int(path[-1]))
+        after = -1 if gap[(t + 1) % len(path)] else int(path[(t + 2) % len(path)])
+        route = _route(a, b, before, after, neighbours, free, taken, points, qa, qb, cuts, banned)
         if route is None:
-            raise SelectionError(
-                f"{contour.source}: no free grid nodes between the nodes of "
-                f"{contour.where(int(order[t]))} and the next point"
-            )
+            failed.append(t)
+            continue
         for j, w in enumerate(route, start=1):
             taken.add(w)
             nodes.append(w)
             sources.append(-1)
             targets.append(qa + (qb - qa) * j / (len(route) + 1))
+    if failed:
+        raise _NoRoute(failed)
     return np.array(nodes, np.int64), np.array(sources, np.int64), np.array(targets)
 
 
-def _route(a, b, neighbours, free, taken, points, qa, qb) -> list[int] | None:
+def _route(
+    a, b, before, after, neighbours, free, taken, points, qa, qb, cuts, banned=frozenset()
+) -> list[int] | None:
     """The intermediate nodes of the shortest route from ``a`` to ``b`` through free,
     untaken nodes (at most :data:`MAX_HOPS` + 2 edges: the assignment counted routes
-    of up to :data:`MAX_HOPS` without the nodes taken since), the one nearest the
-    segment ``qa - qb`` among the shortest."""
+    of up to :data:`MAX_HOPS` without the nodes taken since) that cuts no corner
+    (``cuts(x, y, z)``), from the path node ``before`` ``a`` to the one ``after``
+    ``b``, none of its steps ``banned``; of the shortest, the one nearest the segment
+    ``qa - qb``.  A search over
+    (previous node, node) states, so its work is bounded by the nodes within reach."""
+    import heapq
+
     d = qb - qa
     length2 = float(d @ d) or 1.0
+    memo: dict[int, float] = {}
 
     def off(w):
-        u = min(max(float((points[w] - qa) @ d) / length2, 0.0), 1.0)
-        return float(np.hypot(*(points[w] - (qa + u * d))))
+        if w not in memo:
+            u = min(max(float((points[w] - qa) @ d) / length2, 0.0), 1.0)
+            memo[w] = float(np.hypot(*(points[w] - (qa + u * d))))
+        return memo[w]
 
-    frontier = [[a]]
-    for _ in range(MAX_HOPS + 1):  # (a route may have to go round nodes already taken)
-        grown = []
-        for route in frontier:
-            for w in neighbours.get(route[-1], []):
-                if free[w] and w not in taken and w not in route:
-                    grown.append([*route, w])
-        done = [r for r in grown if b in neighbours.get(r[-1], [])]
-        if done:
-            best = min(done, key=lambda r: sum(off(w) for w in r[1:]))
-            return best[1:]
-        frontier = grown
+    start = (before, a)
+    best = {start: (0, 0.0)}
+    parent: dict = {start: None}
+    heap = [(0, 0.0, before, a)]
+    while heap:
+        hops, dist, x, y = heapq.heappop(heap)
+        if best.get((x, y)) != (hops, dist):
+            continue
+        n = len(points)
+        if (
+            y != a
+            and b in neighbours.get(y, ())
+            and not cuts(x, y, b)
+            and not cuts(y, b, after)
+            and min(y, b) * n + max(y, b) not in banned
+        ):
+            route, state = [], (x, y)
+            while state != start:
+                route.append(state[1])
+                state = parent[state]
+            route.reverse()
+            return route if len(set(route)) == len(route) else None
+        if hops + 2 > MAX_HOPS + 2:
+            continue
+        for w in neighbours.get(y, ()):
+            if not free[w] or w in taken or w == x or cuts(x, y, w):
+                continue
+            if min(y, w) * n + max(y, w) in banned:
+                continue
+            key, value = (y, w), (hops + 1, dist + off(w))
+            if key not in best or value < best[key]:
+                best[key], parent[key] = value, (x, y)
+                heapq.heappush(heap, (*value, y, w))
     return None
 
 
-def _assign(contour, order, points, free, edges, turns, s, hop2=None) -> np.ndarray:
+def _assign(
+    contour, order, points, free, edges, turns, s, graph: _Graph | None = None, banned=frozenset()
+):
     """One node per point of a ring (in ``order``), consecutive ones adjacent, the
-    least summed squared distance over the local size; see the module's docstring."""
+    least summed squared distance over the local size; see the module's docstring.
+    ``(nodes, sources, targets)`` as :func:`_through` gives them; a step whose route
+    through extra nodes :func:`_through` cannot lay is taken out and the ring
+    assigned again."""
     from scipy.spatial import cKDTree
 
-    idx = np.flatnonzero(free)
-    kd = cKDTree(points[idx])
     q = contour.points[order]
     m, n = len(q), len(points)
-    k = min(CANDIDATES, len(idx))
-    dist, near = kd.query(q, k=k)
-    cand = idx[near.reshape(m, k)]
-    cost = (dist.reshape(m, k) / s[:, None]) ** 2
+    key = (int(order[0]), hash(free.tobytes()))
+    if graph is not None and key in graph.memo:
+        # laid again with more steps banned: only where the path took them, again
+        cand, cost, steps, pick = graph.memo[key]
+        changed = steps.ban(np.array(sorted(banned), dtype=np.int64), pick)
+    else:
+        idx = np.flatnonzero(free)
+        kd = cKDTree(points[idx])
+        k = min(CANDIDATES, len(idx))
+        dist, near = kd.query(q, k=k)
+        cand = idx[near.reshape(m, k)]
+        cost = (dist.reshape(m, k) / s[:, None]) ** 2
+        hops = _hop_counts(edges, n, free, cand) if graph is not None else None
+        steps = _Steps(cand, edges, turns, n, hops, np.array(sorted(banned), dtype=np.int64))
+        changed, pick = [], None  # points whose choices changed since the last round
     for _ in range(MAX_ROUNDS):
-        path = _viterbi(cand, cost, edges, turns, n, hop2)
+        if pick is not None and changed:
+            # with extra nodes, rounds change a few points: solve again around them
+            pick = _resolve(cost, steps, pick, changed)
+        if pick is None:
+            pick = _viterbi(cand, cost, steps)
+        path = None if pick is None else cand[np.arange(m), pick]
+        changed = []
         if path is None:
             raise SelectionError(
                 f"{contour.source}: no graded-grid path gives every point of "
@@ -480,14 +658,26 @@ def _assign(contour, order, points, free, edges, turns, s, hop2=None) -> np.ndar
             )
         uniq, counts = np.unique(path, return_counts=True)
         if (counts == 1).all():
-            return path
+            try:
+                out = _through(contour, order, path, points, free, edges, graph, banned)
+            except _NoRoute as exc:
+                for t in exc.failed:  # that jump is not to be had
+                    steps.forbid(t, pick[t], pick[(t + 1) % m])
+                    changed += [t, t + 1]
+                continue
+            if graph is not None:
+                graph.memo[key] = (cand, cost, steps, pick)
+            return out
         for node in uniq[counts > 1]:  # a node taken twice: the nearer point keeps it
             at = np.flatnonzero(path == node)
             d = np.hypot(*(q[at] - points[node]).T)
             loser = np.delete(at, np.argmin(d))
             cost[loser] = np.where(cand[loser] == node, np.inf, cost[loser])
+            changed += loser.tolist()
     raise SelectionError(
-        f"{contour.source}: the graded-grid path takes a node twice after {MAX_ROUNDS} rounds"
+        f"{contour.source}: no graded-grid path for "
+        f"{contour.ring_labels[int(contour.ring[order[0]])]} after {MAX_ROUNDS} rounds "
+        "(nodes taken twice, or routes between points through nodes the path takes)"
     )
 
 
@@ -500,50 +690,92 @@ STARTS = 3
 EXTRA_COST = 1e3
 
 
-def _viterbi(cand, cost, edges, turns, n, hop2=None) -> np.ndarray | None:
+class _Steps:
+    """What :func:`_viterbi` may do at each point, built once per ring's candidates:
+    ``weight[t, i, j, l]``, the cost of the step ``cand[t, j] -> cand[t + 1, l]``
+    after ``cand[t - 1, i] -> cand[t, j]`` (the extra nodes it goes through, at
+    :data:`EXTRA_COST` each), infinite where that step or that triple is not
+    allowed.  ``hops`` (:func:`_hop_counts`): steps through free nodes;
+    ``ban``: sorted keys ``lo * n + hi`` of steps not to take."""
+
+    def __init__(self, cand, edges, turns, n, hops=None, ban=None):
+        m, k = cand.shape
+        self.m, self.k = m, k
+        nxt = np.roll(cand, -1, axis=0)
+        x, y = np.repeat(cand, k, axis=1).ravel(), np.tile(nxt, (1, k)).ravel()
+        self.pair_keys = (np.minimum(x, y) * n + np.maximum(x, y)).reshape(m, k, k)
+        adj = _adjacent(edges, n, x, y).reshape(m, k, k)  # cand[t, i] -> cand[t + 1, j]
+        if ban is not None and len(ban):
+            adj &= ~_lookup(ban, self.pair_keys.ravel())[0].reshape(m, k, k)
+        prv = np.roll(cand, 1, axis=0)
+        a = np.broadcast_to(prv[:, :, None, None], (m, k, k, k)).ravel()
+        b = np.broadcast_to(cand[:, None, :, None], (m, k, k, k)).ravel()
+        c = np.broadcast_to(nxt[:, None, None, :], (m, k, k, k)).ravel()
+        cut = (_adjacent(edges, n, a, c) | (a == c)) & ~_l_turn(a, b, c, turns, n)
+        self.adj = adj
+        self.ok3 = ~cut.reshape(m, k, k, k)  # cand[t - 1, i], cand[t, j], cand[t + 1, l]
+        self.hops = np.zeros((m, k, k), dtype=np.int64) if hops is None else hops
+        self.weight = np.empty((m, k, k, k))
+        self.update(np.arange(m))
+
+    def step(self, t):
+        """Steps ``cand[t, i] -> cand[t + 1, j]`` allowed (neighbours, or through nodes)."""
+        return self.adj[t] | (self.hops[t] > 0)
+
+    def jump(self, t):
+        return np.where(~self.adj[t] & (self.hops[t] > 0), EXTRA_COST * (self.hops[t] - 1), 0.0)
+
+    def update(self, ts) -> None:
+        """Recompute ``weight`` at points ``ts`` (after :attr:`hops` changed there, also
+        at the next points: a step through nodes allows the triples either side of it,
+        which the path's check sees whole afterwards)."""
+        ts = np.unique(np.asarray(ts) % self.m)
+        through = ~self.adj[ts] & (self.hops[ts] > 0)
+        before = ~self.adj[ts - 1] & (self.hops[ts - 1] > 0)
+        ok = self.ok3[ts] | through[:, None, :, :] | before[:, :, :, None]
+        ok &= self.step(ts)[:, None, :, :]
+        self.weight[ts] = np.where(ok, self.jump(ts)[:, None, :, :], np.inf)
+
+    def ban(self, keys: np.ndarray, pick: np.ndarray) -> list[int]:
+        """Take out the steps ``keys`` (sorted ``lo * n + hi``); the points where
+        ``pick`` took one of them, and the next ones."""
+        hit = _lookup(keys, self.pair_keys.ravel())[0].reshape(self.m, self.k, self.k)
+        hit &= self.adj
+        ts = np.flatnonzero(hit.any(axis=(1, 2)))
+        self.adj &= ~hit
+        self.update(np.r_[ts, ts + 1])
+        took = ts[hit[ts, pick[ts], pick[(ts + 1) % self.m]]]
+        return np.r_[took, took + 1].tolist()
+
+    def forbid(self, t: int, i: int, j: int) -> None:
+        """No step through nodes from ``cand[t, i]`` to ``cand[t + 1, j]``."""
+        self.hops[t, i, j] = 0
+        self.update([t, t + 1])
+
+
+def _viterbi(cand, cost, steps: _Steps) -> np.ndarray | None:
     """The cheapest closed sequence of candidates with consecutive ones adjacent and no
     step ``a -> b -> c`` whose ends ``a`` and ``c`` are adjacent too (it would cut a
     corner: a triangle of three path nodes, or a cell needing both diagonals), but an
-    L-turn along two sides of a leaf.  Dynamic programming over pairs of consecutive
-    candidates, the first two points' pair fixed for each start."""
+    L-turn along two sides of a leaf (``steps``: :class:`_Steps`).  Dynamic
+    programming over pairs of consecutive candidates, the first two points' pair
+    fixed for each start."""
     m, k = cand.shape
     inf = np.inf
-    nxt = np.roll(cand, -1, axis=0)
-    step = _adjacent(
-        edges, n, np.repeat(cand, k, axis=1).ravel(), np.tile(nxt, (1, k)).ravel()
-    ).reshape(m, k, k)  # step[t, i, j]: cand[t, i] -> cand[t + 1, j]
-    prv = np.roll(cand, 1, axis=0)
-    a = np.broadcast_to(prv[:, :, None, None], (m, k, k, k)).ravel()
-    b = np.broadcast_to(cand[:, None, :, None], (m, k, k, k)).ravel()
-    c = np.broadcast_to(nxt[:, None, None, :], (m, k, k, k)).ravel()
-    cut = (_adjacent(edges, n, a, c) | (a == c)) & ~_l_turn(a, b, c, turns, n)
-    ok3 = ~cut.reshape(m, k, k, k)  # ok3[t, i, j, l]: cand[t-1, i], cand[t, j], cand[t+1, l]
-    jump = np.zeros((m, k, k))  # the cost of a step through one extra node
-    if hop2 is not None:
-        aa = np.repeat(cand, k, axis=1).ravel()
-        bb = np.tile(nxt, (1, k)).ravel()
-        hops = np.asarray(hop2[aa, bb]).ravel().reshape(m, k, k)
-        two = hops > 0
-        through = ~step & two
-        jump = np.where(through, EXTRA_COST * (hops - 1), 0.0)
-        # a step through a node cuts no corner the triple test would see: allow the
-        # triples on either side of it (the path is checked whole afterwards)
-        ok3 |= through[:, None, :, :]
-        ok3 |= np.roll(through, 1, axis=0)[:, :, :, None]
-        step = step | two
+    w = steps.weight
+    step0 = steps.step(0)
     starts = [(x0, x1) for x0 in np.argsort(cost[0])[:STARTS] for x1 in range(k)]
-    starts = [(x0, x1) for x0, x1 in starts if np.isfinite(cost[0, x0]) and step[0, x0, x1]]
+    starts = [(x0, x1) for x0, x1 in starts if np.isfinite(cost[0, x0]) and step0[x0, x1]]
     if not starts or m < 3:
         return None
     s0 = np.array([x for x, _ in starts])
     s1 = np.array([y for _, y in starts])
     ns = len(starts)
     d = np.full((ns, k, k), inf)  # d[s, i, j]: point t - 1 on i, point t on j
-    d[np.arange(ns), s0, s1] = cost[0, s0] + cost[1, s1] + jump[0, s0, s1]
+    d[np.arange(ns), s0, s1] = cost[0, s0] + cost[1, s1] + steps.jump(0)[s0, s1]
     back = np.empty((m, ns, k, k), dtype=np.int8)
     for t in range(1, m - 1):
-        allowed = ok3[t] & step[t][None, :, :]  # (i, j, l)
-        tot = np.where(allowed[None], d[:, :, :, None] + jump[t][None, None], inf)
+        tot = d[:, :, :, None] + w[t][None]
         i = np.argmin(tot, axis=1)  # (s, j, l)
         back[t + 1] = i
         d = np.take_along_axis(tot, i[:, None, :, :], axis=1)[:, 0] + cost[t + 1][None, None, :]
@@ -552,11 +784,8 @@ def _viterbi(cand, cost, edges, turns, n, hop2=None) -> np.ndarray | None:
     last = m - 1
     for si in range(ns):
         x0, x1 = s0[si], s1[si]
-        close[si] = np.where(
-            step[last][None, :, x0] & ok3[last][:, :, x0] & ok3[0][:, x0, x1][None, :],
-            close[si] + jump[last][None, :, x0],
-            inf,
-        )
+        first = np.where(np.isfinite(w[0][:, x0, x1]), 0.0, inf)
+        close[si] = close[si] + w[last][:, :, x0] + first[None, :]
     si, i, j = np.unravel_index(int(np.argmin(close)), close.shape)
     if not np.isfinite(close[si, i, j]):
         return None
@@ -564,7 +793,58 @@ def _viterbi(cand, cost, edges, turns, n, hop2=None) -> np.ndarray | None:
     sel[m - 1], sel[m - 2] = j, i
     for t in range(m - 1, 1, -1):
         sel[t - 2] = back[t, si, sel[t - 1], sel[t]]
-    return cand[np.arange(m), sel]
+    return sel
+
+
+#: Points either side of a change that :func:`_resolve` chooses again.
+WINDOW = 16
+
+
+def _resolve(cost, steps: _Steps, pick: np.ndarray, changed: list[int]) -> np.ndarray | None:
+    """``pick`` (a candidate index per point) chosen again within :data:`WINDOW`
+    points of each of ``changed``, the rest held; a window that finds nothing is
+    widened, up to the whole ring (:func:`_viterbi`)."""
+    m, k = cost.shape
+    pick = pick.copy()
+    for u in sorted({int(c) % m for c in changed}):
+        half = WINDOW
+        while True:
+            if 2 * half + 5 >= m:
+                return None  # (the caller solves the whole ring)
+            got = _window(cost, steps, pick, u - half, u + half)
+            if got is not None:
+                pick = got
+                break
+            half *= 2
+    return pick
+
+
+def _window(cost, steps: _Steps, pick: np.ndarray, t0: int, t1: int) -> np.ndarray | None:
+    """``pick`` with points ``t0..t1`` (cyclic) chosen again at least cost, the two
+    points either side held, or None if no choice fits."""
+    m, k = cost.shape
+    w = steps.weight
+    ts = np.arange(t0, t1 + 1) % m
+    a, b = pick[(t0 - 2) % m], pick[(t0 - 1) % m]
+    d = np.full((k, k), np.inf)  # d[i, j]: point t - 1 on i, point t on j
+    d[a, b] = 0.0
+    back = np.empty((len(ts), k, k), dtype=np.int8)
+    for n_, t in enumerate(ts):
+        tot = d[:, :, None] + w[(t - 1) % m]  # (i, j, l): l for point t
+        i = np.argmin(tot, axis=0)
+        back[n_] = i
+        d = tot.min(axis=0) + cost[t][None, :]
+    f1, f2 = pick[(t1 + 1) % m], pick[(t1 + 2) % m]
+    end = d + w[t1 % m][:, :, f1] + w[(t1 + 1) % m][:, f1, f2][None, :]
+    i, j = np.unravel_index(int(np.argmin(end)), end.shape)
+    if not np.isfinite(end[i, j]):
+        return None
+    out = pick.copy()
+    out[ts[-1]], prev = j, i
+    for n_ in range(len(ts) - 1, 0, -1):
+        out[ts[n_ - 1]] = prev
+        prev = back[n_, prev, out[ts[n_]]]
+    return out
 
 
 def _force_diagonals(contour, n_leaves, plain: _Plain, path_nodes, path_ring) -> np.ndarray:
@@ -587,10 +867,12 @@ def _force_diagonals(contour, n_leaves, plain: _Plain, path_nodes, path_ring) ->
     both = np.unique(leaf[d == 1])
     clash = np.intersect1d(np.unique(leaf[d == 0]), both)
     if len(clash):
-        t = int(np.flatnonzero(hit)[np.isin(leaf, clash)][0])
-        raise SelectionError(
+        steps = np.flatnonzero(hit)[np.isin(leaf, clash)]
+        t = int(steps[0])
+        raise _Clash(
             f"{contour.source}: the graded-grid path needs both diagonals of one cell "
-            f"near path node {t} of ring {int(ring[t])}"
+            f"near path node {t} of ring {int(ring[t])}",
+            set(k[steps].tolist()),
         )
     force[leaf] = d
     # L-turns, where no diagonal step decided (a U-turn: the first of its two)
@@ -668,8 +950,11 @@ def _check(contour: Contour, sel: GradedSelection) -> None:
         idx = np.flatnonzero(on)[ear]
         ear[ear] = ~_fair_ears(sel, tri[idx])
     if ear.any():
-        x, y = sel.grid.points[tri[np.flatnonzero(on)[np.argmax(ear)]]].mean(axis=0)
-        raise SelectionError(
+        bad = tri[np.flatnonzero(on)[ear]]
+        x, y = sel.grid.points[bad[0]].mean(axis=0)
+        pairs = np.concatenate([bad[:, [0, 1]], bad[:, [1, 2]], bad[:, [2, 0]]])
+        raise _Clash(
             f"{contour.source}: a graded-grid triangle has three consecutive path nodes "
-            f"near ({x:.6g}, {y:.6g})"
+            f"near ({x:.6g}, {y:.6g})",
+            set((pairs.min(axis=1) * n + pairs.max(axis=1)).tolist()),
         )
