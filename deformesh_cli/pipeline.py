@@ -99,6 +99,11 @@ GRADED_ATTEMPTS = (
 EXTRA_ENOUGH = 0.02
 
 
+#: A contour of at most this many points tries every graded way with extra nodes
+#: and keeps the best mesh, even after one with none left; a larger one stops there.
+EXTRA_WAYS_POINTS = 1000
+
+
 def _options(options: MeshOptions | None, changes: dict) -> MeshOptions:
     """``options`` (default: :class:`MeshOptions`'s defaults) with ``changes`` applied."""
     options = MeshOptions() if options is None else options
@@ -456,9 +461,10 @@ def mesh_contour(
     enough = EXTRA_ENOUGH * len(contour.points)
 
     def rank(mesh: Mesh, report: dict) -> tuple:
-        """Meshes that keep the quality stage's bound first, then fewer extra nodes."""
+        """Meshes that keep the quality stage's bound first, then fewer extra nodes,
+        then the larger smallest angle."""
         under = forced.under_bound(mesh.points, mesh.triangles, mesh.lines)
-        return (under > 0, report["extra_boundary_nodes"])
+        return (under > 0, report["extra_boundary_nodes"], -report["min_angle"])
 
     def fall_back() -> bool:  # not for a few extra nodes left: not worth its time
         return best is None or best[0] > (False, enough)
@@ -492,8 +498,8 @@ def mesh_contour(
                 got = (rank(mesh, report), sel, d, mesh, report)
                 if best is None or got[0] < best[0]:
                     best = got
-                if best[0] == (False, 0):
-                    break
+                if best[0][:2] == (False, 0) and len(contour.points) > EXTRA_WAYS_POINTS:
+                    break  # (a small contour tries its other ways too, for a better angle)
                 continue
             if sel.h_rule != "typical-spacing" or report["min_angle"] >= MIN_ADAPTED_ANGLE:
                 break
