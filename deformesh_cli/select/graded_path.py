@@ -584,11 +584,11 @@ def _route(
     best = {start: (0, 0.0)}
     parent: dict = {start: None}
     heap = [(0, 0.0, before, a)]
+    n = len(points)
     while heap:
         hops, dist, x, y = heapq.heappop(heap)
         if best.get((x, y)) != (hops, dist):
             continue
-        n = len(points)
         if (
             y != a
             and b in neighbours.get(y, ())
@@ -628,7 +628,7 @@ def _assign(
 
     q = contour.points[order]
     m, n = len(q), len(points)
-    key = (int(order[0]), hash(free.tobytes()))
+    key = (int(order[0]), free.tobytes())
     if graph is not None and key in graph.memo:
         # laid again with more steps banned: only where the path took them, again
         cand, cost, steps, pick = graph.memo[key]
