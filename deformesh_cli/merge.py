@@ -178,18 +178,12 @@ def _fair(mesh: Mesh, extra: np.ndarray, nxt: np.ndarray, runs: list):
         merged[a] = b
     keep = (merged >= 0) & ~extra
     joined = np.column_stack([np.flatnonzero(keep), merged[keep]])
-    geom = forced.mesh_domain(pts, mesh.lines)
-    sets = [
-        (lines, forced.edge_bounds(pts, lines, geom), forced.line_tree(pts, lines))
-        for lines in (joined,)
-    ]
+    bound = forced.edge_bounds(pts, joined, forced.mesh_domain(pts, mesh.lines))
+    tree = forced.line_tree(pts, joined)
 
     def fair(tri: np.ndarray) -> bool:
-        ang = measures(pts, tri)[0]
-        need = np.maximum.reduce(
-            [forced.triangle_bound(pts, tri, ln, bd, tree=tr) for ln, bd, tr in sets]
-        )
-        return bool((ang >= np.minimum(30.0, need) / 3).all())
+        need = forced.triangle_bound(pts, tri, joined, bound, tree=tree)
+        return bool((measures(pts, tri)[0] >= np.minimum(30.0, need) / 3).all())
 
     return fair
 
@@ -372,20 +366,7 @@ def clear_sharp_corners(mesh: Mesh) -> tuple[Mesh, int]:
             added.append(new)
     if not added:
         return mesh, 0
-    keep = ~gone
-    new_id = np.cumsum(keep) - 1
-    out = Mesh(
-        points=pts[keep],
-        triangles=new_id[np.concatenate([tri[~dead], *added])],
-        lines=new_id[mesh.lines],
-        n_contour=mesh.n_contour,
-        n_extra=mesh.n_extra,
-        line_group=mesh.line_group,
-        groups=mesh.groups,
-        n_box=mesh.n_box,
-        point_data={k: v[keep] for k, v in mesh.point_data.items()},
-    )
-    return out, len(added)
+    return _renumber(mesh, np.concatenate([tri[~dead], *added]), gone), len(added)
 
 
 def _loop(cavity: np.ndarray, inner: int) -> list[int] | None:

@@ -215,24 +215,23 @@ def select_graded(
     level change, and the deformation multiplies them by ``f``).
 
     ``extra``: where two consecutive points have no neighbouring candidates, let
-    the path step through one grid node between them, an extra boundary node on
-    that contour edge (each costs far more than any distance, so as few as
-    possible); without it, such a ring is a SelectionError.
+    the path step through up to :data:`MAX_HOPS` grid edges between them, their
+    nodes extra boundary nodes on that contour edge (each costs far more than any
+    distance, so as few as possible); without it, such a ring is a SelectionError.
 
     ``cache``: a dict kept between the calls for one contour with the same options
     but ``extra``, which then lay their grids once.
     """
+    cache = {} if cache is None else cache
     key = (slide, fit)
-    if cache is None or key not in cache:
+    if key not in cache:
         try:
-            prep = _prepare(
+            cache[key] = _prepare(
                 contour, box, margin, exterior, growth, max_nodes, slide, max_h, fit, size
             )
         except (SelectionError, LimitError) as exc:
-            prep = exc
-        if cache is not None:
-            cache[key] = prep
-    prep = cache[key] if cache is not None else prep
+            cache[key] = exc  # (the attempt with extra nodes fails the same way)
+    prep = cache[key]
     if isinstance(prep, Exception):
         raise prep
     rs, contour, s, plain, edges = prep.rs, prep.contour, prep.local, prep.plain, prep.edges
@@ -462,15 +461,13 @@ def _hop_counts(edges: np.ndarray, n: int, free: np.ndarray, cand: np.ndarray) -
     row = row.reshape(m, k)
     through = sp.diags(free.astype(np.int32), dtype=np.int32) @ a
     frontier = (a[src] > 0).astype(np.int32)
-    seen = frontier.copy()
     dist = frontier.copy()  # grid edges to each node reached (1: a neighbour)
     for e in range(2, MAX_HOPS + 1):
         reach = ((frontier @ through) > 0).astype(np.int32)
-        frontier = reach - reach.multiply(seen)
+        frontier = reach - reach.multiply(dist > 0)
         frontier.eliminate_zeros()
         if frontier.nnz == 0:
             break
-        seen = seen + frontier
         dist = dist + e * frontier
     dist = dist.tocsr()
     nxt = np.roll(cand, -1, axis=0)
@@ -566,8 +563,8 @@ def _route(
     of up to :data:`MAX_HOPS` without the nodes taken since) that cuts no corner
     (``cuts(x, y, z)``), from the path node ``before`` ``a`` to the one ``after``
     ``b``, none of its steps ``banned``; of the shortest, the one nearest the segment
-    ``qa - qb``.  A search over
-    (previous node, node) states, so its work is bounded by the nodes within reach."""
+    ``qa - qb``.  A search over (previous node, node) states, so its work is bounded
+    by the nodes within reach."""
     import heapq
 
     d = qb - qa
@@ -602,7 +599,7 @@ def _route(
                 state = parent[state]
             route.reverse()
             return route if len(set(route)) == len(route) else None
-        if hops + 2 > MAX_HOPS + 2:
+        if hops > MAX_HOPS:  # (with the step to b, the route would exceed MAX_HOPS + 2)
             continue
         for w in neighbours.get(y, ()):
             if not free[w] or w in taken or w == x or cuts(x, y, w):
@@ -646,7 +643,8 @@ def _assign(
     for _ in range(MAX_ROUNDS):
         if pick is not None and changed:
             # with extra nodes, rounds change a few points: solve again around them
-            pick = _resolve(cost, steps, pick, changed)
+            # (without, the whole ring is solved again, as it always was)
+            pick = _resolve(cost, steps, pick, changed) if graph is not None else None
         if pick is None:
             pick = _viterbi(cand, cost, steps)
         path = None if pick is None else cand[np.arange(m), pick]
