@@ -33,7 +33,7 @@ one triangle there with the corner's whole angle.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -65,6 +65,13 @@ GROW = 2
 #: Cavities with more vertices than this are left alone (the triangulation costs
 #: their cube).
 MAX_CAVITY = 40
+
+#: A graded path's cavity that no triangulation of its own vertices makes fair is
+#: meshed with new inner points (:mod:`.cavity`), growing up to this many times...
+FILL_GROW = 4
+
+#: ... and to at most this many triangles.
+MAX_FILL = 300
 
 
 #: Boundary corners under this angle (degrees) are worked on by
@@ -117,12 +124,14 @@ def merge_extra_nodes(mesh: Mesh, passes: int = PASSES, thin: bool = False) -> t
     dead = np.zeros(len(tri), dtype=bool)
     gone = np.zeros(n, dtype=bool)
     added = []
+    new_points: list[np.ndarray] = []  # inner points of filled cavities, numbered from n
+    count = n
     for a, run, b in runs:
-        cavity = sorted({t for x in run for t in star[x]})
+        first = cavity = sorted({t for x in run for t in star[x]})
         inner: list[int] = []  # inner nodes the cavity takes in as it grows
+        new = None
         for _ in range(GROW + 1):
             if dead[cavity].any():  # shares a triangle with a run merged before: later
-                new = None
                 break
             new = _retriangulate(pts, tri[cavity], a, b, set(run) | set(inner), least, fair)
             if new is not None:
@@ -132,6 +141,12 @@ def merge_extra_nodes(mesh: Mesh, passes: int = PASSES, thin: bool = False) -> t
             cavity, inner = _grow(tri, stars, cavity, on_boundary)
             if cavity is None:
                 break
+        if new is None and fair is not None and not mesh.point_data:
+            got = _filled(pts, tri, stars, on_boundary, dead, first, a, b, run, fair, count)
+            if got is not None:
+                cavity, inner, new, inside = got
+                new_points.append(inside)
+                count += len(inside)
         if new is None:
             continue
         dead[cavity] = True
@@ -142,6 +157,10 @@ def merge_extra_nodes(mesh: Mesh, passes: int = PASSES, thin: bool = False) -> t
     if merged == 0:
         return mesh, Merged(0, e)
     triangles = np.concatenate([tri[~dead], *added])
+    if new_points:
+        grown = np.concatenate([pts, *new_points])
+        mesh = replace(mesh, points=grown)
+        gone = np.concatenate([gone, np.zeros(len(grown) - n, dtype=bool)])
     out = _renumber(mesh, triangles, gone)
     if merged < e and passes > 1:  # runs next to a merged one: their cavities changed
         out, more = merge_extra_nodes(out, passes - 1, thin)
@@ -149,13 +168,38 @@ def merge_extra_nodes(mesh: Mesh, passes: int = PASSES, thin: bool = False) -> t
     return out, Merged(merged, e - merged)
 
 
-def _grow(tri: np.ndarray, stars, cavity: list[int], boundary: np.ndarray):
+def _filled(pts, tri, stars, boundary, dead, cavity, a, b, run, fair, base):
+    """The first of the cavity and its growths, up to :data:`FILL_GROW` times, that
+    :func:`.cavity.fill` meshes with new inner points fairly (``fair``, and no angle
+    under :data:`THIN_ANGLE`): ``(cavity, inner nodes taken out, triangles, new
+    points)``, the new points numbered from ``base``; or None."""
+    from . import cavity as _cavity
+
+    inner: list[int] = []
+    for _ in range(FILL_GROW + 1):
+        if cavity is None or dead[cavity].any():
+            return None
+        ring = _outline(tri[cavity], a, b, set(run) | set(inner))
+        if ring is not None:
+            got = _cavity.fill(pts[ring])
+            if got is not None and got[2] >= THIN_ANGLE:
+                inside, local, _ = got
+                index = np.concatenate([np.asarray(ring), base + np.arange(len(inside))])
+                new = index[local]
+                both = np.concatenate([pts, np.zeros((base - len(pts), 2)), inside])
+                if fair(new, both):
+                    return cavity, inner, new, inside
+        cavity, inner = _grow(tri, stars, cavity, boundary, MAX_FILL)
+    return None
+
+
+def _grow(tri: np.ndarray, stars, cavity: list[int], boundary: np.ndarray, limit=None):
     """``cavity`` with every triangle touching it, and the inner nodes (not on the
     ``boundary`` mask) it then holds inside: ``(cavity, inner nodes)``, or ``(None,
-    None)`` past :data:`MAX_CAVITY` triangles."""
+    None)`` past ``limit`` (default :data:`MAX_CAVITY`) triangles."""
     verts = np.unique(tri[cavity])
     grown = sorted({t for v in verts.tolist() for t in stars(v)})
-    if len(grown) > MAX_CAVITY:
+    if len(grown) > (MAX_CAVITY if limit is None else limit):
         return None, None
     held = set(grown)
     inside = [
@@ -181,9 +225,9 @@ def _fair(mesh: Mesh, extra: np.ndarray, nxt: np.ndarray, runs: list):
     bound = forced.edge_bounds(pts, joined, forced.mesh_domain(pts, mesh.lines))
     tree = forced.line_tree(pts, joined)
 
-    def fair(tri: np.ndarray) -> bool:
-        need = forced.triangle_bound(pts, tri, joined, bound, tree=tree)
-        return bool((measures(pts, tri)[0] >= np.minimum(30.0, need) / 3).all())
+    def fair(tri: np.ndarray, points: np.ndarray = pts) -> bool:
+        need = forced.triangle_bound(points, tri, joined, bound, tree=tree)
+        return bool((measures(points, tri)[0] >= np.minimum(30.0, need) / 3).all())
 
     return fair
 

@@ -507,13 +507,17 @@ def test_a_python_size_function_refines_the_graded_grid_as_the_expression_does()
     assert py.report["size_correlation"] >= 0.9
 
 
-@pytest.mark.parametrize("name", ["coast_cuba.csv", "coast_sri_lanka.csv", "icon_bi_star-fill.svg"])
+@pytest.mark.parametrize(
+    "name",
+    ["coast_cuba.csv", "coast_sri_lanka.csv", "icon_bi_star-fill.svg", "icon_si_python.svg"],
+)
 def test_long_edges_beside_short_ones_mesh_with_their_extra_nodes_merged(name):
     """Contours whose long edges cross several of the cells their short neighbours
     need: no graded path keeps every edge, so the path steps through grid nodes
     there, and stage 3 merges every one of those extra nodes out again.  The mesh is
     a fraction of the adapted grid's, which splits hundreds of edges (measured:
-    coast_cuba 4,367 nodes and 275 extra nodes on the adapted grid)."""
+    coast_cuba 4,367 nodes and 275 extra nodes on the adapted grid).  On icon_si_python
+    the cavities by its long straight edges need new inner points (:mod:`.cavity`)."""
     from deformesh_cli import mesh_contour
 
     c = load_contour(CORPUS / name)

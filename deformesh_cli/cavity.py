@@ -1,0 +1,218 @@
+"""Meshing a small polygon with new inner points, its sides kept as they are.
+
+:mod:`.merge` uses this where a long contour edge ``A-B`` beside short ones
+keeps its extra boundary nodes: no triangulation of the cavity's own vertices
+has a fair angle there, because the cavity is one or two cells deep while
+``A-B`` is several cells long.  A mesh that keeps exactly the contour's
+points needs nodes inside the cavity, graded from ``A-B``'s length down to
+the short sides around it.  :func:`fill` places them:
+
+1. a size at every polygon vertex, the shorter of its two sides; inside, the
+   smallest of ``size(v) + GRADE * distance(v)`` over the vertices ``v`` (sizes
+   grow away from short sides at a bounded rate), and no more than twice the
+   distance to the nearest side (a narrow part gets points across its width);
+2. candidate points on a lattice inside the polygon, taken nearest the sides
+   first, each kept if it is at least :data:`SPACING` times the size there from
+   every point kept before and :data:`WALL` times it from every side;
+3. the Delaunay triangulation of the vertices and the kept points, whose
+   triangles inside the polygon must have every side of the polygon as an
+   edge and the polygon's area (the sides are kept, nothing is split);
+4. :data:`SMOOTH` rounds of moving each new point to the mean of its
+   neighbours, each followed by a new Delaunay triangulation; the round with
+   the largest smallest angle is kept.
+
+The polygon's sides are never split and its vertices never move.  Nothing here
+prints or exits.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .geometry import signed_areas
+from .quality import measures
+
+#: Sizes grow by this much per unit of distance from a polygon vertex.
+GRADE = 0.5
+
+#: A new point keeps this share of the local size from the other points and sides.
+SPACING = 0.8
+
+#: ... and this share of it from the sides.
+WALL = 0.5
+
+#: Rounds of neighbour-mean smoothing of the new points.
+SMOOTH = 6
+
+#: Lattice candidates at most (the lattice step grows to keep under it).
+CANDIDATES = 4000
+
+
+def fill(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """A mesh of the simple counter-clockwise polygon ``p`` (k, 2) with new inner
+    points (see the module docstring): ``(new points (s, 2), triangles (t, 3) indexing
+    the vertices then the new points, smallest angle)``, or None if no conforming
+    triangulation was found."""
+    import shapely
+
+    k = len(p)
+    poly = shapely.Polygon(p)
+    if not poly.is_valid or poly.area <= 0:
+        return None
+    shapely.prepare(poly)
+    edges = np.column_stack([np.arange(k), (np.arange(k) + 1) % k])
+    size = _side_sizes(p, edges)
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    step = max(size.min() / 2, np.sqrt(np.prod(hi - lo) / CANDIDATES))
+    gx, gy = np.meshgrid(np.arange(lo[0], hi[0], step), np.arange(lo[1], hi[1], step))
+    cand = np.column_stack([gx.ravel(), gy.ravel()]) + step / 2
+    cand = cand[shapely.contains_xy(poly, cand[:, 0], cand[:, 1])]
+    if len(cand) == 0:
+        return _best(p, np.empty((0, 2)), edges, poly.area)
+    dist = _segment_distances(cand, p, edges)
+    wall = dist.min(axis=1)
+    want = (size[None] + GRADE * dist).min(axis=1)
+    keep = wall >= WALL * want
+    order = np.flatnonzero(keep)[np.argsort(wall[keep] / want[keep], kind="stable")]
+    kept: list[int] = []
+    for c in order.tolist():
+        if kept:
+            near = np.linalg.norm(cand[kept] - cand[c], axis=1)
+            if (near < SPACING * np.maximum(want[kept], want[c])).any():
+                continue
+        if (np.linalg.norm(p - cand[c], axis=1) < SPACING * want[c]).any():
+            continue
+        kept.append(c)
+    return _best(p, cand[kept], edges, poly.area)
+
+
+def _best(p, new, edges, area):
+    """The conforming Delaunay mesh of ``p`` and ``new`` over the smoothing rounds
+    with the largest smallest angle (see the module docstring), or None."""
+    best = None
+    k = len(p)
+    for _ in range(SMOOTH + 1):
+        tri = _delaunay(p, new, edges, area)
+        if tri is None:
+            return best
+        pts = np.concatenate([p, new])
+        angle = float(measures(pts, tri)[0].min())
+        if best is None or angle > best[2]:
+            best = (new.copy(), tri, angle)
+        if len(new) == 0:
+            break
+        # each new point to the mean of its neighbours (the vertices stay)
+        total = np.zeros((len(pts), 2))
+        count = np.zeros(len(pts))
+        for a, b in ((0, 1), (1, 2), (2, 0)):
+            np.add.at(total, tri[:, a], pts[tri[:, b]])
+            np.add.at(total, tri[:, b], pts[tri[:, a]])
+            np.add.at(count, tri[:, a], 1)
+            np.add.at(count, tri[:, b], 1)
+        new = total[k:] / np.maximum(count[k:], 1)[:, None]
+    return best
+
+
+def _delaunay(p, new, edges, area):
+    """The constrained Delaunay triangles of ``p`` and ``new`` inside the polygon
+    ``p``, counter-clockwise, then flipped to the largest smallest angle: the
+    Delaunay triangulation with each missing side recovered by flipping the edges
+    that cross it (Sloan's method); None if a side cannot be recovered or the
+    triangles inside lack the polygon's ``area``."""
+    from scipy.spatial import Delaunay, QhullError
+
+    from .improve import _flip_all
+
+    pts = np.concatenate([p, new])
+    try:
+        tri = Delaunay(pts).simplices.astype(np.int64)
+    except QhullError:
+        return None
+    a = signed_areas(pts, tri)
+    tri[a < 0] = tri[a < 0][:, ::-1]
+    for u, v in edges.tolist():
+        tri = _recover(pts, tri, u, v)
+        if tri is None:
+            return None
+    import shapely
+
+    centre = pts[tri].mean(axis=1)
+    tri = tri[shapely.contains_xy(shapely.Polygon(p), centre[:, 0], centre[:, 1])]
+    if len(tri) == 0 or not np.isclose(signed_areas(pts, tri).sum(), area, rtol=1e-9, atol=0):
+        return None
+    _flip_all(pts, tri, np.inf)  # (the polygon's sides have one triangle: never flipped)
+    return tri
+
+
+#: Flips at most, per side recovered.
+RECOVER_FLIPS = 500
+
+
+def _recover(pts: np.ndarray, tri: np.ndarray, u: int, v: int) -> np.ndarray | None:
+    """``tri`` with the edge ``u-v``: edges that cross it are flipped, where their two
+    triangles make a convex quadrilateral, until none does; None if stuck."""
+    pu, pv = pts[u], pts[v]
+    for _ in range(RECOVER_FLIPS):
+        a = tri
+        b = np.roll(tri, -1, axis=1)
+        x, y = a.ravel(), b.ravel()
+        cross = _crosses(pts[x], pts[y], pu, pv) & (x != u) & (x != v) & (y != u) & (y != v)
+        if not cross.any():
+            return tri
+        flipped = False
+        for c in np.flatnonzero(cross).tolist():
+            t1, k1 = divmod(c, 3)
+            s, w = int(x[c]), int(y[c])
+            hit = np.flatnonzero((a[:, 0] == w) & (b[:, 0] == s) | (a[:, 1] == w) & (b[:, 1] == s)
+                                 | (a[:, 2] == w) & (b[:, 2] == s))  # fmt: skip
+            if len(hit) != 1:
+                continue
+            t2 = int(hit[0])
+            o1 = int(tri[t1, (k1 + 2) % 3])
+            o2 = int(next(q for q in tri[t2].tolist() if q not in (s, w)))
+            one, two = np.array([[s, o2, o1]]), np.array([[o2, w, o1]])
+            if signed_areas(pts, one)[0] <= 0 or signed_areas(pts, two)[0] <= 0:
+                continue  # not convex: another crossing edge first
+            tri = tri.copy()
+            tri[t1], tri[t2] = one[0], two[0]
+            flipped = True
+            break
+        if not flipped:
+            return None
+    return None
+
+
+def _crosses(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Whether the segments ``a-b`` (arrays of points) properly cross ``c-d``."""
+
+    def side(p, q, r):
+        return (q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) - (q[..., 1] - p[..., 1]) * (
+            r[..., 0] - p[..., 0]
+        )
+
+    return (side(a, b, c) * side(a, b, d) < 0) & (side(c, d, a) * side(c, d, b) < 0)
+
+
+def _side_sizes(p: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """Each side's size: its length, or the distance to the nearest side that does not
+    share a vertex with it, if smaller (a narrow part's width)."""
+    k = len(edges)
+    length = np.linalg.norm(p[edges[:, 1]] - p[edges[:, 0]], axis=1)
+    # two segments that do not cross are nearest at an end of one of them
+    ends = _segment_distances(p, p, edges)  # (vertex, side)
+    near = np.minimum(ends[edges[:, 0]], ends[edges[:, 1]])  # (side s's ends, side t)
+    near = np.minimum(near, near.T)
+    i, j = np.arange(k)[:, None], np.arange(k)[None]
+    touch = (i == j) | (i == (j + 1) % k) | ((i + 1) % k == j)
+    near[touch] = np.inf
+    return np.minimum(length, near.min(axis=1))
+
+
+def _segment_distances(q: np.ndarray, p: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """Distance from each point ``q`` to each segment ``p[edges]``: (len(q), len(edges))."""
+    a, b = p[edges[:, 0]], p[edges[:, 1]]
+    ab = b - a
+    t = ((q[:, None] - a[None]) * ab[None]).sum(axis=2) / np.maximum((ab * ab).sum(axis=1), 1e-300)
+    t = np.clip(t, 0, 1)
+    foot = a[None] + t[..., None] * ab[None]
+    return np.linalg.norm(q[:, None] - foot, axis=2)
