@@ -45,7 +45,7 @@ WALL = 0.5
 SMOOTH = 6
 
 #: Lattice candidates at most (the lattice step grows to keep under it).
-CANDIDATES = 4000
+CANDIDATES = 1500
 
 
 def fill(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, float] | None:
@@ -74,14 +74,14 @@ def fill(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, float] | None:
     want = (size[None] + GRADE * dist).min(axis=1)
     keep = wall >= WALL * want
     order = np.flatnonzero(keep)[np.argsort(wall[keep] / want[keep], kind="stable")]
+    clear = np.linalg.norm(cand[order, None] - p[None], axis=2).min(axis=1)
+    order = order[clear >= SPACING * want[order]]  # (far enough from the vertices)
     kept: list[int] = []
     for c in order.tolist():
         if kept:
             near = np.linalg.norm(cand[kept] - cand[c], axis=1)
             if (near < SPACING * np.maximum(want[kept], want[c])).any():
                 continue
-        if (np.linalg.norm(p - cand[c], axis=1) < SPACING * want[c]).any():
-            continue
         kept.append(c)
     return _best(p, cand[kept], edges, poly.area)
 
@@ -110,7 +110,27 @@ def _best(p, new, edges, area):
             np.add.at(count, tri[:, a], 1)
             np.add.at(count, tri[:, b], 1)
         new = total[k:] / np.maximum(count[k:], 1)[:, None]
-    return best
+    return best if best is None else _polish(p, *best)
+
+
+#: Rounds of flips and max-min-angle moves of the new points at the end.
+POLISH = 4
+
+
+def _polish(p, new, tri, angle):
+    """The quality stage's flips and moves (:mod:`.improve`) on the new points only:
+    each move raises the smallest angle of its triangles, so nothing folds."""
+    from .improve import _flip_all, _smooth
+
+    if POLISH == 0 or len(new) == 0:
+        return new, tri, angle
+    pts = np.concatenate([p, new])
+    tri = tri.copy()
+    movable = np.arange(len(pts)) >= len(p)
+    for _ in range(POLISH):
+        if _smooth(pts, tri, movable) + _flip_all(pts, tri, np.inf) == 0:
+            break
+    return pts[len(p) :], tri, float(measures(pts, tri)[0].min())
 
 
 def _delaunay(p, new, edges, area):
@@ -130,7 +150,7 @@ def _delaunay(p, new, edges, area):
         return None
     a = signed_areas(pts, tri)
     tri[a < 0] = tri[a < 0][:, ::-1]
-    for u, v in edges.tolist():
+    for u, v in edges[~_has_edges(tri, edges, len(pts))].tolist():
         tri = _recover(pts, tri, u, v)
         if tri is None:
             return None
@@ -144,42 +164,62 @@ def _delaunay(p, new, edges, area):
     return tri
 
 
+def _has_edges(tri: np.ndarray, edges: np.ndarray, n: int) -> np.ndarray:
+    """Whether each of ``edges`` is an edge of the triangles ``tri`` (``n`` nodes)."""
+    a, b = tri.ravel(), np.roll(tri, -1, axis=1).ravel()
+    have = np.minimum(a, b) * n + np.maximum(a, b)
+    return np.isin(np.minimum(edges[:, 0], edges[:, 1]) * n + np.max(edges, axis=1), have)
+
+
 #: Flips at most, per side recovered.
 RECOVER_FLIPS = 500
 
 
 def _recover(pts: np.ndarray, tri: np.ndarray, u: int, v: int) -> np.ndarray | None:
-    """``tri`` with the edge ``u-v``: edges that cross it are flipped, where their two
-    triangles make a convex quadrilateral, until none does; None if stuck."""
+    """``tri`` (counter-clockwise) with the edge ``u-v``: the edges that cross it are
+    flipped, where their two triangles make a convex quadrilateral, until none does
+    (Sloan's method: a flipped edge that still crosses goes back in the queue); None
+    if stuck."""
+    tri = tri.copy()
     pu, pv = pts[u], pts[v]
-    for _ in range(RECOVER_FLIPS):
-        a = tri
-        b = np.roll(tri, -1, axis=1)
-        x, y = a.ravel(), b.ravel()
-        cross = _crosses(pts[x], pts[y], pu, pv) & (x != u) & (x != v) & (y != u) & (y != v)
-        if not cross.any():
-            return tri
-        flipped = False
-        for c in np.flatnonzero(cross).tolist():
-            t1, k1 = divmod(c, 3)
-            s, w = int(x[c]), int(y[c])
-            hit = np.flatnonzero((a[:, 0] == w) & (b[:, 0] == s) | (a[:, 1] == w) & (b[:, 1] == s)
-                                 | (a[:, 2] == w) & (b[:, 2] == s))  # fmt: skip
-            if len(hit) != 1:
-                continue
-            t2 = int(hit[0])
-            o1 = int(tri[t1, (k1 + 2) % 3])
-            o2 = int(next(q for q in tri[t2].tolist() if q not in (s, w)))
-            one, two = np.array([[s, o2, o1]]), np.array([[o2, w, o1]])
-            if signed_areas(pts, one)[0] <= 0 or signed_areas(pts, two)[0] <= 0:
-                continue  # not convex: another crossing edge first
-            tri = tri.copy()
-            tri[t1], tri[t2] = one[0], two[0]
-            flipped = True
-            break
-        if not flipped:
+    # each directed edge -> (its triangle, the corner opposite it)
+    owner = {}
+    for t, (x, y, z) in enumerate(tri.tolist()):
+        owner[(x, y)], owner[(y, z)], owner[(z, x)] = (t, z), (t, x), (t, y)
+
+    def crosses(x, y):
+        if u in (x, y) or v in (x, y):
+            return False
+        return bool(_crosses(pts[x], pts[y], pu, pv))
+
+    a, b = tri.ravel(), np.roll(tri, -1, axis=1).ravel()
+    first = (a < b) & (a != u) & (a != v) & (b != u) & (b != v)
+    first &= _crosses(pts[a], pts[b], pu, pv)
+    queue = list(zip(a[first].tolist(), b[first].tolist()))
+    stuck = 0
+    flips = 0
+    while queue:
+        if stuck > len(queue) or flips > RECOVER_FLIPS:
             return None
-    return None
+        x, y = queue.pop(0)
+        if (x, y) not in owner or (y, x) not in owner:
+            continue  # (flipped away already)
+        (t1, o1), (t2, o2) = owner[(x, y)], owner[(y, x)]
+        one, two = (x, o2, o1), (o2, y, o1)  # the quadrilateral's other diagonal o1-o2
+        if signed_areas(pts, np.array([one, two])).min() <= 0:
+            queue.append((x, y))  # not convex: another crossing edge first
+            stuck += 1
+            continue
+        stuck = 0
+        flips += 1
+        for e in ((x, y), (y, x), (y, o1), (o1, x), (x, o2), (o2, y)):
+            owner.pop(e, None)
+        tri[t1], tri[t2] = one, two
+        for t, (a, b, c) in ((t1, one), (t2, two)):
+            owner[(a, b)], owner[(b, c)], owner[(c, a)] = (t, c), (t, a), (t, b)
+        if crosses(o1, o2):
+            queue.append((min(o1, o2), max(o1, o2)))
+    return tri
 
 
 def _crosses(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> np.ndarray:

@@ -509,7 +509,14 @@ def test_a_python_size_function_refines_the_graded_grid_as_the_expression_does()
 
 @pytest.mark.parametrize(
     "name",
-    ["coast_cuba.csv", "coast_sri_lanka.csv", "icon_bi_star-fill.svg", "icon_si_python.svg"],
+    [
+        "coast_cuba.csv",
+        "coast_sri_lanka.csv",
+        "icon_bi_star-fill.svg",
+        "icon_si_python.svg",
+        "icon_si_android.svg",
+        "icon_bi_bell-fill.svg",
+    ],
 )
 def test_long_edges_beside_short_ones_mesh_with_their_extra_nodes_merged(name):
     """Contours whose long edges cross several of the cells their short neighbours
@@ -517,7 +524,8 @@ def test_long_edges_beside_short_ones_mesh_with_their_extra_nodes_merged(name):
     there, and stage 3 merges every one of those extra nodes out again.  The mesh is
     a fraction of the adapted grid's, which splits hundreds of edges (measured:
     coast_cuba 4,367 nodes and 275 extra nodes on the adapted grid).  On icon_si_python
-    the cavities by its long straight edges need new inner points (:mod:`.cavity`)."""
+    the cavities by its long straight edges need new inner points (:mod:`.cavity`); on
+    icon_si_android and icon_bi_bell-fill a step needs more than MAX_HOPS grid edges."""
     from deformesh_cli import mesh_contour
 
     c = load_contour(CORPUS / name)
@@ -587,14 +595,23 @@ def test_hop_counts_are_breadth_first_distances_through_free_nodes():
     cand = rng.choice(np.flatnonzero(free), size=(10, 4), replace=False)
     # neighbours of the first candidates, so that short and long hops both occur
     cand[1::2, 0] = [int(prep.edges[prep.edges // n == x][0] % n) for x in cand[0::2, 0]]
+    # and one point whose candidates are all 11 or 12 edges from the one before's
+    a = int(cand[2, 0])
+    around = _bfs(prep, free, a)
+    cand[2] = [a, *[v for v, d in around.items() if d == 1][:3]]
+    cand[3] = [v for v, d in around.items() if d in (11, 12)][:4]
     hops = gp._hop_counts(prep.edges, n, free, cand)
+    far = 0
     for t in range(len(cand)):
-        for i, a in enumerate(cand[t]):
-            dist = _bfs(prep, free, int(a))
-            for j, b in enumerate(cand[(t + 1) % len(cand)]):
-                d = dist.get(int(b), 10**9)
-                want = d if 2 <= d <= gp.MAX_HOPS and a != b else 0
-                assert hops[t, i, j] == want, (t, i, j, d)
+        nxt = cand[(t + 1) % len(cand)]
+        d = np.array([[_bfs(prep, free, int(a)).get(int(b), 10**9) for b in nxt] for a in cand[t]])
+        d[cand[t][:, None] == nxt[None]] = 10**9
+        # up to MAX_HOPS; where no pair is that near, up to FAR_HOPS
+        limit = gp.MAX_HOPS if (d <= gp.MAX_HOPS).any() else gp.FAR_HOPS
+        far += limit == gp.FAR_HOPS and ((d > gp.MAX_HOPS) & (d <= gp.FAR_HOPS)).any()
+        want = np.where((d >= 2) & (d <= limit), d, 0)
+        assert np.array_equal(hops[t], want), (t, d)
+    assert far  # (the random candidates include points further apart than MAX_HOPS)
 
 
 def test_a_route_is_shortest_cuts_no_corner_and_avoids_banned_steps():

@@ -447,34 +447,47 @@ def _adjacent(edges: np.ndarray, n: int, a: np.ndarray, b: np.ndarray) -> np.nda
 MAX_HOPS = 8
 
 
+#: ... or, between two points with no pair of candidates within :data:`MAX_HOPS`,
+#: this many (icon_si_android: a 10-cell edge at a level change).
+FAR_HOPS = 16
+
+
 def _hop_counts(edges: np.ndarray, n: int, free: np.ndarray, cand: np.ndarray) -> np.ndarray:
     """``hops[t, i, j]``: the grid edges from ``cand[t, i]`` to ``cand[t + 1, j]`` (the
-    next point's, cyclically) through ``free`` nodes, 2 to :data:`MAX_HOPS`, else 0.
-    A breadth-first search from the candidates only (sparse rows), so its cost grows
-    with the points, not the grid."""
+    next point's, cyclically) through ``free`` nodes, 2 to :data:`MAX_HOPS` (to
+    :data:`FAR_HOPS` where no pair is within that), else 0.  A breadth-first search
+    from the candidates only (sparse rows), so its cost grows with the points, not the
+    grid."""
     import scipy.sparse as sp
 
     m, k = cand.shape
     lo, hi = edges // n, edges % n
     a = sp.csr_matrix((np.ones(2 * len(lo), np.int32), (np.r_[lo, hi], np.r_[hi, lo])), (n, n))
-    src, row = np.unique(cand, return_inverse=True)
-    row = row.reshape(m, k)
     through = sp.diags(free.astype(np.int32), dtype=np.int32) @ a
-    frontier = (a[src] > 0).astype(np.int32)
-    dist = frontier.copy()  # grid edges to each node reached (1: a neighbour)
-    for e in range(2, MAX_HOPS + 1):
-        reach = ((frontier @ through) > 0).astype(np.int32)
-        frontier = reach - reach.multiply(dist > 0)
-        frontier.eliminate_zeros()
-        if frontier.nnz == 0:
-            break
-        dist = dist + e * frontier
-    dist = dist.tocsr()
     nxt = np.roll(cand, -1, axis=0)
-    rows = np.repeat(row, k, axis=1).ravel()
-    cols = np.tile(nxt, (1, k)).ravel()
-    got = np.asarray(dist[rows, cols]).ravel().reshape(m, k, k)
     same = np.repeat(cand, k, axis=1).reshape(m, k, k) == np.tile(nxt, (1, k)).reshape(m, k, k)
+
+    def counts(ts: np.ndarray, limit: int) -> np.ndarray:
+        src, row = np.unique(cand[ts], return_inverse=True)
+        row = row.reshape(len(ts), k)
+        frontier = (a[src] > 0).astype(np.int32)
+        dist = frontier.copy()  # grid edges to each node reached (1: a neighbour)
+        for e in range(2, limit + 1):
+            reach = ((frontier @ through) > 0).astype(np.int32)
+            frontier = reach - reach.multiply(dist > 0)
+            frontier.eliminate_zeros()
+            if frontier.nnz == 0:
+                break
+            dist = dist + e * frontier
+        dist = dist.tocsr()
+        rows = np.repeat(row, k, axis=1).ravel()
+        cols = np.tile(nxt[ts], (1, k)).ravel()
+        return np.asarray(dist[rows, cols]).ravel().reshape(len(ts), k, k)
+
+    got = counts(np.arange(m), MAX_HOPS)
+    stuck = np.flatnonzero(~((got >= 1) & ~same).any(axis=(1, 2)))
+    if len(stuck):
+        got[stuck] = counts(stuck, FAR_HOPS)
     return np.where((got >= 2) & ~same, got, 0)  # (neighbours are the plain steps)
 
 
@@ -514,12 +527,15 @@ class _NoRoute(SelectionError):
         self.failed = failed
 
 
-def _through(contour, order, path, points, free, edges, graph: _Graph | None, banned=frozenset()):
+def _through(
+    contour, order, path, points, free, edges, graph: _Graph | None, banned=frozenset(), far=None
+):
     """The ring's path with the fewest free grid nodes put between each two consecutive
     nodes that are not neighbours (at most :data:`MAX_HOPS` edges, nearest the contour
-    edge): ``(nodes, sources, targets)``, -1 the source of an extra node, the extra
-    nodes' targets evenly spaced on their contour edge.  :class:`_NoRoute` names the
-    steps with no route that cuts no corner through nodes the path leaves free."""
+    edge; more where the assignment counted more, ``far[t]``): ``(nodes, sources,
+    targets)``, -1 the source of an extra node, the extra nodes' targets evenly spaced
+    on their contour edge.  :class:`_NoRoute` names the steps with no route that cuts
+    no corner through nodes the path leaves free."""
     n = len(points)
     q = contour.points[order]
     nxt = np.roll(path, -1)
@@ -541,7 +557,10 @@ def _through(contour, order, path, points, free, edges, graph: _Graph | None, ba
         # the path's nodes either side (-1: a route of its own, not known yet)
         before = nodes[-2] if len(nodes) > 1 else (-1 if gap[-1] else int(path[-1]))
         after = -1 if gap[(t + 1) % len(path)] else int(path[(t + 2) % len(path)])
-        route = _route(a, b, before, after, neighbours, free, taken, points, qa, qb, cuts, banned)
+        limit = MAX_HOPS if far is None else max(MAX_HOPS, int(far[t]))
+        route = _route(
+            a, b, before, after, neighbours, free, taken, points, qa, qb, cuts, banned, limit
+        )
         if route is None:
             failed.append(t)
             continue
@@ -556,11 +575,23 @@ def _through(contour, order, path, points, free, edges, graph: _Graph | None, ba
 
 
 def _route(
-    a, b, before, after, neighbours, free, taken, points, qa, qb, cuts, banned=frozenset()
+    a,
+    b,
+    before,
+    after,
+    neighbours,
+    free,
+    taken,
+    points,
+    qa,
+    qb,
+    cuts,
+    banned=frozenset(),
+    limit=MAX_HOPS,
 ) -> list[int] | None:
     """The intermediate nodes of the shortest route from ``a`` to ``b`` through free,
-    untaken nodes (at most :data:`MAX_HOPS` + 2 edges: the assignment counted routes
-    of up to :data:`MAX_HOPS` without the nodes taken since) that cuts no corner
+    untaken nodes (at most ``limit`` + 2 edges: the assignment counted routes of up to
+    ``limit`` without the nodes taken since) that cuts no corner
     (``cuts(x, y, z)``), from the path node ``before`` ``a`` to the one ``after``
     ``b``, none of its steps ``banned``; of the shortest, the one nearest the segment
     ``qa - qb``.  A search over (previous node, node) states, so its work is bounded
@@ -599,7 +630,7 @@ def _route(
                 state = parent[state]
             route.reverse()
             return route if len(set(route)) == len(route) else None
-        if hops > MAX_HOPS:  # (with the step to b, the route would exceed MAX_HOPS + 2)
+        if hops > limit:  # (with the step to b, the route would exceed limit + 2)
             continue
         for w in neighbours.get(y, ()):
             if not free[w] or w in taken or w == x or cuts(x, y, w):
@@ -657,7 +688,8 @@ def _assign(
         uniq, counts = np.unique(path, return_counts=True)
         if (counts == 1).all():
             try:
-                out = _through(contour, order, path, points, free, edges, graph, banned)
+                far = steps.hops[np.arange(m), pick, np.roll(pick, -1)]
+                out = _through(contour, order, path, points, free, edges, graph, banned, far)
             except _NoRoute as exc:
                 for t in exc.failed:  # that jump is not to be had
                     steps.forbid(t, pick[t], pick[(t + 1) % m])
