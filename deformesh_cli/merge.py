@@ -20,8 +20,11 @@ path's extra nodes: :data:`THIN_ANGLE`, and not under a third of what the
 boundary forces there, :mod:`.forced`, so that the quality stage's bound
 holds); those extra nodes stay and are reported.  A cavity whose best
 triangulation is too thin grows by the triangles around it, their inner nodes
-taken out too, up to :data:`GROW` times.  The
-quality stage then works on the new mesh as on any other.
+taken out too, up to :data:`GROW` times.  On a graded path's extra nodes,
+where no triangulation of the cavity's own vertices is fair however it grows,
+the cavity (growing up to :data:`FILL_GROW` times) is meshed with new inner
+points (:func:`.cavity.fill`), its sides as they are.  The quality stage then
+works on the new mesh as on any other.
 
 :func:`clear_sharp_corners` does the same for an inner node in the tip of a
 sharp corner (under :data:`SHARP` degrees), where a coarse cell left the
