@@ -158,8 +158,9 @@ def _delaunay(p, new, edges, area):
 
     centre = pts[tri].mean(axis=1)
     tri = tri[shapely.contains_xy(shapely.Polygon(p), centre[:, 0], centre[:, 1])]
-    if len(tri) == 0 or not np.isclose(signed_areas(pts, tri).sum(), area, rtol=1e-9, atol=0):
-        return None
+    a = signed_areas(pts, tri)
+    if len(tri) == 0 or (a <= 0).any() or not np.isclose(a.sum(), area, rtol=1e-9, atol=0):
+        return None  # (a flat triangle, from points on a line: no mesh here)
     _flip_all(pts, tri, np.inf)  # (the polygon's sides have one triangle: never flipped)
     return tri
 

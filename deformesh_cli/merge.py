@@ -16,15 +16,15 @@ each run of extra nodes between two contour points ``A`` and ``B``:
 A run is left as it is when its cavity is not a simple polygon (it touches
 itself), has more than :data:`MAX_CAVITY` vertices, or its best
 triangulation has an angle under :data:`MIN_ANGLE` degrees (on a graded
-path's extra nodes: :data:`THIN_ANGLE`, and not under a third of what the
-boundary forces there, :mod:`.forced`, so that the quality stage's bound
-holds); those extra nodes stay and are reported.  A cavity whose best
-triangulation is too thin grows by the triangles around it, their inner nodes
-taken out too, up to :data:`GROW` times.  On a graded path's extra nodes,
-where no triangulation of the cavity's own vertices is fair however it grows,
-the cavity (growing up to :data:`FILL_GROW` times) is meshed with new inner
-points (:func:`.cavity.fill`), its sides as they are.  The quality stage then
-works on the new mesh as on any other.
+path's extra nodes: :data:`THIN_ANGLE`); those extra nodes stay and are
+reported.  A cavity whose best triangulation is too thin grows by the
+triangles around it, their inner nodes taken out too, up to :data:`GROW`
+times.  Where no triangulation of the cavity's own vertices is good enough
+however it grows, the cavity (growing up to :data:`FILL_GROW` times) is meshed
+with new inner points (:func:`.cavity.fill`, with ``fill``), its sides as they
+are, down to :data:`THIN_ANGLE`.  The quality stage then works on the new mesh
+as on any other, and :func:`.pipeline.run_triangulate` checks the finished
+mesh against the quality stage's bound (:func:`.forced.under_bound`).
 
 :func:`clear_sharp_corners` does the same for an inner node in the tip of a
 sharp corner (under :data:`SHARP` degrees), where a coarse cell left the
@@ -49,12 +49,13 @@ from .quality import measures
 MIN_ANGLE = 20.0
 
 #: ... or, with ``thin`` (a graded path's extra nodes, laid where a long contour edge
-#: crosses cells its short neighbours need), under this, nor under a third of what
-#: the boundary forces there.  Low, because an extra boundary node breaks the promise
-#: of the contour's points as the only boundary nodes, while a thin triangle by a long
-#: edge beside short ones is what meshes keeping those points have (Triangle
-#: ``pq30Y``: 1.3 to 10 degrees on the corpus's coastlines and icons); the bound keeps
-#: it no thinner than the boundary makes it (``benchmarks/MEASURED.md``).
+#: crosses cells its short neighbours need), and in cavities filled with new points,
+#: under this.  Low, because an extra boundary node breaks the promise of the
+#: contour's points as the only boundary nodes, while a thin triangle by a long edge
+#: beside short ones is what meshes keeping those points have (Triangle ``pq30Y``: 1.3
+#: to 10 degrees on the corpus's coastlines and icons); the quality stage then raises
+#: it, and the finished mesh is checked against the bound of what the boundary forces
+#: (``benchmarks/MEASURED.md``).
 THIN_ANGLE = 1.0
 
 #: Passes of :func:`merge_extra_nodes` (runs on consecutive contour edges share a
@@ -69,8 +70,8 @@ GROW = 2
 #: their cube).
 MAX_CAVITY = 40
 
-#: A graded path's cavity that no triangulation of its own vertices makes fair is
-#: meshed with new inner points (:mod:`.cavity`), growing up to this many times...
+#: A cavity that no triangulation of its own vertices makes good enough is meshed with
+#: new inner points (:mod:`.cavity`), growing up to this many times...
 FILL_GROW = 4
 
 #: ... and to at most this many triangles.
@@ -92,9 +93,13 @@ class Merged:
 
     merged: int
     left: int
+    filled: int = 0  # cavities meshed with new inner points
+    added: int = 0  # the new inner points
 
 
-def merge_extra_nodes(mesh: Mesh, passes: int = PASSES, thin: bool = False) -> tuple[Mesh, Merged]:
+def merge_extra_nodes(
+    mesh: Mesh, passes: int = PASSES, thin: bool = False, fill: bool = True
+) -> tuple[Mesh, Merged]:
     """``mesh`` without the extra boundary nodes that can be taken out (see the module
     docstring), renumbered; and what was done.  Up to ``passes`` passes: a run whose
     cavity shares a triangle with one merged before it waits for the next.  ``thin``:
@@ -119,8 +124,8 @@ def merge_extra_nodes(mesh: Mesh, passes: int = PASSES, thin: bool = False) -> t
         while extra[nxt[run[-1]]]:
             run.append(int(nxt[run[-1]]))
         runs.append((int(a), run, int(nxt[run[-1]])))
-    fair = _fair(mesh, extra, nxt, runs) if thin and runs else None
     least = THIN_ANGLE if thin else MIN_ANGLE
+    fill = fill and not mesh.point_data  # (new nodes would have no values)
     stars = node_stars(tri)
     on_boundary = np.zeros(n, dtype=bool)
     on_boundary[mesh.lines.ravel()] = True
@@ -136,7 +141,7 @@ def merge_extra_nodes(mesh: Mesh, passes: int = PASSES, thin: bool = False) -> t
         for _ in range(GROW + 1):
             if dead[cavity].any():  # shares a triangle with a run merged before: later
                 break
-            new = _retriangulate(pts, tri[cavity], a, b, set(run) | set(inner), least, fair)
+            new = _retriangulate(pts, tri[cavity], a, b, set(run) | set(inner), least)
             if new is not None:
                 break
             # with the cavity's inner neighbours taken out too, the triangle on A-B can
@@ -144,8 +149,8 @@ def merge_extra_nodes(mesh: Mesh, passes: int = PASSES, thin: bool = False) -> t
             cavity, inner = _grow(tri, stars, cavity, on_boundary)
             if cavity is None:
                 break
-        if new is None and fair is not None and not mesh.point_data:
-            got = _filled(pts, tri, stars, on_boundary, dead, first, a, b, run, fair, count)
+        if new is None and fill:
+            got = _filled(pts, tri, stars, on_boundary, dead, first, a, b, run, count)
             if got is not None:
                 cavity, inner, new, inside = got
                 new_points.append(inside)
@@ -157,6 +162,7 @@ def merge_extra_nodes(mesh: Mesh, passes: int = PASSES, thin: bool = False) -> t
         gone[inner] = True
         added.append(new)
     merged = int(gone[extra].sum())
+    filled, inserted = len(new_points), sum(len(p) for p in new_points)
     if merged == 0:
         return mesh, Merged(0, e)
     triangles = np.concatenate([tri[~dead], *added])
@@ -166,16 +172,18 @@ def merge_extra_nodes(mesh: Mesh, passes: int = PASSES, thin: bool = False) -> t
         gone = np.concatenate([gone, np.zeros(len(grown) - n, dtype=bool)])
     out = _renumber(mesh, triangles, gone)
     if merged < e and passes > 1:  # runs next to a merged one: their cavities changed
-        out, more = merge_extra_nodes(out, passes - 1, thin)
+        out, more = merge_extra_nodes(out, passes - 1, thin, fill)
         merged += more.merged
-    return out, Merged(merged, e - merged)
+        filled += more.filled
+        inserted += more.added
+    return out, Merged(merged, e - merged, filled, inserted)
 
 
-def _filled(pts, tri, stars, boundary, dead, cavity, a, b, run, fair, base):
+def _filled(pts, tri, stars, boundary, dead, cavity, a, b, run, base):
     """The first of the cavity and its growths, up to :data:`FILL_GROW` times, that
-    :func:`.cavity.fill` meshes with new inner points fairly (``fair``, and no angle
-    under :data:`THIN_ANGLE`): ``(cavity, inner nodes taken out, triangles, new
-    points)``, the new points numbered from ``base``; or None."""
+    :func:`.cavity.fill` meshes with new inner points with no angle under
+    :data:`THIN_ANGLE`: ``(cavity, inner nodes taken out, triangles, new points)``,
+    the new points numbered from ``base``; or None."""
     from . import cavity as _cavity
 
     inner: list[int] = []
@@ -188,10 +196,7 @@ def _filled(pts, tri, stars, boundary, dead, cavity, a, b, run, fair, base):
             if got is not None and got[2] >= THIN_ANGLE:
                 inside, local, _ = got
                 index = np.concatenate([np.asarray(ring), base + np.arange(len(inside))])
-                new = index[local]
-                both = np.concatenate([pts, np.zeros((base - len(pts), 2)), inside])
-                if fair(new, both):
-                    return cavity, inner, new, inside
+                return cavity, inner, index[local], inside
         cavity, inner = _grow(tri, stars, cavity, boundary, MAX_FILL)
     return None
 
@@ -211,36 +216,9 @@ def _grow(tri: np.ndarray, stars, cavity: list[int], boundary: np.ndarray, limit
     return grown, inside
 
 
-def _fair(mesh: Mesh, extra: np.ndarray, nxt: np.ndarray, runs: list):
-    """A test of new triangles: no angle under a third of what the boundary forces
-    near them (:func:`.forced.triangle_bound` of the boundary without the extra nodes
-    of ``runs``), so that the quality stage's bound (README, "What the boundary
-    forces") holds after merging; where a run stays, :func:`.pipeline.mesh_contour`
-    checks the mesh whole."""
-    from . import forced
-
-    pts = mesh.points
-    merged = nxt.copy()  # each boundary node's next one, the runs' extra nodes skipped
-    for a, _, b in runs:
-        merged[a] = b
-    keep = (merged >= 0) & ~extra
-    joined = np.column_stack([np.flatnonzero(keep), merged[keep]])
-    bound = forced.edge_bounds(pts, joined, forced.mesh_domain(pts, mesh.lines))
-    tree = forced.line_tree(pts, joined)
-
-    def fair(tri: np.ndarray, points: np.ndarray = pts) -> bool:
-        need = forced.triangle_bound(points, tri, joined, bound, tree=tree)
-        return bool((measures(points, tri)[0] >= np.minimum(30.0, need) / 3).all())
-
-    return fair
-
-
-def _retriangulate(
-    pts, cavity: np.ndarray, a: int, b: int, run: set[int], least=MIN_ANGLE, fair=None
-):
+def _retriangulate(pts, cavity: np.ndarray, a: int, b: int, run: set[int], least=MIN_ANGLE):
     """The cavity's triangles without the ``run`` nodes, the best by smallest angle,
-    or None (see the module docstring) if that is under ``least`` degrees or not
-    ``fair(triangles)``."""
+    or None (see the module docstring) if that is under ``least`` degrees."""
     ring = _outline(cavity, a, b, run)
     if ring is None or len(ring) > MAX_CAVITY:
         return None
@@ -249,7 +227,7 @@ def _retriangulate(
         return None
     local, smallest = best
     new = np.asarray(ring, dtype=np.int64)[local]
-    if smallest < least or (fair is not None and not fair(new)):
+    if smallest < least:
         return None
     return new
 

@@ -354,27 +354,26 @@ def run_triangulate(
     sel = d.selection
     if cut is None:
         cut = triangulate.cut(contour, sel)
-    mesh = triangulate.place(contour, sel, cut, d.points)
-    edges = cut.edges
-    merged = None
-    if mesh.n_extra and _merges(o):
-        mesh, merged = _merge.merge_extra_nodes(mesh, thin=isinstance(sel, GradedSelection))
-        if merged.merged:
-            edges = None  # (the contract check counts the new triangles' edges)
-    better = None
-    if o.improve:
-        before = mesh
-        mesh, better = _improve.improve(mesh, clear_corners=not _paper_form(o))
-        if better.corners:  # nodes taken out: the contract check counts afresh
-            edges = None
-        elif len(better.changed) and edges is not None:  # the changed triangles' edges
-            old = len(before.triangles)
-            edges = geometry.patch_edge_uses(
-                edges,
-                mesh.n_nodes,
-                before.triangles[better.changed],
-                np.concatenate([mesh.triangles[better.changed], mesh.triangles[old:]]),
-            )
+    placed = triangulate.place(contour, sel, cut, d.points)
+    # merged down to 1 degree (a graded path's extra nodes) or 20, cavities filled with
+    # new points where that is not enough; if the quality stage then leaves triangles
+    # under its bound, the next way that leaves fewer (``MERGE_WAYS``)
+    ways = MERGE_WAYS[isinstance(sel, GradedSelection)]
+    if not o.improve:  # (filling counts on the quality stage, and on the check after it)
+        ways = ways[-1:]
+    best = under = None
+    for thin, fill in ways:
+        got = _merge_and_improve(placed, cut.edges, o, thin, fill)
+        merged = got[2]
+        if merged is None or not o.improve:
+            best = got
+            break
+        under = forced.under_bound(got[0].points, got[0].triangles, got[0].lines)
+        if best is None or under < best[4]:
+            best = (*got, under)
+        if under == 0 or not (thin or merged.filled):
+            break  # (the bound kept, or nothing thin in this way: the next are alike)
+    mesh, edges, merged, better = best[:4]
     # the contract check and the summary read the mesh independently; numpy and
     # scipy release the GIL in their loops, so on two cores the pair takes about as
     # long as the longer one (``benchmarks/MEASURED.md``)
@@ -411,6 +410,41 @@ def run_triangulate(
         rho = _size.spearman(mesh.points, mesh.triangles, size, exclude=mesh.lines.ravel())
         report["size_correlation"] = None if np.isnan(rho) else rho
     return mesh, report
+
+
+#: How stage 3 merges extra nodes, in turn, while the quality stage leaves triangles
+#: under its bound: ``(thin, fill)`` for :func:`.merge.merge_extra_nodes`, on a
+#: graded path's extra nodes (True) and on the other grids' (False).
+MERGE_WAYS = {
+    True: ((True, True), (False, True), (True, False)),
+    False: ((False, True), (False, False)),
+}
+
+
+def _merge_and_improve(mesh: Mesh, edges, o: MeshOptions, thin: bool, fill: bool):
+    """Stage 3 after placing: extra nodes merged (:mod:`.merge`; ``thin``: a graded
+    path's), then the quality stage; ``(mesh, edges for the contract check or None,
+    Merged or None, ImproveStats or None)``."""
+    merged = None
+    if mesh.n_extra and _merges(o):
+        mesh, merged = _merge.merge_extra_nodes(mesh, thin=thin, fill=fill)
+        if merged.merged:
+            edges = None  # (the contract check counts the new triangles' edges)
+    better = None
+    if o.improve:
+        before = mesh
+        mesh, better = _improve.improve(mesh, clear_corners=not _paper_form(o))
+        if better.corners:  # nodes taken out: the contract check counts afresh
+            edges = None
+        elif len(better.changed) and edges is not None:  # the changed triangles' edges
+            old = len(before.triangles)
+            edges = geometry.patch_edge_uses(
+                edges,
+                mesh.n_nodes,
+                before.triangles[better.changed],
+                np.concatenate([mesh.triangles[better.changed], mesh.triangles[old:]]),
+            )
+    return mesh, edges, merged, better
 
 
 def _merges(o: MeshOptions) -> bool:

@@ -51,9 +51,15 @@ def test_a_run_without_a_fair_triangulation_stays(monkeypatch):
 
     monkeypatch.setattr(merge, "GROW", 0)
     before = _square_with_extra(0.01)
-    mesh, done = merge_extra_nodes(before)
-    assert (done.merged, done.left) == (0, 1)
+    mesh, done = merge_extra_nodes(before, fill=False)
+    assert (done.merged, done.left, done.filled) == (0, 1, 0)
     assert mesh is before
+    # filling accepts down to THIN_ANGLE (the finished mesh is checked against the
+    # bound afterwards): the sliver of 1.15 degrees
+    mesh, done = merge_extra_nodes(before)
+    assert (done.merged, done.left, done.filled) == (1, 0, 1)
+    assert measures(mesh.points, mesh.triangles)[0].min() >= merge.THIN_ANGLE
+    assert signed_areas(mesh.points, mesh.triangles).sum() == pytest.approx(1.0)
 
 
 def test_a_cavity_grows_to_take_out_the_inner_node_hugging_the_edge():
@@ -138,6 +144,6 @@ def test_merging_counts_extra_nodes_only_and_keeps_the_contract():
     mesh, done = merge_extra_nodes(kept.mesh)
     assert done.merged == kept.mesh.n_extra - mesh.n_extra and done.left == mesh.n_extra
     assert mesh.n_contour == kept.mesh.n_contour
-    assert len(mesh.points) <= len(kept.mesh.points) - done.merged
+    assert len(mesh.points) <= len(kept.mesh.points) - done.merged + done.added
     check_contract(mesh, c)
     assert np.array_equal(mesh.points[: c.n], c.points)
