@@ -143,7 +143,7 @@ def test_tiny_and_huge_coordinates_mesh_with_the_contract(run, tmp_path, scale, 
     [
         (
             ["-o", "{tmp}/nofolder/m.msh"],
-            1,
+            2,
             r"nofolder/m\.msh: cannot write: folder .* does not exist",
         ),
         (["-o", "{tmp}/m.xyz"], 2, r"unknown output format 'xyz'"),

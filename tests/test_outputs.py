@@ -148,6 +148,25 @@ def test_quality_reports_violations_with_exit_1(run, tmp_path, bracket):
     assert r.exit_code == 1 and "1 folded triangle" in r.stderr
 
 
+def test_quality_and_plot_take_quiet(run, tmp_path, bracket):
+    """-q: nothing on stdout, errors still one line on stderr with their exit code."""
+    r = run("quality", bracket[0], "--contour", SAMPLES / "bracket.svg", "-q")
+    assert (r.exit_code, r.stdout, r.stderr) == (0, "", "")
+    r = run("quality", bracket[0], "--contour", SAMPLES / "circle.csv", "-q")
+    assert r.exit_code == 1 and r.stdout == "" and len(r.stderr.strip().splitlines()) == 1
+    r = run("plot", bracket[0], "-o", tmp_path / "p.png", "-q")
+    assert (r.exit_code, r.stdout, r.stderr) == (0, "", "")
+    assert (tmp_path / "p.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_every_subcommand_takes_quiet(run):
+    from deformesh_cli.cli import cli
+
+    for name in cli.commands:
+        r = run(name, "--help")
+        assert "-q, --quiet" in r.stdout, name
+
+
 def test_quality_against_the_wrong_contour_fails(run, bracket):
     r = run("quality", bracket[0], "--contour", SAMPLES / "circle.csv")
     assert r.exit_code == 1 and "violated" in r.stdout
@@ -226,7 +245,7 @@ def test_plot_errors(run, tmp_path, bracket):
     r = run("plot", tmp_path / "none.vtk", "-o", tmp_path / "p.png")
     assert r.exit_code == 1 and "no such file" in r.stderr
     r = run("plot", bracket[0], "-o", tmp_path / "nofolder" / "p.png")
-    assert r.exit_code == 1 and "does not exist" in r.stderr
+    assert r.exit_code == 2 and "does not exist" in r.stderr  # (a usage error)
 
 
 def test_batch_xdmf_writes_each_sidecar_under_its_own_name(run, tmp_path):
@@ -267,14 +286,17 @@ def test_msh22_is_byte_identical_to_meshios_writer(tmp_path, exterior):
 
 @pytest.mark.parametrize("exterior", [False, True])
 def test_vtk_is_meshios_file_but_the_title(tmp_path, exterior):
-    # our writer skips meshio's import (0.15 s); the bytes are meshio's, title line aside
+    # our writer skips meshio's import (0.15 s); the bytes are meshio's legacy 4.2
+    # writer's, title line aside
+    from meshio.vtk import _vtk_42
+
     from deformesh_cli import formats, pipeline
+    from deformesh_cli.formats import _common
 
     mesh = pipeline.mesh_contour(load_contour(SAMPLES / "bracket.svg"), exterior=exterior).mesh
     formats.write_mesh(mesh, str(tmp_path / "ours.vtk"))
-    meshio.write(
-        tmp_path / "meshio.vtk", formats._common.meshio_mesh(mesh, dim3=True), file_format="vtk"
-    )
+    m = _common.meshio_mesh(mesh, dim3=True, cell_data={"group": _common.cell_groups(mesh)})
+    _vtk_42.write(tmp_path / "meshio.vtk", m, binary=True)
     ours = (tmp_path / "ours.vtk").read_bytes().split(b"\n", 2)
     theirs = (tmp_path / "meshio.vtk").read_bytes().split(b"\n", 2)
     assert ours[1] == formats.vtk.TITLE.encode() and theirs[1].startswith(b"written by meshio")
@@ -283,6 +305,48 @@ def test_vtk_is_meshios_file_but_the_title(tmp_path, exterior):
     assert np.array_equal(back.points[:, :2], mesh.points)
     assert np.array_equal(back.cells_dict["triangle"], mesh.triangles)
     assert np.array_equal(back.cells_dict["line"], mesh.lines)
+    assert np.array_equal(
+        back.point_data["contour_point"][: mesh.n_contour], np.arange(mesh.n_contour)
+    )
+    assert np.array_equal(back.cell_data["group"][1], mesh.line_group + 1)
+
+
+@pytest.mark.parametrize("fmt", ["vtk", "vtu"])
+@pytest.mark.parametrize("exterior", [False, True])
+def test_vtk_reads_the_point_data_and_the_boundary_groups(tmp_path, fmt, exterior):
+    """VTK's own readers (the ``vtk`` package, as ParaView uses): every node, cell,
+    ``contour_point`` and ``group`` (the .msh physical tags: which edge is
+    ``hole_1``, which a box side)."""
+    import vtk  # the test extra installs it
+    from vtk.util.numpy_support import vtk_to_numpy
+
+    from deformesh_cli import formats, pipeline
+    from deformesh_cli.formats._common import groups
+
+    c = load_contour(contour_file("square_hole_100.csv"))
+    mesh = pipeline.mesh_contour(c, exterior=exterior).mesh
+    path = tmp_path / f"m.{fmt}"
+    formats.write_mesh(mesh, str(path))
+    r = vtk.vtkUnstructuredGridReader() if fmt == "vtk" else vtk.vtkXMLUnstructuredGridReader()
+    r.SetFileName(str(path))
+    if fmt == "vtk":
+        r.ReadAllScalarsOn()
+        r.ReadAllFieldsOn()
+    r.Update()
+    g = r.GetOutput()
+    nt, nl = len(mesh.triangles), len(mesh.lines)
+    assert (g.GetNumberOfPoints(), g.GetNumberOfCells()) == (mesh.n_nodes, nt + nl)
+    assert np.array_equal(vtk_to_numpy(g.GetPoints().GetData())[:, :2], mesh.points)
+    cp = vtk_to_numpy(g.GetPointData().GetArray("contour_point"))
+    assert np.array_equal(cp[: mesh.n_contour], np.arange(mesh.n_contour))
+    assert (cp[mesh.n_contour :] == -1).all()
+    tags = vtk_to_numpy(g.GetCellData().GetArray("group"))
+    named = groups(mesh)
+    assert (tags[:nt] == named["domain"][0]).all()
+    assert np.array_equal(tags[nt:], mesh.line_group + 1)
+    assert named["hole_1"][0] in tags[nt:]
+    if exterior:
+        assert {named[s][0] for s in ("bottom", "right", "top", "left")} <= set(tags[nt:].tolist())
 
 
 def test_edge_uses_counts_each_undirected_edge():

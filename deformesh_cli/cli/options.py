@@ -16,7 +16,7 @@ from typing import Any
 import click
 
 from .. import files
-from ..errors import OptionError
+from ..errors import OptionError, WriteError
 from ..options import STAGES, MeshOptions, flag
 from ..options import fields as option_fields
 
@@ -97,7 +97,8 @@ def take(cls: type, kwargs: dict) -> Any:
 
 class OutputPath(click.Path):
     """A file to write: ``-`` (if allowed), a new file, a regular file, or a symbolic link
-    to one; a device, FIFO, socket or folder is a usage error before any work is done."""
+    to one; a device, FIFO, socket or folder, or a folder that does not exist to write
+    it in, is a usage error before any work is done."""
 
     def __init__(self, allow_dash: bool = True):
         super().__init__(dir_okay=False, allow_dash=allow_dash)
@@ -108,9 +109,12 @@ class OutputPath(click.Path):
             return value
         try:
             files.output_target(value)
+            files.check_folder(value)
         except OptionError as exc:
             hint = " (use '-' for stdout)" if self.allow_dash else ""
             self.fail(f"{exc}{hint}", param, ctx)
+        except WriteError as exc:  # (a folder that does not exist: a usage error too)
+            self.fail(str(exc), param, ctx)
         return value
 
 

@@ -8,7 +8,7 @@ from .. import formats
 from ..options import MeshOptions
 from ..readers import load_contour
 from .errors import handle_errors
-from .options import check_binary_stdout, output_option, stages, take
+from .options import check_binary_stdout, output_option, quiet_option, stages, take
 
 
 @click.command("plot")
@@ -22,8 +22,9 @@ from .options import check_binary_stdout, output_option, stages, take
     help="Draw this contour's points over the mesh.",
 )
 @stages("read")
+@quiet_option
 @handle_errors
-def command(mesh_path: str, output: str, contour_path: str | None, **kwargs) -> None:
+def command(mesh_path: str, output: str, contour_path: str | None, quiet: bool, **kwargs) -> None:
     """Draw a mesh to PNG: triangles shaded by radius ratio, the boundary, a histogram."""
     from .. import plot  # matplotlib loads only here
 

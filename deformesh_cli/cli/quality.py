@@ -10,7 +10,7 @@ from .. import formats, quality
 from ..options import MeshOptions
 from ..readers import load_contour
 from .errors import fail, handle_errors
-from .options import json_option, stages, take
+from .options import json_option, quiet_option, stages, take
 
 
 @click.command("quality")
@@ -24,11 +24,13 @@ from .options import json_option, stages, take
 )
 @stages("read")
 @json_option("Print the report as JSON.")
+@quiet_option
 @handle_errors
-def command(mesh_path: str, contour_path: str | None, as_json: bool, **kwargs) -> None:
+def command(mesh_path: str, contour_path: str | None, as_json: bool, quiet: bool, **kwargs) -> None:
     """Report a mesh's angles, areas and radius ratios; check the contract against a contour.
 
-    Exit 1 if a triangle is folded or (with --contour) the contract is broken.
+    Exit 1 if a triangle is folded or (with --contour) the contract is broken; with
+    -q, that is all it says.
     """
     o = take(MeshOptions, kwargs)
     points, tri = formats.read_mesh(mesh_path)
@@ -37,7 +39,8 @@ def command(mesh_path: str, contour_path: str | None, as_json: bool, **kwargs) -
         c = load_contour(contour_path, None, o.decimal, o.tolerance, o.element_id, o.resample)
     rep, problem = quality.assess(points, tri, c)
     rep = {"mesh": mesh_path, **rep}
-    click.echo(json.dumps(rep) if as_json else quality_text(rep))
+    if not quiet:
+        click.echo(json.dumps(rep) if as_json else quality_text(rep))
     if problem:
         fail(f"{mesh_path}: {problem}")
 

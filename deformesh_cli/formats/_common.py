@@ -20,6 +20,20 @@ def contour_point(mesh: Mesh) -> np.ndarray:
     return np.where(k < mesh.n_contour, k, -1).astype(np.int32)
 
 
+def cell_groups(mesh: Mesh) -> list[np.ndarray]:
+    """Per cell block (the triangles, then the boundary lines): each cell's physical
+    group tag as in ``.msh`` (:func:`groups`: ``domain`` for the triangles, each
+    line its boundary group's)."""
+    return [
+        np.full(len(mesh.triangles), groups(mesh)["domain"][0], dtype=np.int32),
+        (mesh.line_group + 1).astype(np.int32),
+    ]
+
+
+#: The cell data array that carries :func:`cell_groups` in .vtk, .vtu and .xdmf files.
+GROUP_DATA = "group"
+
+
 def meshio_mesh(mesh: Mesh, dim3: bool = False, cell_data: dict | None = None):
     """The mesh as a ``meshio.Mesh``: triangles, then the boundary lines; point data
     ``contour_point`` and the mesh's own; ``dim3`` pads z = 0."""

@@ -1,7 +1,10 @@
-"""VTK legacy 5.1, binary (big-endian): triangles and boundary lines, point data.
+"""VTK legacy 4.2, binary (big-endian): triangles and boundary lines, point data, and
+each cell's physical group tag as in .msh (cell data ``group``).
 
-Byte for byte what meshio writes for the same mesh, but for the title line
-(tested), without importing meshio.
+Byte for byte what meshio's legacy 4.2 writer writes for the same mesh, but for
+the title line (tested), without importing meshio.  Version 4.2, not 5.1: VTK's
+own reader refuses 5.1's ``vtktypeint32`` in field data, and meshio's 5.1 reader
+reads ``int`` as 64 bits; in 4.2 both read ``int`` as 32 bits (tested with both).
 """
 
 from __future__ import annotations
@@ -9,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..mesh import Mesh
-from ._common import contour_point
+from ._common import GROUP_DATA, cell_groups, contour_point
 from .format import Format
 
 #: The second line of our .vtk files (a free-text title in the legacy format).
@@ -21,32 +24,34 @@ def write(mesh: Mesh, path: str, version: str | None = None) -> None:
     nt, nl = len(tri), len(lines)
     pts = np.zeros((n, 3), dtype=">f8")
     pts[:, :2] = mesh.points
-    offsets = np.concatenate(
-        [np.arange(0, 3 * nt + 1, 3), 3 * nt + np.arange(2, 2 * nl + 1, 2)]
-    ).astype(">i8")
-    conn = np.concatenate([tri.ravel(), lines.ravel()]).astype(">i8")
+    cells = np.concatenate(
+        [
+            np.column_stack([np.full(nt, 3), tri]).ravel(),
+            np.column_stack([np.full(nl, 2), lines]).ravel(),
+        ]
+    ).astype(">i4")
     types = np.repeat(np.array([5, 3], dtype=">i4"), [nt, nl])  # VTK_TRIANGLE, VTK_LINE
     cp = contour_point(mesh).astype(">i4")
-    fields = [(f"contour_point 1 {n} vtktypeint32\n".encode(), cp)]
+    fields = [(f"contour_point 1 {n} int\n".encode(), cp)]
     for name, data in mesh.point_data.items():  # as meshio writes them: floats as double
         data = np.asarray(data, dtype=">f8")
         k = 1 if data.ndim == 1 else data.shape[1]
         fields.append((f"{name} {k} {n} double\n".encode(), data))
     with open(path, "wb") as f:
         f.write(
-            f"# vtk DataFile Version 5.1\n{TITLE}\nBINARY\n"
+            f"# vtk DataFile Version 4.2\n{TITLE}\nBINARY\n"
             f"DATASET UNSTRUCTURED_GRID\nPOINTS {n} double\n".encode()
         )
         for head, data in (
             (b"", pts),
-            (
-                f"CELLS {nt + nl + 1} {3 * nt + 2 * nl}\nOFFSETS vtktypeint64\n".encode(),
-                offsets,
-            ),
-            (b"CONNECTIVITY vtktypeint64\n", conn),
+            (f"CELLS {nt + nl} {len(cells)}\n".encode(), cells),
             (f"CELL_TYPES {nt + nl}\n".encode(), types),
             (f"POINT_DATA {n}\nFIELD FieldData {len(fields)}\n".encode() + fields[0][0], cp),
             *fields[1:],
+            (
+                f"CELL_DATA {nt + nl}\nFIELD FieldData 1\n{GROUP_DATA} 1 {nt + nl} int\n".encode(),
+                np.concatenate(cell_groups(mesh)).astype(">i4"),
+            ),
         ):
             f.write(head)
             f.write(data.tobytes())
@@ -55,8 +60,9 @@ def write(mesh: Mesh, path: str, version: str | None = None) -> None:
 
 FORMAT = Format(
     name="vtk",
-    description="VTK legacy 5.1, binary",
+    description="VTK legacy 4.2, binary",
     write=write,
+    boundary_groups=True,
     point_data=True,
     meshio_format="vtk",
 )

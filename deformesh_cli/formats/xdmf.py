@@ -7,11 +7,9 @@ last).  The sidecar is named after the file (``mesh.xdmf`` -> ``mesh.h5``).
 
 from __future__ import annotations
 
-import numpy as np
-
 from ..errors import DependencyError
 from ..mesh import Mesh
-from ._common import groups, meshio_mesh
+from ._common import GROUP_DATA, cell_groups, meshio_mesh
 from .format import Format
 
 
@@ -24,12 +22,8 @@ def write(mesh: Mesh, path: str, version: str | None = None) -> None:
         ) from None
     import meshio
 
-    tag = groups(mesh)["domain"][0]
-    group = [
-        np.full(len(mesh.triangles), tag, np.int32),
-        (mesh.line_group + 1).astype(np.int32),
-    ]
-    meshio.write(path, meshio_mesh(mesh, dim3=True, cell_data={"group": group}), file_format="xdmf")
+    m = meshio_mesh(mesh, dim3=True, cell_data={GROUP_DATA: cell_groups(mesh)})
+    meshio.write(path, m, file_format="xdmf")
 
 
 FORMAT = Format(
