@@ -87,3 +87,39 @@ def test_versions_are_checked(mesh, tmp_path):
     assert (tmp_path / "m.msh").read_text().startswith("$MeshFormat\n4.1")
     with pytest.raises(OptionError, match="--msh-version"):
         formats.write_mesh(mesh, str(tmp_path / "n.msh"), msh_version="3.0")
+
+
+@pytest.mark.parametrize("version", ["2.2", "4.1"])
+@pytest.mark.parametrize("case", ["holes and extra nodes", "exterior box"])
+def test_every_msh_reader_sees_node_k_as_point_k(tmp_path, version, case):
+    """meshio, scikit-fem and gmsh read the nodes of our .msh in node order, with holes,
+    extra boundary nodes (after every ring's points, on the outer ring's curve) and the
+    box sides of an exterior mesh: node k is point k in all three."""
+    import gmsh  # the test extra installs gmsh and scikit-fem
+    import skfem
+
+    from .conftest import contour_file
+
+    c = load_contour(contour_file("square_hole_100.csv"))
+    if case == "exterior box":
+        mesh = mesh_contour(c, exterior=True).mesh
+        assert mesh.n_box > 0
+    else:
+        mesh = mesh_contour(c, grid="uniform", max_nodes=2_000_000).mesh
+        assert mesh.n_extra > 0 and len(mesh.groups) > 1
+    path = tmp_path / "m.msh"
+    formats.write_mesh(mesh, str(path), msh_version=version)
+    m = meshio.read(path)
+    assert np.array_equal(m.points[:, :2], mesh.points)
+    assert np.array_equal(m.cells_dict["triangle"], mesh.triangles)
+    assert np.array_equal(skfem.MeshTri.load(str(path)).p.T, mesh.points)
+    gmsh.initialize()
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.open(str(path))
+        tags, xyz, _ = gmsh.model.mesh.getNodes()
+    finally:
+        gmsh.finalize()
+    order = np.argsort(tags)
+    assert np.array_equal(tags[order], np.arange(1, mesh.n_nodes + 1))
+    assert np.array_equal(xyz.reshape(-1, 3)[order, :2], mesh.points)

@@ -71,6 +71,33 @@ def write_meshio(mesh: Mesh, path: str, version: str) -> None:
     )
     m.field_data = {name: np.array([tag, dim]) for name, (tag, dim) in groups(mesh).items()}
     meshio.write(path, m, file_format=MESHIO_NAMES[version], binary=False)
+    if version == "4.1":
+        _nodes_in_order(path, mesh.points, point_data["gmsh:dim_tags"])
+
+
+def _nodes_in_order(path: str, points: np.ndarray, dim_tags: np.ndarray) -> None:
+    """Rewrite the ``$Nodes`` section of the 4.1 file ``path`` with its node blocks in
+    node order: one block per run of consecutive nodes on the same entity.  meshio
+    writes one block per entity, sorted by entity, and readers that take the nodes in
+    file order (meshio's, scikit-fem's) then number them differently from the tags:
+    node ``k`` would no longer be contour point ``k``."""
+    n = len(points)
+    change = np.flatnonzero((dim_tags[1:] != dim_tags[:-1]).any(axis=1)) + 1
+    starts, ends = np.r_[0, change], np.r_[change, n]
+    xyz = np.column_stack([points, np.zeros(n)])
+    out = [f"$Nodes\n{len(starts)} {n} 1 {n}\n"]
+    for a, b in zip(starts.tolist(), ends.tolist()):
+        dim, tag = dim_tags[a].tolist()
+        out.append(f"{dim} {tag} 0 {b - a}\n")
+        out.append(rows("%d\n", np.arange(a + 1, b + 1)[:, None]))
+        out.append(rows("%.16e %.16e %.16e\n", xyz[a:b]))
+    out.append("$EndNodes\n")
+    with open(path, encoding="ascii") as f:
+        text = f.read()
+    head, rest = text.split("$Nodes\n", 1)
+    tail = rest.split("$EndNodes\n", 1)[1]
+    with open(path, "w", encoding="ascii") as f:
+        f.write(head + "".join(out) + tail)
 
 
 def write_22(mesh: Mesh, path: str) -> None:
