@@ -223,7 +223,7 @@ def test_no_triangle_is_under_a_third_of_what_the_boundary_forces(path):
         assert res.report["forced_angle"] is None
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(star_polygons(r_min=0.1))
 def test_random_sharp_polygons_keep_the_bound(pts):
     c = make_contour(pts, source="random")

@@ -77,7 +77,7 @@ def test_nothing_to_do_without_extra_nodes():
     assert merge_extra_nodes(m)[1].merged == 0
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(star_polygons(r_min=0.2))
 def test_merging_keeps_the_domain_and_the_contract(pts):
     """Random polygons on the uniform grid (where extra nodes are common): with merging,

@@ -94,7 +94,7 @@ def test_thin_wedge_is_traced_where_appendix_a_fails(h):
     check_contract(mesh, c)
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(star_polygons(), st.floats(0.01, 0.2))
 def test_traced_paths_mesh_with_the_contract(pts, rel_h):
     c = make_contour(pts, source="random")

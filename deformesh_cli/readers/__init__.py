@@ -1,7 +1,8 @@
 """Contour readers: a file's bytes -> a validated :class:`~deformesh_cli.contour.Contour`.
 
-One module per input format (:mod:`.csv`, :mod:`.svg`); :func:`load_contour`
-picks one by the file's extension or its first bytes.
+One module per input format (:mod:`.csv`, :mod:`.svg`, :mod:`.geojson`);
+:func:`load_contour` picks one by the file's extension or its first bytes, and
+names the format of a file it cannot read (DXF, shapefiles, meshes, ...).
 """
 
 from __future__ import annotations
@@ -9,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..contour import Contour, parse_spacing, resample
-from ..errors import OptionError
+from ..errors import InputError, OptionError
 from ..files import read_bytes
 from .csv import parse_csv, read_csv
 
@@ -24,7 +25,8 @@ def load_contour(
     element_id: str | None = None,
     resample_spacing: str | float | None = None,
 ) -> Contour:
-    """Read a contour file: CSV, or SVG (by extension, or text starting with ``<``).
+    """Read a contour file: CSV, SVG (by extension, or text starting with ``<``) or
+    GeoJSON (by extension, or text starting with ``{``).
 
     ``data``, if given, are the file's bytes (``path`` names them; ``-`` is
     stdin).  ``decimal`` is the CSV decimal mark (``.`` or ``,``);
@@ -49,4 +51,57 @@ def _read(path, data, decimal, tolerance, element_id) -> Contour:
         return read_svg(data, name, tolerance, element_id, gzipped=suffix == ".svgz")
     if tolerance is not None or element_id is not None:
         raise OptionError(f"{name}: --tolerance and --id apply to SVG input only")
+    if suffix in (".geojson", ".json") or data.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"{"):
+        from .geojson import read_geojson
+
+        return read_geojson(data, name)
+    other = _other_format(suffix, data)
+    if other is not None:
+        raise InputError(
+            f"{name}: {other} is not a contour format deformesh reads; "
+            "give CSV (x,y columns), SVG or GeoJSON"
+        )
     return read_csv(data, name, decimal)
+
+
+#: Formats people have that are not contours deformesh reads, by extension.
+OTHER_FORMATS = {
+    ".dxf": "DXF",
+    ".dwg": "DWG",
+    ".shp": "an ESRI shapefile",
+    ".kml": "KML",
+    ".kmz": "KMZ",
+    ".gpkg": "a GeoPackage",
+    ".stl": "STL",
+    ".step": "STEP",
+    ".stp": "STEP",
+    ".iges": "IGES",
+    ".igs": "IGES",
+    ".pdf": "PDF",
+    ".eps": "EPS",
+    ".png": "a PNG image",
+    ".jpg": "a JPEG image",
+    ".jpeg": "a JPEG image",
+    ".msh": "a Gmsh mesh",
+    ".vtk": "a VTK mesh",
+    ".vtu": "a VTK mesh",
+    ".xlsx": "an Excel workbook",
+}
+
+
+def _other_format(suffix: str, data: bytes) -> str | None:
+    """The name of a known format that is not a contour, by extension or first bytes."""
+    if suffix in OTHER_FORMATS:
+        return OTHER_FORMATS[suffix]
+    head = data[:64].lstrip()
+    if head.startswith(b"0") and b"SECTION" in data[:256]:
+        return "DXF"
+    if head.startswith(b"%PDF"):
+        return "PDF"
+    if head.startswith(b"\x89PNG"):
+        return "a PNG image"
+    if head.startswith(b"$MeshFormat"):
+        return "a Gmsh mesh"
+    if head.startswith(b"# vtk DataFile"):
+        return "a VTK mesh"
+    return None

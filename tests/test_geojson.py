@@ -1,0 +1,110 @@
+"""GeoJSON contours (readers/geojson.py): polygons with holes, several parts, every
+container type; other geometries and broken files refused in one line."""
+
+import json
+
+import numpy as np
+import pytest
+
+from deformesh_cli.errors import InputError
+from deformesh_cli.readers import load_contour
+
+SQUARE = [[0, 0], [4, 0], [4, 4], [0, 4], [0, 0]]
+HOLE = [[1, 1], [1, 2], [2, 2], [2, 1], [1, 1]]  # clockwise, as RFC 7946 has holes
+FAR = [[[6, 0], [8, 0], [8, 2], [6, 2], [6, 0]]]
+
+
+def doc(kind: str) -> dict:
+    polygon = {"type": "Polygon", "coordinates": [SQUARE, HOLE]}
+    multi = {"type": "MultiPolygon", "coordinates": [[SQUARE, HOLE], FAR]}
+    feature = {"type": "Feature", "properties": {"name": "x"}, "geometry": polygon}
+    return {
+        "Polygon": polygon,
+        "MultiPolygon": multi,
+        "Feature": feature,
+        "FeatureCollection": {"type": "FeatureCollection", "features": [feature, {
+            "type": "Feature", "properties": {}, "geometry": {"type": "Polygon",
+                                                             "coordinates": FAR}}]},
+        "GeometryCollection": {"type": "GeometryCollection", "geometries": [polygon, {
+            "type": "Polygon", "coordinates": FAR}]},
+    }[kind]  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "kind", ["Polygon", "MultiPolygon", "Feature", "FeatureCollection", "GeometryCollection"]
+)
+def test_every_container_gives_its_rings(tmp_path, kind):
+    f = tmp_path / "c.geojson"
+    f.write_text(json.dumps(doc(kind)))
+    c = load_contour(f)
+    parts = 1 if kind in ("Polygon", "Feature") else 2
+    assert c.n_rings == 2 + (parts - 1)
+    assert [c.is_hole(r) for r in range(c.n_rings)] == [False, True] + [False] * (parts - 1)
+    # the closing repeat is dropped without a note, every point kept in order
+    assert np.array_equal(c.points[:4], np.array(SQUARE[:4], dtype=float))
+    assert not any("closing point" in n for n in c.notes)
+
+
+def test_a_geojson_meshes_with_its_hole_and_its_parts(run, tmp_path):
+    f = tmp_path / "c.json"  # (.json is read as GeoJSON too)
+    f.write_text(json.dumps(doc("MultiPolygon")))
+    r = run("all", f, "-o", tmp_path / "m.msh", "--json")
+    assert r.exit_code == 0, r.stderr
+    rep = json.loads(r.stdout)
+    assert rep["contract"] == "ok" and rep["extra_boundary_nodes"] == 0
+    assert rep["area"] == pytest.approx(16 - 1 + 4)
+
+
+def test_a_third_coordinate_is_ignored(tmp_path):
+    f = tmp_path / "c.geojson"
+    f.write_text(json.dumps({"type": "Polygon", "coordinates": [[p + [100] for p in SQUARE]]}))
+    assert np.array_equal(load_contour(f).points, np.array(SQUARE[:4], dtype=float))
+
+
+@pytest.mark.parametrize(
+    "text,message",
+    [
+        ('{"type": "LineString", "coordinates": [[0, 0], [1, 1]]}', "is a LineString"),
+        (
+            '{"type": "FeatureCollection", "features": [{"type": "Feature", "geometry": '
+            '{"type": "Point", "coordinates": [0, 0]}}]}',
+            "feature 1 is a Point",
+        ),
+        (
+            '{"type": "Polygon", "coordinates": [[[0, 0], [1, 0]',
+            "line 1, column 52: not valid JSON",
+        ),
+        ('{"type": "Polygon", "coordinates": [[[0, 0], [1, "a"], [1, 1]]]}', "not two numbers"),
+        ('{"type": "Polygon", "coordinates": [[[0, 0], [1], [1, 1]]]}', "position 1 has fewer"),
+        ('{"type": "Blob"}', "unknown GeoJSON type 'Blob'"),
+        ('{"features": []}', "no 'type'"),
+        ('{"type": "FeatureCollection", "features": []}', "no Polygon or MultiPolygon"),
+        ("[" * 5000 + "]" * 5000, "nested too deep|not a GeoJSON object"),
+    ],
+)
+def test_bad_geojson_is_one_line_naming_the_place(run, tmp_path, text, message):
+    f = tmp_path / "c.geojson"
+    f.write_text(text)
+    with pytest.raises(InputError, match=message):
+        load_contour(f)
+    r = run("all", f, "-o", tmp_path / "m.msh")
+    assert r.exit_code == 1 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert "c.geojson" in r.stderr and not (tmp_path / "m.msh").exists()
+
+
+@pytest.mark.parametrize(
+    "name,data,what",
+    [
+        ("part.dxf", b"0\nSECTION\n2\nHEADER\n", "DXF"),
+        ("part.txt", b"  0\nSECTION\n  2\nENTITIES\n", "DXF"),
+        ("coast.shp", b"\x00\x00\x27\x0a", "an ESRI shapefile"),
+        ("m.msh", b"$MeshFormat\n2.2 0 8\n", "a Gmsh mesh"),
+        ("scan.png", b"\x89PNG\r\n\x1a\n", "a PNG image"),
+    ],
+)
+def test_other_formats_are_named(run, tmp_path, name, data, what):
+    f = tmp_path / name
+    f.write_bytes(data)
+    r = run("all", f, "-o", tmp_path / "m.vtk")
+    assert r.exit_code == 1 and r.stderr.count("\n") == 1
+    assert f"{what} is not a contour format deformesh reads" in r.stderr
