@@ -94,7 +94,7 @@ def test_thin_wedge_is_traced_where_appendix_a_fails(h):
     check_contract(mesh, c)
 
 
-@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(star_polygons(), st.floats(0.01, 0.2))
 def test_traced_paths_mesh_with_the_contract(pts, rel_h):
     c = make_contour(pts, source="random")
@@ -139,7 +139,9 @@ def test_random_star_polygons_all_mesh_at_the_default_h():
         r = rng.uniform(0.4, 1, n)
         c = make_contour(np.column_stack([r * np.cos(theta), r * np.sin(theta)]), source="r")
         sel = select(c, max_nodes=60_000)
-        mesh, _ = pipeline.run_triangulate(c, pipeline.run_deform(c, sel))
+        # (the quality stage has tests of its own; here the path, the deformation and
+        # the contract)
+        mesh, _ = pipeline.run_triangulate(c, pipeline.run_deform(c, sel), improve=False)
         check_contract(mesh, c)
         rules.add(sel.path_rule)
     assert "traced" in rules
