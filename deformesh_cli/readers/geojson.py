@@ -22,6 +22,12 @@ from ..errors import InputError
 #: GeoJSON nests geometries at most this deep (a GeometryCollection in a Feature ...).
 MAX_DEPTH = 32
 
+#: The collections: their list of members, and how messages name one.
+_MEMBERS = {
+    "FeatureCollection": ("features", "feature"),
+    "GeometryCollection": ("geometries", "geometry"),
+}
+
 
 def read_geojson(data: bytes, source: str) -> Contour:
     """A GeoJSON file's bytes as a :class:`Contour` (see the module docstring)."""
@@ -63,22 +69,17 @@ def _collect(obj, where: str, source: str, rings: list, labels: list, depth: int
         raise InputError(f"{source}: {where or 'the document'}: not a GeoJSON object (no 'type')")
     kind = obj["type"]
     at = f"{where} " if where else ""
-    if kind == "FeatureCollection":
-        features = obj.get("features")
-        if not isinstance(features, list):
-            raise InputError(f"{source}: {at}FeatureCollection has no 'features' list")
-        for k, f in enumerate(features, start=1):
-            _collect(f, f"{at}feature {k}".strip(), source, rings, labels, depth + 1)
+    if kind in _MEMBERS:
+        key, child = _MEMBERS[kind]
+        members = obj.get(key)
+        if not isinstance(members, list):
+            raise InputError(f"{source}: {at}{kind} has no {key!r} list")
+        for k, member in enumerate(members, start=1):
+            _collect(member, f"{at}{child} {k}".strip(), source, rings, labels, depth + 1)
     elif kind == "Feature":
         geometry = obj.get("geometry")
         if geometry is not None:  # (a feature without a geometry has no area)
             _collect(geometry, where or "feature", source, rings, labels, depth + 1)
-    elif kind == "GeometryCollection":
-        parts = obj.get("geometries")
-        if not isinstance(parts, list):
-            raise InputError(f"{source}: {at}GeometryCollection has no 'geometries' list")
-        for k, g in enumerate(parts, start=1):
-            _collect(g, f"{at}geometry {k}".strip(), source, rings, labels, depth + 1)
     elif kind == "Polygon":
         _polygon(obj.get("coordinates"), where or "polygon", source, rings, labels)
     elif kind == "MultiPolygon":
