@@ -9,6 +9,8 @@ import pytest
 from deformesh_cli.errors import InputError
 from deformesh_cli.readers import load_contour
 
+from .conftest import SAMPLES
+
 SQUARE = [[0, 0], [4, 0], [4, 4], [0, 4], [0, 0]]
 HOLE = [[1, 1], [1, 2], [2, 2], [2, 1], [1, 1]]  # clockwise, as RFC 7946 has holes
 FAR = [[[6, 0], [8, 0], [8, 2], [6, 2], [6, 0]]]
@@ -100,6 +102,7 @@ def test_bad_geojson_is_one_line_naming_the_place(run, tmp_path, text, message):
         ("coast.shp", b"\x00\x00\x27\x0a", "an ESRI shapefile"),
         ("m.msh", b"$MeshFormat\n2.2 0 8\n", "a Gmsh mesh"),
         ("scan.png", b"\x89PNG\r\n\x1a\n", "a PNG image"),
+        ("m.vtu", b'<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid">', "a VTK mesh"),
     ],
 )
 def test_other_formats_are_named(run, tmp_path, name, data, what):
@@ -108,3 +111,30 @@ def test_other_formats_are_named(run, tmp_path, name, data, what):
     r = run("all", f, "-o", tmp_path / "m.vtk")
     assert r.exit_code == 1 and r.stderr.count("\n") == 1
     assert f"{what} is not a contour format deformesh reads" in r.stderr
+
+
+def test_a_mesh_given_where_a_frame_belongs_is_named(run, tmp_path):
+    """``move MESH FRAME``: a .vtu given as the frame (it starts with ``<``, as SVG
+    does) is named, not parsed as SVG."""
+    mesh = tmp_path / "m.vtu"
+    r = run("all", SAMPLES / "circle.csv", "-o", mesh, "-q")
+    assert r.exit_code == 0, r.stderr
+    r = run("move", mesh, mesh, "--out-dir", tmp_path / "frames")
+    assert r.exit_code == 1 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert "m.vtu: a VTK mesh is not a contour format" in r.stderr
+    assert not (tmp_path / "frames").exists() or not any((tmp_path / "frames").iterdir())
+
+
+@pytest.mark.parametrize(
+    "text,root",
+    [
+        (b"<html><body><p>a page</p></body></html>", "<html>"),
+        (b'<?xml version="1.0"?>\n<!-- made by hand -->\n<VTKFile type="x"/>', "<VTKFile>"),
+    ],
+)
+def test_an_xml_document_that_is_not_svg_is_named(run, tmp_path, text, root):
+    f = tmp_path / "c.svg"
+    f.write_bytes(text)
+    r = run("all", f, "-o", tmp_path / "m.vtk")
+    assert r.exit_code == 1 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert f"not an SVG document: its root element is {root}" in r.stderr

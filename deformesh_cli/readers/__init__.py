@@ -45,6 +45,8 @@ def _read(path, data, decimal, tolerance, element_id) -> Contour:
     if data is None:
         data = read_bytes(str(path))
     suffix = Path(name).suffix.lower()
+    if suffix in OTHER_FORMATS:  # (a .vtu starts with "<" too)
+        raise _not_a_contour(name, OTHER_FORMATS[suffix])
     if suffix in (".svg", ".svgz") or data.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"<"):
         from .svg import read_svg  # svgelements loads only for SVG input
 
@@ -55,13 +57,17 @@ def _read(path, data, decimal, tolerance, element_id) -> Contour:
         from .geojson import read_geojson
 
         return read_geojson(data, name)
-    other = _other_format(suffix, data)
+    other = _other_format(data)
     if other is not None:
-        raise InputError(
-            f"{name}: {other} is not a contour format deformesh reads; "
-            "give CSV (x,y columns), SVG or GeoJSON"
-        )
+        raise _not_a_contour(name, other)
     return read_csv(data, name, decimal)
+
+
+def _not_a_contour(name: str, what: str) -> InputError:
+    return InputError(
+        f"{name}: {what} is not a contour format deformesh reads; "
+        "give CSV (x,y columns), SVG or GeoJSON"
+    )
 
 
 #: Formats people have that are not contours deformesh reads, by extension.
@@ -85,14 +91,15 @@ OTHER_FORMATS = {
     ".msh": "a Gmsh mesh",
     ".vtk": "a VTK mesh",
     ".vtu": "a VTK mesh",
+    ".xdmf": "an XDMF mesh",
+    ".html": "an HTML page",
+    ".htm": "an HTML page",
     ".xlsx": "an Excel workbook",
 }
 
 
-def _other_format(suffix: str, data: bytes) -> str | None:
-    """The name of a known format that is not a contour, by extension or first bytes."""
-    if suffix in OTHER_FORMATS:
-        return OTHER_FORMATS[suffix]
+def _other_format(data: bytes) -> str | None:
+    """The name of a known format that is not a contour, by its first bytes."""
     head = data[:64].lstrip()
     if head.startswith(b"0") and b"SECTION" in data[:256]:
         return "DXF"

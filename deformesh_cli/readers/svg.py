@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import io
 import math
+import re
 import warnings
 
 import numpy as np
@@ -80,6 +81,10 @@ def parse_svg(
             svg = se.SVG.parse(io.BytesIO(data), reify=True)
     except Exception as exc:  # xml.etree.ParseError and svgelements' own errors
         raise InputError(f"{source}: not a readable SVG file: {_one_line(exc)}") from None
+    if not isinstance(svg, se.SVG):  # an XML or HTML document whose root is no <svg>
+        root = re.search(rb"<([A-Za-z_][\w:.-]*)", re.sub(rb"<[?!][^>]*>", b"", data[:4096]))
+        what = f"<{root.group(1).decode('ascii', 'replace')}>" if root else "not <svg>"
+        raise InputError(f"{source}: not an SVG document: its root element is {what}")
     shapes = _pick_shapes(svg, source, element_id)
     boxes = np.array([s.bbox() for s in shapes if s.bbox() is not None], dtype=float)
     if len(boxes) == 0:
