@@ -78,27 +78,39 @@ def atomic_path(path: str) -> Iterator[str]:
     os.close(fd)
     try:
         yield tmp
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, target)
+        try:
+            os.chmod(tmp, 0o644)
+            os.replace(tmp, target)
+        except OSError as exc:
+            raise WriteError(f"{path}: cannot write: {exc.strerror}") from None
     except BaseException:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
 
 
-def write_bytes(data: bytes, path: str) -> None:
-    """Write bytes to a file atomically, or to stdout for ``-``."""
+def write_bytes(data: bytes, path: str, name: str | None = None) -> None:
+    """Write bytes to a file atomically, or to stdout for ``-``.  ``name``: how errors
+    name the file (``path`` being a staged temporary file of :func:`atomic_path`),
+    which is then written directly."""
     if path == "-":
         out = sys.stdout.buffer
         out.write(data)
         out.flush()
         return
+    if name is not None:
+        _write(data, path, name)
+        return
     with atomic_path(path) as tmp:
-        try:
-            with open(tmp, "wb") as f:
-                f.write(data)
-        except OSError as exc:
-            raise WriteError(f"{path}: cannot write: {exc.strerror}") from None
+        _write(data, tmp, path)
+
+
+def _write(data: bytes, path: str, name: str) -> None:
+    try:
+        with open(path, "wb") as f:
+            f.write(data)
+    except OSError as exc:
+        raise WriteError(f"{name}: cannot write: {exc.strerror}") from None
 
 
 def write_files(folder: str, files: list[tuple[str, bytes]]) -> None:

@@ -405,3 +405,40 @@ def test_measures_match_the_angles_at_every_corner():
     assert smallest[-1] == pytest.approx(np.degrees(1e-8), rel=1e-6)
     assert np.allclose(rr[:-2][ang.min(axis=1)[:-2] > 59.9], 1.0, atol=1e-2)
     assert (rr >= 0).all() and (rr <= 1 + 1e-12).all()
+
+
+@pytest.mark.parametrize("full", ["png", "mesh"])
+def test_a_full_disk_leaves_neither_the_mesh_nor_the_picture(run, tmp_path, monkeypatch, full):
+    """ENOSPC while writing the picture, or the mesh after it: one line naming the file,
+    exit 1, and no file at all in the output folder (both or neither)."""
+    import errno
+    import io
+
+    from deformesh_cli import files
+
+    class Full(io.BytesIO):  # a file on a full disk: its write fails
+        def write(self, data):
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+    def open_(path, mode="r", *args, **kw):  # the staged picture is .m.png.*.tmp
+        if full == "png" and ".m.png." in str(path) and "w" in mode:
+            return Full()
+        return open(path, mode, *args, **kw)
+
+    monkeypatch.setattr(files, "open", open_, raising=False)
+    if full == "mesh":  # the .vtk writer writes its file itself: fail it there
+        import dataclasses
+
+        from deformesh_cli.formats import FORMATS
+
+        def full_disk(mesh, path, version=None):
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+        monkeypatch.setitem(FORMATS, "vtk", dataclasses.replace(FORMATS["vtk"], write=full_disk))
+    out = tmp_path / "out"
+    out.mkdir()
+    r = run("all", SAMPLES / "circle.csv", "-o", out / "m.vtk", "--png", out / "m.png")
+    assert r.exit_code == 1 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert "No space left on device" in r.stderr
+    assert (f"m.{'png' if full == 'png' else 'vtk'}: cannot write") in r.stderr
+    assert list(out.iterdir()) == []

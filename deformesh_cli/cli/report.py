@@ -46,9 +46,13 @@ def finish(
             contour_points=mesh.points[: mesh.n_contour],
             title=f"{output}: {mesh.n_nodes} nodes, {len(mesh.triangles)} triangles",
         )
-    formats.write_mesh(mesh, output, fmt, msh_version)
-    if picture is not None:
-        files.write_bytes(picture, png)
+    if picture is None:
+        formats.write_mesh(mesh, output, fmt, msh_version)
+    else:  # the picture staged first and moved into place only once the mesh is written:
+        # both files or neither (a full disk fails the one that does not fit)
+        with files.atomic_path(png) as staged:
+            files.write_bytes(picture, staged, name=png)
+            formats.write_mesh(mesh, output, fmt, msh_version)
     report = {
         "input": contour.source,
         "output": output,
