@@ -85,6 +85,7 @@ class SizeFunction:
     label: str
     scale: float = 1.0  # f_normalised = scale * raw
     notes: list = field(default_factory=list)
+    source: str = ""  # the contour it is made for, named in its errors
 
     def values(self, q: np.ndarray) -> np.ndarray:
         """``f`` (as given) at points, checked finite and positive."""
@@ -98,8 +99,9 @@ class SizeFunction:
         bad = ~(np.isfinite(f) & (f > 0))
         if bad.any():
             k = int(np.argmax(bad))
+            where = f"{self.source}: " if self.source else ""
             raise OptionError(
-                f"size function {self.label} is {f[k]:.3g} at "
+                f"{where}size function {self.label} is {f[k]:.3g} at "
                 f"({q[k, 0]:.6g}, {q[k, 1]:.6g}); it must be finite and > 0 "
                 "over the whole background box"
             )
@@ -131,9 +133,11 @@ def from_expression(expr: str, contour: Contour, label: str = "--size") -> SizeF
         try:
             return code(**env)
         except (ArithmeticError, ValueError, TypeError) as exc:
-            raise OptionError(f"{label} {expr!r} fails: {type(exc).__name__}: {exc}") from None
+            raise OptionError(
+                f"{contour.source}: {label} {expr!r} fails: {type(exc).__name__}: {exc}"
+            ) from None
 
-    return SizeFunction(raw, repr(expr))
+    return SizeFunction(raw, repr(expr), source=contour.source)
 
 
 def from_field(path: str) -> SizeFunction:

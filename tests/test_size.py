@@ -133,6 +133,8 @@ def test_size_field_matches_the_expression(run, tmp_path):
         (["--size", "1 +"], 2, "is not an expression"),
         (["--size", "__import__('os')"], 2, "unknown name(s) __import__"),
         (["--size", "x"], 2, "must be finite and > 0 over the whole background box"),
+        (["--size", "x"], 2, "circle.csv: size function 'x' is"),  # (names the contour)
+        (["--exterior", "--box=-3,-3,3,3", "--size", "log(x)"], 2, "circle.csv: size function"),
         (["--size", "1", "--size-field", "f.csv"], 2, "not both"),
         (["--size-field", "missing.csv"], 1, "missing.csv: no such file"),
     ],
