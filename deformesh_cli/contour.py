@@ -176,6 +176,7 @@ def make_contour(
     if not np.isfinite(p).all():
         r = int(np.argmax(~np.isfinite(p).all(axis=1)))
         raise InputError(f"{source}: point {r} has a non-finite coordinate")
+    check_scale(p, source)
     bounds = list(ring_starts if ring_starts is not None else [0]) + [len(p)]
     notes: list[str] = []
     pts, lns, starts, cw = [], [], [0], []
@@ -207,6 +208,42 @@ def make_contour(
         depth=depth,
         ring_labels=labels,
     )
+
+
+#: Coordinates beyond this are refused: their squares (areas, distances) overflow.
+MAX_COORDINATE = 1e150
+
+#: A contour smaller than this share of its distance from the origin is refused: the
+#: grid's step would fall below the resolution of its coordinates.
+MIN_RELATIVE_SPAN = 1e-10
+
+
+def check_scale(p: np.ndarray, source: str) -> None:
+    """What double precision cannot mesh, refused with the place: coordinates whose
+    squares overflow, a contour so small for its offset that its points sit a few
+    doubles apart, or so small that its squares underflow."""
+    if len(p) == 0:
+        return
+    big = np.abs(p).max(axis=1)
+    if big.max() > MAX_COORDINATE:
+        k = int(np.argmax(big))
+        raise InputError(
+            f"{source}: point {k} at ({p[k, 0]:.6g}, {p[k, 1]:.6g}) is beyond "
+            f"{MAX_COORDINATE:g}: areas and grid sizes would overflow in double precision; "
+            "scale the contour down"
+        )
+    span = float(np.ptp(p, axis=0).max())
+    if 0 < span < MIN_RELATIVE_SPAN * float(big.max()):
+        raise InputError(
+            f"{source}: the contour spans {span:.3g} at {float(big.max()):.3g} from the "
+            "origin: its grid would step below the coordinates' resolution; shift it "
+            "near the origin"
+        )
+    if 0 < span < 1 / MAX_COORDINATE:
+        raise InputError(
+            f"{source}: the contour spans {span:.3g}: its areas would underflow in double "
+            "precision; scale it up"
+        )
 
 
 def _check_ring(p: np.ndarray, ln: np.ndarray, source: str, name: str, offset: int) -> float:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import re
 
 import numpy as np
@@ -109,11 +110,17 @@ def parse_csv(text: str, source: str = "<contour>", decimal: str = ".") -> Conto
         if ring_col is not None:
             f = fields[ring_col]
             try:
-                rings[r] = int(float(f))
+                v = float(f)
             except ValueError:
+                v = math.nan
+            # a whole number that a double holds exactly (1.5, 1e19, inf are refused:
+            # read as an integer they would silently name another ring)
+            if not (math.isfinite(v) and v == int(v) and abs(v) <= 2**53):
                 raise InputError(
-                    f"{source}: line {lineno}: ring value {f!r} is not an integer"
-                ) from None
+                    f"{source}: line {lineno}: ring value {f!r} is not an integer "
+                    "(ring ids are whole numbers up to 2**53)"
+                )
+            rings[r] = int(v)
         lines[r] = lineno
     bad = ~np.isfinite(xy).all(axis=1)
     if bad.any():

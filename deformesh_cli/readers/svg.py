@@ -19,12 +19,13 @@ import io
 import math
 import re
 import warnings
+import zlib
 
 import numpy as np
 import shapely
 import svgelements as se
 
-from ..contour import Contour, make_contour
+from ..contour import Contour, check_scale, make_contour
 from ..errors import InputError, OptionError
 from ..geometry import signed_area
 
@@ -61,8 +62,9 @@ def read_svg(
 
         try:
             data = gzip.decompress(data)
-        except OSError as exc:
-            raise InputError(f"{source}: not a readable gzip-compressed SVG: {exc}") from None
+        except (OSError, EOFError, zlib.error) as exc:  # (a truncated file: EOFError)
+            why = str(exc) or type(exc).__name__
+            raise InputError(f"{source}: not a readable gzip-compressed SVG: {why}") from None
     return parse_svg(data, source, tolerance, element_id)
 
 
@@ -152,8 +154,9 @@ def _collect_rings(shapes, tol: float, height: float, eps: float, source: str):
     for k, shape in enumerate(shapes):
         name = _label(shape, k)
         rule = str(shape.values.get("fill-rule", "nonzero")).strip().lower()
-        for j, (ring, closed) in enumerate(_subpaths(se.Path(shape), tol)):
+        for j, (ring, closed) in enumerate(_subpaths(se.Path(shape), tol, f"{source}: {name}")):
             ring[:, 1] = height - ring[:, 1]  # height 0: y -> -y
+            check_scale(ring, source)  # (before any product of coordinates overflows)
             gap = float(np.hypot(*(ring[-1] - ring[0])))
             if not closed and eps < gap <= tol and len(ring) > 3:
                 # an open subpath ending within the chord tolerance of its start (rounded
@@ -232,9 +235,10 @@ def _pick_shapes(svg, source: str, element_id: str | None) -> list:
     return shapes
 
 
-def _subpaths(path, tol: float) -> list[tuple[np.ndarray, bool]]:
+def _subpaths(path, tol: float, where: str = "") -> list[tuple[np.ndarray, bool]]:
     """Each subpath's points (the vertices, plus curve points within ``tol``) and
-    whether it was closed (``Z``)."""
+    whether it was closed (``Z``); path data not starting with a moveto is an
+    :class:`InputError` naming ``where``."""
     out: list[list] = []
     closed: list[bool] = []
     cur: list | None = None
@@ -245,6 +249,8 @@ def _subpaths(path, tol: float) -> list[tuple[np.ndarray, bool]]:
             closed.append(False)
             continue
         if cur is None:  # a path not starting with a move, or going on after a Z
+            if seg.start is None:
+                raise InputError(f"{where}: path data does not start with a moveto (M or m)")
             cur = [(seg.start.x, seg.start.y)]
             out.append(cur)
             closed.append(False)

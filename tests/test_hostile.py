@@ -1,0 +1,64 @@
+"""A catalogue of hostile contour files, several per class: each is one line on stderr
+naming the file (and the place), exit 1, no traceback, no file in the output folder,
+an answer within a few seconds."""
+
+import gzip
+import re
+import time
+
+import pytest
+
+pytestmark = pytest.mark.filterwarnings("error")  # (no numpy warning may leak either)
+
+SVG = '<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">{}</svg>'
+
+CASES = {
+    # numbers at the edge of double precision
+    "side-2e160.csv": (b"0,0\n2e160,0\n2e160,2e160\n0,2e160\n", "beyond 1e\\+150"),
+    "side-2e300.csv": (b"0,0\n2e300,0\n2e300,2e300\n0,2e300\n", "beyond 1e\\+150"),
+    "far-offset.csv": (
+        b"1e15,0\n1.0000000000001e15,0\n1.0000000000001e15,0.1\n",
+        "below the coordinates' resolution",
+    ),
+    "side-1e-160.csv": (b"0,0\n1e-160,0\n1e-160,1e-160\n0,1e-160\n", "would underflow"),
+    "nan.csv": (b"0,0\nnan,0\n1,1\n", "line 2: x value 'nan'|not finite|non-finite"),
+    # ring ids that are not whole numbers a double holds
+    "ring-1e19.csv": (b"x,y,ring\n0,0,1e19\n1,0,1e19\n1,1,1e19\n", "line 2: ring value '1e19'"),
+    "ring-1e400.csv": (b"x,y,ring\n0,0,1e400\n1,0,1e400\n1,1,1e400\n", "ring value '1e400'"),
+    "ring-inf.csv": (b"x,y,ring\n0,0,inf\n1,0,inf\n1,1,inf\n", "ring value 'inf'"),
+    "ring-half.csv": (b"x,y,ring\n0,0,1.5\n1,0,1.5\n1,1,1.5\n", "ring value '1.5'"),
+    # SVG that is not what it claims
+    "no-moveto.svg": (
+        SVG.format('<path d="L 1 1 L 5 1 L 5 5 Z"/>').encode(),
+        "path 1: path data does not start with a moveto",
+    ),
+    "scale-1e300.svg": (
+        SVG.format('<path transform="scale(1e300)" d="M 1 1 L 5 1 L 5 5 Z"/>').encode(),
+        "beyond 1e\\+150",
+    ),
+    "html.svg": (b"<html><body><p>a page</p></body></html>", "root element is <html>"),
+    "truncated.svgz": (
+        gzip.compress(SVG.format('<path d="M 1 1 L 5 1 L 5 5 Z"/>').encode())[:30],
+        "not a readable gzip-compressed SVG",
+    ),
+    # other programs' files given as contours
+    "mesh.vtu": (b'<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid">', "a VTK mesh"),
+    "lines.geojson": (b'{"type": "LineString", "coordinates": [[0, 0], [1, 1]]}', "LineString"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_a_hostile_contour_is_one_line_and_leaves_nothing(run, tmp_path, name):
+    data, message = CASES[name]
+    f = tmp_path / name
+    f.write_bytes(data)
+    out = tmp_path / "out"
+    out.mkdir()
+    t = time.perf_counter()
+    r = run("all", f, "-o", out / "m.msh", "--png", out / "m.png")
+    assert time.perf_counter() - t < 30  # (a bound, not a benchmark: no hang)
+    assert r.exit_code == 1, r.stderr
+    assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert r.stderr.startswith(f"deformesh: error: {f}:")
+    assert re.search(message, r.stderr), r.stderr
+    assert list(out.iterdir()) == []
