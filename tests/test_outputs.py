@@ -442,3 +442,53 @@ def test_a_full_disk_leaves_neither_the_mesh_nor_the_picture(run, tmp_path, monk
     assert "No space left on device" in r.stderr
     assert (f"m.{'png' if full == 'png' else 'vtk'}: cannot write") in r.stderr
     assert list(out.iterdir()) == []
+
+
+def test_xdmf_onto_a_full_disk_is_one_line_and_no_crash(run, tmp_path, monkeypatch):
+    """The .xdmf and its .h5 are written in the system's temporary folder first, then
+    copied next to the target: a copy that does not fit is one line, nothing left (h5py
+    writing onto a full disk itself crashed the process after its message)."""
+    import errno
+    import shutil
+
+    import h5py  # noqa: F401  (the test extra installs it; .xdmf needs it)
+
+    def full(src, dst, *a, **kw):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(shutil, "copyfile", full)
+    out = tmp_path / "out"
+    out.mkdir()
+    r = run("all", SAMPLES / "circle.csv", "-o", out / "m.xdmf")
+    assert r.exit_code == 1 and r.stderr.count("\n") == 1
+    assert "m.xdmf: cannot write: No space left on device" in r.stderr
+    assert list(out.iterdir()) == []
+
+
+def test_a_real_full_disk_on_a_small_tmpfs(tmp_path, sh):
+    """Where this machine lets the test mount a 4 KiB tmpfs (root in a container):
+    .xdmf, .vtk with --png and a state file, each onto the full disk, as a user runs
+    them: exit 1, one line, no crash, nothing left."""
+    import subprocess
+
+    disk = tmp_path / "tiny"
+    disk.mkdir()
+    mounted = subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", "size=4k", "tmpfs", str(disk)], capture_output=True
+    )
+    if mounted.returncode != 0:
+        pytest.skip("cannot mount a tmpfs here (not root, or no mount in this container)")
+    try:
+        big = SAMPLES / "peanut.csv"  # (each output is over 4 KiB)
+        for cmd in (
+            f"deformesh all {big} -o {disk}/m.xdmf -q",
+            f"deformesh all {big} -o {disk}/m.vtk --png {disk}/m.png -q",
+            f"deformesh select {big} -o {disk}/m.state -q",
+        ):
+            r = sh(cmd, check=False)
+            err = r.stderr.decode()
+            assert r.returncode == 1, (cmd, r.returncode, err)
+            assert err.count("\n") == 1 and "No space left on device" in err, err
+            assert list(disk.iterdir()) == [], cmd
+    finally:
+        subprocess.run(["umount", str(disk)], capture_output=True)

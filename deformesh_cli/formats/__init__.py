@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import io
 import os
+import shutil
 import tempfile
 from pathlib import Path
 
@@ -102,17 +103,27 @@ def mesh_files(
 
 
 def _write_with_sidecar(form: Format, mesh: Mesh, path: str, version) -> None:
-    """Write both files in a temporary folder next to ``path``, then move them into place."""
+    """Write both files in the system's temporary folder, copy them into a temporary
+    folder next to ``path``, then move them into place.  Written elsewhere first
+    because h5py, writing the sidecar onto a full disk, reports the error and then
+    crashes the process (SIGSEGV at exit); a copy that does not fit is one line."""
     target = output_target(path)
     folder = check_folder(str(target))
     side = output_target(str(target.with_suffix(form.sidecar)))
-    with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=folder) as d:
-        tmp = Path(d) / target.name
-        _run(form, mesh, str(tmp), version, path)
-        for p in (tmp.with_suffix(form.sidecar), tmp):
-            os.chmod(p, 0o644)
-        os.replace(tmp.with_suffix(form.sidecar), side)
-        os.replace(tmp, target)
+    with tempfile.TemporaryDirectory() as first:
+        made = Path(first) / target.name
+        _run(form, mesh, str(made), version, path)
+        try:
+            with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=folder) as d:
+                tmp = Path(d) / target.name
+                for src, dst in ((made.with_suffix(form.sidecar), tmp.with_suffix(form.sidecar)),
+                                 (made, tmp)):  # fmt: skip
+                    shutil.copyfile(src, dst)
+                    os.chmod(dst, 0o644)
+                os.replace(tmp.with_suffix(form.sidecar), side)
+                os.replace(tmp, target)
+        except OSError as exc:
+            raise WriteError(f"{path}: cannot write: {exc.strerror or exc}") from None
 
 
 def _run(form: Format, mesh: Mesh, tmp: str, version, path: str) -> None:
