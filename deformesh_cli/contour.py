@@ -213,9 +213,11 @@ def make_contour(
 #: Coordinates beyond this are refused: their squares (areas, distances) overflow.
 MAX_COORDINATE = 1e150
 
-#: A contour smaller than this share of its distance from the origin is refused: the
-#: grid's step would fall below the resolution of its coordinates.
-MIN_RELATIVE_SPAN = 1e-10
+#: A contour smaller than this share of its distance from the origin is refused: its
+#: span would be under 500 units in the last place of its coordinates, and the grid's
+#: step below their resolution (a contour of 1e-6 at 1e6, 1e-12 of its offset,
+#: meshes with the contract: ``tests/test_bad_input.py``).
+MIN_RELATIVE_SPAN = 1e-13
 
 
 def check_scale(p: np.ndarray, source: str) -> None:

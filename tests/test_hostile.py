@@ -16,8 +16,8 @@ CASES = {
     # numbers at the edge of double precision
     "side-2e160.csv": (b"0,0\n2e160,0\n2e160,2e160\n0,2e160\n", "beyond 1e\\+150"),
     "side-2e300.csv": (b"0,0\n2e300,0\n2e300,2e300\n0,2e300\n", "beyond 1e\\+150"),
-    "far-offset.csv": (
-        b"1e15,0\n1.0000000000001e15,0\n1.0000000000001e15,0.1\n",
+    "far-offset.csv": (  # (1 at 1e15: eight units in the last place across)
+        b"1000000000000000,0\n1000000000000001,0\n1000000000000001,1\n",
         "below the coordinates' resolution",
     ),
     "side-1e-160.csv": (b"0,0\n1e-160,0\n1e-160,1e-160\n0,1e-160\n", "would underflow"),

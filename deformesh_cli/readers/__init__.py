@@ -46,7 +46,7 @@ def _read(path, data, decimal, tolerance, element_id) -> Contour:
         data = read_bytes(str(path))
     suffix = Path(name).suffix.lower()
     if suffix in OTHER_FORMATS:  # (a .vtu starts with "<" too)
-        raise _not_a_contour(name, OTHER_FORMATS[suffix])
+        raise InputError(_not_a_contour(name, OTHER_FORMATS[suffix]))
     if suffix in (".svg", ".svgz") or data.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"<"):
         from .svg import read_svg  # svgelements loads only for SVG input
 
@@ -59,12 +59,12 @@ def _read(path, data, decimal, tolerance, element_id) -> Contour:
         return read_geojson(data, name)
     other = _other_format(data)
     if other is not None:
-        raise _not_a_contour(name, other)
+        raise InputError(_not_a_contour(name, other))
     return read_csv(data, name, decimal)
 
 
-def _not_a_contour(name: str, what: str) -> InputError:
-    return InputError(
+def _not_a_contour(name: str, what: str) -> str:
+    return (
         f"{name}: {what} is not a contour format deformesh reads; "
         "give CSV (x,y columns), SVG or GeoJSON"
     )
