@@ -68,7 +68,7 @@ def fill(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, float] | None:
     cand = np.column_stack([gx.ravel(), gy.ravel()]) + step / 2
     cand = cand[shapely.contains_xy(poly, cand[:, 0], cand[:, 1])]
     if len(cand) == 0:
-        return _best(p, np.empty((0, 2)), edges, poly.area)
+        return _best(p, np.empty((0, 2)), edges, poly)
     dist = _segment_distances(cand, p, edges)
     wall = dist.min(axis=1)
     want = (size[None] + GRADE * dist).min(axis=1)
@@ -83,16 +83,16 @@ def fill(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, float] | None:
             if (near < SPACING * np.maximum(want[kept], want[c])).any():
                 continue
         kept.append(c)
-    return _best(p, cand[kept], edges, poly.area)
+    return _best(p, cand[kept], edges, poly)
 
 
-def _best(p, new, edges, area):
+def _best(p, new, edges, poly):
     """The conforming Delaunay mesh of ``p`` and ``new`` over the smoothing rounds
     with the largest smallest angle (see the module docstring), or None."""
     best = None
     k = len(p)
     for _ in range(SMOOTH + 1):
-        tri = _delaunay(p, new, edges, area)
+        tri = _delaunay(p, new, edges, poly)
         if tri is None:
             return best
         pts = np.concatenate([p, new])
@@ -133,12 +133,12 @@ def _polish(p, new, tri, angle):
     return pts[len(p) :], tri, float(measures(pts, tri)[0].min())
 
 
-def _delaunay(p, new, edges, area):
+def _delaunay(p, new, edges, poly):
     """The constrained Delaunay triangles of ``p`` and ``new`` inside the polygon
-    ``p``, counter-clockwise, then flipped to the largest smallest angle: the
-    Delaunay triangulation with each missing side recovered by flipping the edges
-    that cross it (Sloan's method); None if a side cannot be recovered or the
-    triangles inside lack the polygon's ``area``."""
+    ``p`` (``poly``, its prepared shapely polygon), counter-clockwise, then flipped
+    to the largest smallest angle: the Delaunay triangulation with each missing side
+    recovered by flipping the edges that cross it (Sloan's method); None if a side
+    cannot be recovered or the triangles inside lack the polygon's area."""
     from scipy.spatial import Delaunay, QhullError
 
     from .improve import _flip_all
@@ -157,9 +157,9 @@ def _delaunay(p, new, edges, area):
     import shapely
 
     centre = pts[tri].mean(axis=1)
-    tri = tri[shapely.contains_xy(shapely.Polygon(p), centre[:, 0], centre[:, 1])]
+    tri = tri[shapely.contains_xy(poly, centre[:, 0], centre[:, 1])]
     a = signed_areas(pts, tri)
-    if len(tri) == 0 or (a <= 0).any() or not np.isclose(a.sum(), area, rtol=1e-9, atol=0):
+    if len(tri) == 0 or (a <= 0).any() or not np.isclose(a.sum(), poly.area, rtol=1e-9, atol=0):
         return None  # (a flat triangle, from points on a line: no mesh here)
     _flip_all(pts, tri, np.inf)  # (the polygon's sides have one triangle: never flipped)
     return tri

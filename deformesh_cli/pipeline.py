@@ -361,7 +361,7 @@ def run_triangulate(
     ways = MERGE_WAYS[isinstance(sel, GradedSelection)]
     if not o.improve:  # (filling counts on the quality stage, and on the check after it)
         ways = ways[-1:]
-    best = under = None
+    best = None
     for thin, fill in ways:
         got = _merge_and_improve(placed, cut.edges, o, thin, fill)
         merged = got[2]
