@@ -137,12 +137,18 @@ def make_folder(path: str) -> None:
 
 
 def existing_file(path: str) -> Path:
-    """``path`` as a Path, or a :class:`ReadError` if it is missing or a folder."""
+    """``path`` as a Path, or a :class:`ReadError` if it is missing, a folder, or a
+    device or socket (which never end: ``/dev/zero`` would be read forever).  A pipe
+    is a file here, as ``<(command)`` gives one."""
     p = Path(path)
     if not p.exists():
         raise ReadError(f"{path}: no such file")
     if p.is_dir():
         raise ReadError(f"{path}: is a directory")
+    mode = p.stat().st_mode
+    for test, what in _KINDS[1:]:
+        if test(mode) and test is not stat.S_ISFIFO:
+            raise ReadError(f"{path}: is {what}, not a file")
     return p
 
 

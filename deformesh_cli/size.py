@@ -147,7 +147,7 @@ def from_field(path: str) -> SizeFunction:
 
     p = Path(path)
     if not p.is_file():
-        raise InputError(f"{path}: no such file")
+        raise InputError(f"{path}: {'not a regular file' if p.exists() else 'no such file'}")
     try:
         if p.suffix.lower() == ".npy":
             rows = np.load(p)  # numpy refuses object arrays by default

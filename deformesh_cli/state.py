@@ -11,16 +11,20 @@ from __future__ import annotations
 
 import io
 import json
+import math
 import zipfile
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from . import __version__
-from .contour import Contour, make_contour
+from .contour import MAX_COORDINATE, Contour, make_contour
 from .errors import InputError, OptionError, WriteError
 from .expression import Expression
-from .select import Grid, Selection
+from .options import MeshOptions, flag
+from .options import fields as option_fields
+from .select import DEFAULT_MAX_NODES, Grid, Selection
 from .select.graded import Quadtree
 from .select.graded_path import GradedGrid, GradedSelection
 
@@ -116,172 +120,372 @@ def _plain(arr: np.ndarray) -> np.ndarray:
 
 
 def loads(data: bytes, name: str = "<state>", want: str | None = None) -> State:
-    """Parse and check a state file; ``want`` is the stage the caller needs."""
+    """Parse and check a state file; ``want`` is the stage the caller needs.
+
+    Everything is checked before any work, and every problem is an :class:`InputError`
+    naming ``name``: the metadata against its schema (types, ranges, finite numbers,
+    a grid that fits the recorded ``--max-nodes``), each array's dtype and shape from
+    its ``.npy`` header before its data is read (so no member is read past what the
+    grid needs), then the values and their consistency: the path steps along grid
+    edges, visits each node once and carries each contour point once, in ring order,
+    onto that point; every coordinate lies in the grid's box.  Nothing is unpickled.
+    """
     if not data:
         raise InputError(f"{name}: empty input, expected a deformesh state file")
     try:
         zf = zipfile.ZipFile(io.BytesIO(data))
-        meta = json.loads(zf.read("meta.json"))
-    except (zipfile.BadZipFile, KeyError, ValueError, EOFError):
+        meta = json.loads(_member(zf, "meta.json", MAX_META_BYTES, name))
+    except (zipfile.BadZipFile, KeyError, ValueError, EOFError, RecursionError):
         hint = " (truncated?)" if data[:2] == b"PK" else ""
         raise InputError(f"{name}: not a deformesh state file{hint}") from None
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         raise InputError(f"{name}: not a deformesh state file (no '{FORMAT}' header)")
-    if meta.get("version") != VERSION:
+    if meta.get("version") != VERSION or isinstance(meta.get("version"), bool):
         raise InputError(
-            f"{name}: state file version {meta.get('version')} (written by "
-            f"{meta.get('written_by', 'unknown')}); this deformesh {__version__} reads "
+            f"{name}: state file version {meta.get('version')!r} (written by "
+            f"{meta.get('written_by', 'unknown')!r}); this deformesh {__version__} reads "
             f"version {VERSION}: re-run 'deformesh select'"
         )
     stage = meta.get("stage")
-    if stage not in STAGES:
+    if not isinstance(stage, str) or stage not in STAGES:
         raise InputError(f"{name}: unknown stage {stage!r} in state file")
     if want is not None and stage != want:
         advice = {"selected": "deformesh select", "deformed": "deformesh deform"}[want]
         raise InputError(f"{name}: state is at stage '{stage}', expected '{want}' (from {advice})")
+    try:
+        return _parse(zf, meta, stage)
+    except _Damaged as exc:
+        raise InputError(f"{name}: damaged state file ({exc})") from None
+    except InputError as exc:  # the contour's own checks name the contour's source
+        raise InputError(f"{name}: damaged state file (its contour: {exc})") from None
+    except (zipfile.BadZipFile, EOFError, OSError, ValueError) as exc:
+        raise InputError(f"{name}: damaged state file ({exc.__class__.__name__}: {exc})") from None
+
+
+#: The largest ``meta.json`` read: it holds a few numbers, short notes and ring labels.
+MAX_META_BYTES = 16 * 2**20
+#: The largest ``.npy`` header read (numpy's own limit on untrusted headers).
+_MAX_HEADER = 10_000
+
+
+class _Damaged(Exception):
+    """What is wrong with a state file (the message ``loads`` puts in parentheses)."""
+
+
+def _member(zf: zipfile.ZipFile, member: str, limit: int, name: str) -> bytes:
+    """A member's bytes, refused (without reading further) past ``limit``."""
+    info = zf.getinfo(member)
+    if info.file_size > limit:
+        raise InputError(f"{name}: damaged state file ({member} is larger than it can be)")
+    with zf.open(info) as fh:
+        b = fh.read(limit + 1)
+    if len(b) > limit:
+        raise InputError(f"{name}: damaged state file ({member} is larger than it can be)")
+    return b
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _is_count(v, low: int = 0) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool) and v >= low
+
+
+def _is_coordinate(v) -> bool:
+    return _is_number(v) and abs(v) <= MAX_COORDINATE
+
+
+def _is_positive(v) -> bool:
+    return _is_number(v) and v > 0
+
+
+def _is_text_list(v) -> bool:
+    return isinstance(v, list) and all(isinstance(x, str) for x in v)
+
+
+#: meta.json: key -> (check, what it must be)
+_META = {
+    "source": (lambda v: isinstance(v, str), "a string"),
+    "written_by": (lambda v: isinstance(v, str), "a string"),
+    "grid": (lambda v: isinstance(v, dict), "a mapping"),
+    "h": (_is_positive, "a finite number > 0"),
+    "h_rule": (lambda v: isinstance(v, str), "a string"),
+    "searched_further": (_is_count, "a whole number >= 0"),
+    "refinements": (_is_count, "a whole number >= 0"),
+    "path_rule": (lambda v: isinstance(v, str), "a string"),
+    "exterior": (lambda v: isinstance(v, bool), "true or false"),
+    "notes": (_is_text_list, "a list of strings"),
+    "ring_labels": (_is_text_list, "a list of strings"),
+    "options": (lambda v: isinstance(v, dict), "a mapping"),
+}
+_GRID = {
+    "x0": (_is_coordinate, f"a finite number of size at most {MAX_COORDINATE:g}"),
+    "y0": (_is_coordinate, f"a finite number of size at most {MAX_COORDINATE:g}"),
+    "hx": (_is_positive, "a finite number > 0"),
+    "hy": (_is_positive, "a finite number > 0"),
+    "nx": (lambda v: _is_count(v, 1), "a whole number >= 1"),
+    "ny": (lambda v: _is_count(v, 1), "a whole number >= 1"),
+}
+#: The deepest graded grid a state file may describe (cells 2**60 times the finest).
+MAX_LEVELS = 60
+_GRADED = {
+    "kind": (lambda v: v == "graded", "'graded'"),
+    "top": (lambda v: _is_count(v) and v <= MAX_LEVELS, f"a whole number from 0 to {MAX_LEVELS}"),
+}
+
+
+def _check_schema(meta: dict) -> None:
+    for table, where, d in ((_META, "", meta), (_GRID, "grid.", meta.get("grid"))):
+        if table is _GRID and "kind" in d:
+            table = {**_GRID, **_GRADED}
+        for key, (ok, what) in table.items():
+            if key not in d:
+                raise _Damaged(f"{where}{key} is missing")
+            if not ok(d[key]):
+                raise _Damaged(f"{where}{key} is {_short(d[key])}, it must be {what}")
+
+
+def _short(v) -> str:
+    text = json.dumps(v) if not isinstance(v, float) else repr(v)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _parse(zf: zipfile.ZipFile, meta: dict, stage: str) -> State:
+    _check_schema(meta)
+    options = _options(meta)
+    g = meta["grid"]
+    graded = "kind" in g
+    max_nodes = options.get("max_nodes", DEFAULT_MAX_NODES)
+    # the grid's size, bounded before any array is read
+    cells = g["nx"] * g["ny"]
+    nodes = (g["nx"] + 1) * (g["ny"] + 1)
+    if nodes > max_nodes:
+        raise _Damaged(f"a {g['nx']} x {g['ny']} grid is over its --max-nodes {max_nodes}")
+    x1, y1 = (g["x0"] + g["nx"] * g["hx"] * 2 ** g.get("top", 0),
+              g["y0"] + g["ny"] * g["hy"] * 2 ** g.get("top", 0))  # fmt: skip
+    if not (_is_coordinate(x1) and _is_coordinate(y1)):
+        raise _Damaged("the grid's box is beyond double precision")
+    span = max(abs(g["x0"]), abs(x1), abs(g["y0"]), abs(y1))
+    if min(g["hx"], g["hy"]) < 16 * np.finfo(float).eps * span:
+        raise _Damaged("the grid step is below the coordinates' resolution")
     spec = dict(_ARRAYS)
     if stage == "deformed":
         spec["points"] = ("f", 2, (2,))
     if "path_slide.npy" in zf.namelist():  # optional: an adapted grid's slide
         spec["path_slide"] = ("f", 2, (2,))
-    graded = isinstance(meta.get("grid"), dict) and meta["grid"].get("kind") == "graded"
     if graded:  # the graded grid's leaves
         spec.update(leaf_level=("i", 1, ()), leaf_i=("i", 1, ()), leaf_j=("i", 1, ()))
-    arrays = {}
-    try:
-        for key, (kind, ndim, tail) in spec.items():
-            with zf.open(f"{key}.npy") as fh:
-                a = np.lib.format.read_array(io.BytesIO(fh.read()))  # refuses objects
-            if (
-                a.dtype.kind not in (kind, "i" if kind == "u" else kind)
-                or a.ndim != ndim
-                or a.shape[1:] != tail
-            ):
-                raise InputError(f"{name}: damaged state file ({key}: wrong type or shape)")
-            arrays[key] = a
-        g = meta["grid"]
-        if graded:
-            grid = _graded_grid(g, arrays, name)
-            cells = grid.tree.n_leaves
-        else:
-            grid = Grid(
-                float(g["x0"]),
-                float(g["y0"]),
-                float(g["hx"]),
-                float(g["hy"]),
-                int(g["nx"]),
-                int(g["ny"]),
-            )
-            cells = grid.nx * grid.ny
-    except (KeyError, ValueError, TypeError, zipfile.BadZipFile, EOFError, OSError) as exc:
-        raise InputError(f"{name}: damaged state file ({exc.__class__.__name__}: {exc})") from None
-    n = grid.n_nodes
-    p = len(arrays["path_nodes"])
-    ok = (
-        grid.nx >= 1
-        and grid.ny >= 1
-        and grid.hx > 0
-        and grid.hy > 0
-        and len(arrays["diagonals"]) == cells
-        and len(arrays["path_targets"]) == p
-        and len(arrays["path_source"]) == p
-        and len(arrays["path_ring"]) == p
-        and len(arrays.get("path_slide", arrays["path_ring"])) == p
-        and p >= 3
-        and arrays["path_nodes"].min() >= 0
-        and arrays["path_nodes"].max() < n
-        and len(arrays["contour_lines"]) == len(arrays["contour_points"])
-        and (stage != "deformed" or arrays["points"].shape == (n, 2))
-    )
-    if not ok:
-        raise InputError(f"{name}: inconsistent state file (array sizes do not match the grid)")
-    starts = arrays["contour_starts"]
-    if (
-        len(starts) < 2
-        or starts[0] != 0
-        or starts[-1] != len(arrays["contour_points"])
-        or (np.diff(starts) < 3).any()
-    ):
-        raise InputError(f"{name}: inconsistent state file (ring starts do not match the contour)")
-    labels = meta.get("ring_labels")
-    if labels is not None and (not isinstance(labels, list) or len(labels) != len(starts) - 1):
-        raise InputError(f"{name}: inconsistent state file (ring_labels do not match the rings)")
-    contour = make_contour(
-        arrays["contour_points"],
-        arrays["contour_lines"],
-        str(meta.get("source", name)),
-        ring_starts=starts[:-1],
-        ring_labels=[str(x) for x in labels] if labels else None,
-    )
-    src = arrays["path_source"]
-    if src.max() >= contour.n or np.count_nonzero(src >= 0) != contour.n:
-        raise InputError(f"{name}: inconsistent state file (path does not match the contour)")
+    heads = {key: _header(zf, key, *spec[key]) for key in spec}
+    rows = {key: shape[0] for key, (shape, _) in heads.items()}
     if graded:
-        sel = GradedSelection(
-            grid,
-            arrays["path_nodes"].astype(np.int64),
-            arrays["path_targets"].astype(np.float64),
-            src.astype(np.int64),
-            arrays["path_ring"].astype(np.int64),
-            arrays["diagonals"].astype(np.uint8),
-            h=float(meta.get("h", grid.hx)),
-            exterior=bool(meta.get("exterior", False)),
-            notes=list(meta.get("notes", [])),
-            h_rule=str(meta.get("h_rule", "graded")),
-            path_slide=arrays.get("path_slide"),
-        )
-        return State(stage, contour, sel, arrays.get("points"), _options(meta, name))
-    sel = Selection(
-        grid=grid,
-        path_nodes=arrays["path_nodes"].astype(np.int64),
-        path_targets=arrays["path_targets"].astype(np.float64),
-        path_source=src.astype(np.int64),
-        diagonals=arrays["diagonals"].astype(np.uint8),
-        h=float(meta.get("h", max(grid.hx, grid.hy))),
-        h_rule=str(meta.get("h_rule", "given")),
-        searched_further=int(meta.get("searched_further", 0)),
-        refinements=int(meta.get("refinements", 0)),
-        notes=list(meta.get("notes", [])),
-        path_rule=str(meta.get("path_rule", "appendix-a")),
-        path_ring=arrays["path_ring"].astype(np.int64),
-        exterior=bool(meta.get("exterior", False)),
-        path_slide=arrays.get("path_slide"),
-    )
-    return State(stage, contour, sel, arrays.get("points"), _options(meta, name))
+        leaves = rows["leaf_level"]
+        if not rows["leaf_i"] == rows["leaf_j"] == leaves or not 1 <= leaves <= max_nodes:
+            raise _Damaged("the graded grid's leaf arrays do not match")
+        cells, nodes = leaves, max_nodes  # (the node count is known once the leaves are)
+    p = rows["path_nodes"]
+    same = {"diagonals": cells, **dict.fromkeys(("path_targets", "path_source", "path_ring"), p)}
+    if "path_slide" in spec:
+        same["path_slide"] = p
+    if not graded and stage == "deformed":
+        same["points"] = nodes
+    same["contour_lines"] = rows["contour_points"]
+    for key, n in same.items():
+        if rows[key] != n:
+            raise _Damaged(f"{key} has {rows[key]} rows, expected {n}")
+    if not 3 <= rows["contour_points"] <= p <= nodes:
+        raise _Damaged("the path and the contour do not match the grid's size")
+    if not 2 <= rows["contour_starts"] <= rows["contour_points"] // 3 + 1:
+        raise _Damaged("the ring starts do not match the contour")
+    if graded and stage == "deformed" and rows["points"] > max_nodes:
+        raise _Damaged("points has more rows than the grid can have nodes")
+    a = {key: _data(zf, key, *heads[key]) for key in spec}
+    if graded:
+        grid = _graded_grid(g, a)
+        if stage == "deformed" and rows["points"] != grid.n_nodes:
+            raise _Damaged(f"points has {rows['points']} rows, expected {grid.n_nodes}")
+    else:
+        grid = Grid(float(g["x0"]), float(g["y0"]), float(g["hx"]), float(g["hy"]),
+                    g["nx"], g["ny"])  # fmt: skip
+    labels = meta["ring_labels"] or None
+    starts = a["contour_starts"]
+    if (starts[0] != 0 or starts[-1] != len(a["contour_points"]) or (np.diff(starts) < 3).any()
+            or labels is not None and len(labels) != len(starts) - 1):  # fmt: skip
+        raise _Damaged("the ring starts or labels do not match the contour")
+    contour = make_contour(
+        a["contour_points"], a["contour_lines"], meta["source"],
+        ring_starts=starts[:-1], ring_labels=labels,
+    )  # fmt: skip
+    if contour.n != len(a["contour_points"]):
+        raise _Damaged("the contour repeats a ring's first point at its end")
+    fields = {
+        "grid": grid,
+        "path_nodes": a["path_nodes"].astype(np.int64),
+        "path_targets": a["path_targets"].astype(np.float64),
+        "path_source": a["path_source"].astype(np.int64),
+        "path_ring": a["path_ring"].astype(np.int64),
+        "diagonals": a["diagonals"].astype(np.uint8),
+        "h": float(meta["h"]),
+        "h_rule": meta["h_rule"],
+        "searched_further": meta["searched_further"],
+        "refinements": meta["refinements"],
+        "notes": list(meta["notes"]),
+        "path_rule": meta["path_rule"],
+        "exterior": meta["exterior"],
+        "path_slide": a.get("path_slide"),
+    }
+    sel = (GradedSelection if graded else Selection)(**fields)
+    _check_path(contour, sel, a)
+    points = a.get("points")
+    return State(stage, contour, sel, None if points is None else points.astype(float), options)
 
 
-def _options(meta: dict, name: str) -> dict:
-    """The state's recorded options.  A size expression is data too: it is checked by the
-    same parser as ``--size`` (never evaluated by Python), and refused as a bad state."""
-    options = meta.get("options", {})
-    if not isinstance(options, dict):
-        raise InputError(f"{name}: inconsistent state file (options is not a mapping)")
-    for key in ("size", "size_field"):
-        if options.get(key) is not None and not isinstance(options[key], str):
-            raise InputError(f"{name}: inconsistent state file (options.{key} is not a string)")
+def _header(zf: zipfile.ZipFile, key: str, kind: str, ndim: int, tail: tuple):
+    """An array member's (shape, dtype), read from its .npy header alone."""
+    try:
+        info = zf.getinfo(f"{key}.npy")
+    except KeyError:
+        raise _Damaged(f"{key}.npy is missing") from None
+    with zf.open(info) as fh:
+        version = np.lib.format.read_magic(fh)
+        read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                else np.lib.format.read_array_header_2_0)  # fmt: skip
+        shape, fortran, dtype = read(fh, max_header_size=_MAX_HEADER)
+        offset = fh.tell()
+    ok_kind = dtype.kind == kind or (kind == "u" and dtype.kind == "i")
+    if not ok_kind or dtype.fields is not None or dtype.hasobject or dtype.itemsize > 8:
+        raise _Damaged(f"{key}: numbers of type {dtype}, expected {_KINDS[kind]}")
+    if len(shape) != ndim or tuple(shape[1:]) != tail or fortran:
+        raise _Damaged(f"{key}: shape {tuple(shape)}, expected {('n',) + tail}")
+    if info.file_size != offset + math.prod(shape) * dtype.itemsize:
+        raise _Damaged(f"{key}.npy does not hold the {tuple(shape)} array it announces")
+    return shape, (dtype, offset)
+
+
+_KINDS = {"f": "floats", "i": "integers", "u": "integers"}
+
+
+def _data(zf: zipfile.ZipFile, key: str, shape: tuple, at: tuple) -> np.ndarray:
+    dtype, offset = at
+    with zf.open(f"{key}.npy") as fh:
+        fh.read(offset)
+        b = fh.read(math.prod(shape) * dtype.itemsize)
+    a = np.frombuffer(b, dtype=dtype).reshape(shape)
+    if a.dtype.kind == "f" and not np.isfinite(a).all():
+        raise _Damaged(f"{key}: a value that is not finite")
+    return a.astype(a.dtype.newbyteorder("="))
+
+
+def _check_path(contour: Contour, sel, a: dict) -> None:
+    """The path's values: nodes, rings, sources and targets, and (deformed) the points."""
+    grid = sel.grid
+    nodes, src, ring = a["path_nodes"], a["path_source"], a["path_ring"]
+    targets, n, m = a["path_targets"], grid.n_nodes, contour.n
+    if nodes.min() < 0 or nodes.max() >= n or (np.diff(np.sort(nodes)) == 0).any():
+        raise _Damaged("path_nodes: a node out of the grid, or visited twice")
+    rings = len(contour.starts) - 1
+    if ring.min() < 0 or ring.max() >= rings or (np.diff(ring) < 0).any():
+        raise _Damaged("path_ring: not the contour's rings in order")
+    if not (np.isin(np.arange(rings), ring)).all():
+        raise _Damaged("path_ring: a ring without a path")
+    if src.min() < -1 or src.max() >= m or np.count_nonzero(src >= 0) != m:
+        raise _Damaged("path_source: not each contour point once")
+    starts = np.asarray(contour.starts)
+    for r in range(rings):
+        s = src[(ring == r) & (src >= 0)]
+        k = s - starts[r]
+        size = starts[r + 1] - starts[r]
+        step = np.arange(len(k))
+        if len(k) != size or not (np.array_equal(k, step) or np.array_equal(k, -step % size)):
+            raise _Damaged(f"path_source: ring {r}'s points are not in ring order")
+    on = src >= 0
+    if not np.array_equal(targets[on], contour.points[src[on]]):
+        raise _Damaged("path_targets: a target is not its contour point")
+    if a["diagonals"].max(initial=0) > 1 or a["diagonals"].min(initial=0) < 0:
+        raise _Damaged("diagonals: a value other than 0 or 1")
+    x0, y0, x1, y1 = grid.box
+    pad = 1e-9 * max(x1 - x0, y1 - y0)
+    for key in ("path_targets", "points"):
+        q = a.get(key)
+        if q is not None and not (
+            (q[:, 0] >= x0 - pad).all() and (q[:, 0] <= x1 + pad).all()
+            and (q[:, 1] >= y0 - pad).all() and (q[:, 1] <= y1 + pad).all()
+        ):  # fmt: skip
+            raise _Damaged(f"{key}: a point outside the grid's box")
+    tri = sel.triangles()
+    on_path = np.zeros(n, dtype=bool)
+    on_path[nodes] = True
+    tri = tri[on_path[tri].sum(axis=1) >= 2]  # (the only ones with a path step)
+    edges = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
+    codes = edges[:, 0] * n + edges[:, 1]
+    for r in range(rings):
+        path = nodes[ring == r]
+        step = np.sort(np.column_stack([path, np.roll(path, -1)]), axis=1)
+        if not np.isin(step[:, 0] * n + step[:, 1], codes).all():
+            raise _Damaged(f"path_nodes: ring {r}'s path leaves the grid's edges")
+    slide = a.get("path_slide")
+    if slide is not None and np.abs(slide).max() > 4 * contour.edge_lengths().sum():
+        raise _Damaged("path_slide: a slide longer than the contour")
+
+
+def _options(meta: dict) -> dict:
+    """The state's recorded options, each checked against its field's kind; a size
+    expression is data too: it is checked by the same parser as ``--size`` (never
+    evaluated by Python)."""
+    options = meta["options"]
+    known = option_fields(MeshOptions)
+    for key, value in options.items():
+        f = known.get(key)
+        if f is None:
+            raise _Damaged(f"options.{key} is not an option")
+        if not _option_ok(f, value):
+            raise _Damaged(f"options.{key} is {_short(value)}, not a value {flag(f)} takes")
+    field_path = options.get("size_field")
+    if field_path is not None and not Path(field_path).is_file():
+        raise _Damaged(f"options.size_field: {field_path!r} is not a regular file")
     if options.get("size") is not None:
         try:
             Expression(options["size"], "size")
         except OptionError as exc:
-            raise InputError(f"{name}: the state file's {exc}") from None
+            raise _Damaged(f"options.size: {exc}") from None
     return options
 
 
-def _graded_grid(g: dict, arrays: dict, name: str) -> GradedGrid:
+def _option_ok(f, v) -> bool:
+    if v is None or v == f.default and type(v) is type(f.default):
+        return True
+    kind = f.metadata["kind"]
+    if kind in ("text", "path"):
+        return isinstance(v, str)
+    if kind in ("flag", "switch"):
+        return isinstance(v, bool)
+    if kind == "choice":
+        return isinstance(v, str) and v in f.metadata["choices"]
+    if kind == "positive":
+        return _is_positive(v)
+    if kind == "float":
+        return _is_number(v)
+    if kind == "count":
+        return _is_count(v, f.metadata.get("min", 0))
+    if kind == "box":
+        return (isinstance(v, list) and len(v) == 4 and all(_is_coordinate(x) for x in v)
+                and v[0] < v[2] and v[1] < v[3])  # fmt: skip
+    return False
+
+
+def _graded_grid(g: dict, a: dict) -> GradedGrid:
     """The graded grid of a state file: its quadtree's leaves, triangulated again."""
-    level, i, j = arrays["leaf_level"], arrays["leaf_i"], arrays["leaf_j"]
-    top, nx, ny = int(g["top"]), int(g["nx"]), int(g["ny"])
+    level, i, j = a["leaf_level"], a["leaf_i"], a["leaf_j"]
+    top, nx, ny = g["top"], g["nx"], g["ny"]
     ok = (
-        len(level) == len(i) == len(j) >= 1
-        and min(top, nx, ny) >= 0 and nx >= 1 and ny >= 1 and top <= 60
-        and float(g["hx"]) > 0 and float(g["hy"]) > 0
-        and level.min() >= 0 and level.max() <= top
+        level.min() >= 0 and level.max() <= top
         and (i >= 0).all() and (j >= 0).all()
-        and (i * 2**level < nx * 2**top).all() and (j * 2**level < ny * 2**top).all()
+        and (i.astype(np.float64) * 2.0**level < nx * 2**top).all()
+        and (j.astype(np.float64) * 2.0**level < ny * 2**top).all()
         and int((4.0 ** level.astype(np.float64)).sum()) == nx * ny * 4**top
     )  # fmt: skip
     if not ok:
-        raise InputError(f"{name}: inconsistent state file (the graded grid's leaves)")
+        raise _Damaged("the graded grid's leaves do not tile its box")
     tree = Quadtree(
         float(g["x0"]), float(g["y0"]), float(g["hx"]), float(g["hy"]), top, nx, ny,
         level.astype(np.int64), i.astype(np.int64), j.astype(np.int64),

@@ -41,6 +41,31 @@ CASES = {
         gzip.compress(SVG.format('<path d="M 1 1 L 5 1 L 5 5 Z"/>').encode())[:30],
         "not a readable gzip-compressed SVG",
     ),
+    # <use> references that multiply, cycle or nest deep (no hang, no recursion error)
+    "use-bomb.svg": (
+        SVG.format(
+            '<path id="a0" d="M 0 0 L 1 0 L 1 1 Z"/>'
+            + "".join(f'<g id="a{k}">' + f'<use href="#a{k - 1}"/>' * 10 + "</g>" for k in range(1, 10))
+        ).encode(),
+        "references expand to over 10,000 elements",
+    ),
+    "use-cycle.svg": (
+        SVG.format('<g id="a"><use href="#b"/></g><g id="b"><use xlink:href="#a"/></g>').replace(
+            "<svg ", '<svg xmlns:xlink="http://www.w3.org/1999/xlink" '
+        ).encode(),
+        "references form a cycle",
+    ),
+    "use-chain.svg": (
+        SVG.format(
+            '<path id="a0" d="M 0 0 L 1 0 L 1 1 Z"/>'
+            + "".join(f'<g id="a{k}"><use href="#a{k - 1}"/></g>' for k in range(1, 40))
+        ).encode(),
+        "nest deeper than 16",
+    ),
+    "nested-5000.svg": (
+        SVG.format("<g>" * 5000 + '<path d="M 1 1 L 5 1 L 5 5 Z"/>' + "</g>" * 5000).encode(),
+        "nest too deep",
+    ),
     # other programs' files given as contours
     "mesh.vtu": (b'<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid">', "a VTK mesh"),
     "lines.geojson": (b'{"type": "LineString", "coordinates": [[0, 0], [1, 1]]}', "LineString"),
@@ -61,4 +86,23 @@ def test_a_hostile_contour_is_one_line_and_leaves_nothing(run, tmp_path, name):
     assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
     assert r.stderr.startswith(f"deformesh: error: {f}:")
     assert re.search(message, r.stderr), r.stderr
+    assert list(out.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ("all", "/dev/zero", "-o"),
+        ("deform", "/dev/zero", "-o"),
+        ("triangulate", "/dev/urandom", "-o"),
+    ],
+)
+def test_a_device_is_refused_not_read_forever(run, tmp_path, args):
+    out = tmp_path / "out"
+    out.mkdir()
+    t = time.perf_counter()
+    r = run(*args, out / "m.msh")
+    assert time.perf_counter() - t < 30
+    assert r.exit_code == 1, r.stderr
+    assert r.stderr == f"deformesh: error: {args[1]}: is a character device, not a file\n"
     assert list(out.iterdir()) == []

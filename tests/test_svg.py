@@ -307,3 +307,42 @@ def test_vertices_closer_than_the_tolerance_are_merged():
     assert e.min() == pytest.approx(10.0)
     # with a finer tolerance the vertex stays
     assert parse_svg(svg(body), "m.svg", tolerance=1e-4).n == 5
+
+
+@settings(max_examples=20, deadline=None)
+@given(
+    radius=st.floats(10, 30),
+    step=st.floats(0.02, 0.4),
+    tol=st.floats(0.1, 1.0),
+)
+def test_a_dense_run_of_vertices_moves_the_outline_by_at_most_the_tolerance(radius, step, tol):
+    """A bump drawn in steps shorter than the tolerance keeps its shape: every vertex of
+    the drawing is within the tolerance of the contour, and the area moves by at most
+    twice the tolerance times the bump's length (losing the bump would move it more)."""
+    assume(step < tol)
+    n = max(3, int(math.pi * radius / step))
+    t = np.linspace(0.0, np.pi, n)
+    bump = np.c_[50 + radius * np.cos(t), 100 + radius * np.sin(t)]
+    drawing = np.vstack([[(0, 0), (100, 0), (100, 100)], bump, [(0, 100)]])
+    d = "M " + " L ".join(f"{x:.6f} {y:.6f}" for x, y in drawing) + " Z"
+    c = parse_svg(svg(f'<path d="{d}"/>'), "bump.svg", tolerance=tol)
+    ring = shapely.LinearRing(c.points * [1, -1] + [0, 100])  # (the reader flips y)
+    drawn = shapely.Polygon(drawing)
+    assert max(ring.distance(shapely.points(drawing))) <= tol * (1 + 1e-9)
+    assert abs(shapely.Polygon(ring).area - drawn.area) <= 2 * tol * np.pi * radius
+    assert np.pi * radius**2 / 2 > 2 * tol * np.pi * radius  # (so the test can fail)
+
+
+def test_the_mesh_of_a_dense_drawing_has_the_drawing_s_area(run, tmp_path):
+    """The whole way: the mesh of a drawing with a dense bump has the drawing's area."""
+    t = np.linspace(0.0, np.pi, 400)
+    bump = np.c_[50 + 20 * np.cos(t), 100 + 20 * np.sin(t)]  # steps of 0.16
+    drawing = np.vstack([[(0, 0), (100, 0), (100, 100)], bump, [(0, 100)]])
+    d = "M " + " L ".join(f"{x:.6f} {y:.6f}" for x, y in drawing) + " Z"
+    f = tmp_path / "bump.svg"
+    f.write_bytes(svg(f'<path d="{d}"/>'))
+    r = run("all", f, "-o", tmp_path / "m.vtk", "--tolerance", "0.5", "--json")
+    assert r.exit_code == 0, r.stderr
+    area = json.loads(r.stdout)["area"]
+    drawn = shapely.Polygon(drawing)
+    assert abs(area - drawn.area) <= 2 * 0.5 * np.pi * 20 < 20**2 * np.pi / 2

@@ -33,6 +33,10 @@ from ..geometry import signed_area
 DEFAULT_RELATIVE_TOLERANCE = 1e-3
 #: Most pieces one curve segment is cut into (guards against a tiny tolerance).
 MAX_PIECES = 10_000
+#: Most elements a drawing may hold with its ``<use>`` references expanded.
+MAX_ELEMENTS = 10_000
+#: Deepest chain of ``<use>`` references (a use of a group that uses ...).
+MAX_USE_DEPTH = 16
 
 
 def parse_tolerance(value: str | float | None) -> tuple[float, bool] | None:
@@ -77,6 +81,7 @@ def parse_svg(
     drawing units, or the text of ``--tolerance`` (``0.5%`` = relative).
     """
     tol_spec = parse_tolerance(tolerance)
+    _check_references(data, source)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -168,9 +173,9 @@ def _collect_rings(shapes, tol: float, height: float, eps: float, source: str):
                 )
                 gap = 0.0
             exact = len(_drop_repeats(ring, eps))
-            # points closer than the tolerance to the previous one are the same point at
+            # points closer than the tolerance to the last one kept are the same point at
             # the drawing's precision (minified icons round 0.0005 away from their start)
-            ring = _drop_repeats(ring, max(eps, tol))
+            ring = _merge_close(_drop_repeats(ring, eps), max(eps, tol))
             if len(ring) < exact:
                 notes.append(
                     f"merged {exact - len(ring)} point(s) of {name} subpath {j + 1} "
@@ -192,6 +197,61 @@ def _collect_rings(shapes, tol: float, height: float, eps: float, source: str):
             element.append(k)
             evenodd.append(rule == "evenodd")
     return rings, labels, element, evenodd, notes
+
+
+def _check_references(data: bytes, source: str) -> None:
+    """Refuse ``<use>`` references that cycle, nest deeper than :data:`MAX_USE_DEPTH`,
+    or expand the drawing past :data:`MAX_ELEMENTS` elements (references that
+    multiply, level after level, would take svgelements hours): counted on the XML
+    tree, before svgelements expands anything.  Files that are no XML pass through
+    (svgelements names their problem)."""
+    from xml.etree import ElementTree
+
+    try:
+        root = ElementTree.fromstring(data)
+    except (ElementTree.ParseError, ValueError):
+        return
+    by_id = {e.get("id"): e for e in root.iter() if e.get("id")}
+    done: dict[int, tuple[int, int]] = {}  # element -> (elements, reference depth)
+    busy: set[int] = set()
+
+    def href(e) -> str | None:
+        ref = e.get("href") or e.get("{http://www.w3.org/1999/xlink}href")
+        return ref[1:] if e.tag.rpartition("}")[2] == "use" and ref and ref[0] == "#" else None
+
+    def size(e) -> tuple[int, int]:  # what e stands for, its references expanded
+        if id(e) in done:
+            return done[id(e)]
+        if id(e) in busy:
+            raise InputError(f"{source}: <use> references form a cycle (through {_tag(e)})")
+        busy.add(id(e))
+        n, depth = 1, 0
+        for c in e:
+            cn, cd = size(c)
+            n, depth = n + cn, max(depth, cd)
+        ref = href(e)
+        if ref is not None and ref in by_id:
+            rn, rd = size(by_id[ref])
+            n, depth = n + rn, max(depth, rd + 1)
+        if n > MAX_ELEMENTS:
+            raise InputError(
+                f"{source}: its <use> references expand to over {MAX_ELEMENTS:,} elements"
+            )
+        if depth > MAX_USE_DEPTH:
+            raise InputError(f"{source}: <use> references nest deeper than {MAX_USE_DEPTH}")
+        busy.discard(id(e))
+        done[id(e)] = n, depth
+        return n, depth
+
+    try:
+        size(root)
+    except RecursionError:
+        raise InputError(f"{source}: its elements nest too deep to read") from None
+
+
+def _tag(e) -> str:
+    name = e.tag.rpartition("}")[2]
+    return f"<{name} id=\"{e.get('id')}\">" if e.get("id") else f"<{name}>"
 
 
 def _one_line(exc: Exception) -> str:
@@ -287,6 +347,26 @@ def _pieces(seg, tol: float) -> int:
         return 1
     n = span * math.sqrt(second / (8 * tol)) if second > 0 else 1
     return int(min(MAX_PIECES, max(1, math.ceil(n))))
+
+
+def _merge_close(ring: np.ndarray, tol: float) -> np.ndarray:
+    """Drop each point within ``tol`` of the last point kept before it (and closing
+    points within ``tol`` of the first): every dropped point is within ``tol`` of a
+    kept one, so a dense run (a bump drawn in steps shorter than ``tol``) keeps a
+    point every ``tol`` and the outline moves by at most ``tol`` in all.  Only points
+    closer than ``tol`` to their predecessor are walked one by one."""
+    step = np.hypot(*np.diff(ring, axis=0).T)
+    keep = np.concatenate([[True], step > tol])
+    xy = ring.tolist()
+    last = 0
+    for i in np.flatnonzero(~keep).tolist():
+        if keep[i - 1]:
+            last = i - 1
+        keep[i] = math.dist(xy[i], xy[last]) > tol
+    out = ring[keep]
+    while len(out) > 1 and np.hypot(*(out[-1] - out[0])) <= tol:
+        out = out[:-1]
+    return out
 
 
 def _drop_repeats(ring: np.ndarray, eps: float) -> np.ndarray:
