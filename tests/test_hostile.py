@@ -12,6 +12,11 @@ pytestmark = pytest.mark.filterwarnings("error")  # (no numpy warning may leak e
 
 SVG = '<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">{}</svg>'
 
+
+def _level(k: int) -> str:
+    return f'<g id="a{k}">' + f'<use href="#a{k - 1}"/>' * 10 + "</g>"
+
+
 CASES = {
     # numbers at the edge of double precision
     "side-2e160.csv": (b"0,0\n2e160,0\n2e160,2e160\n0,2e160\n", "beyond 1e\\+150"),
@@ -42,17 +47,16 @@ CASES = {
         "not a readable gzip-compressed SVG",
     ),
     # <use> references that multiply, cycle or nest deep (no hang, no recursion error)
-    "use-bomb.svg": (
+    "use-bomb.svg": (  # (ten uses of the level below, nine levels: 10**9 paths)
         SVG.format(
-            '<path id="a0" d="M 0 0 L 1 0 L 1 1 Z"/>'
-            + "".join(f'<g id="a{k}">' + f'<use href="#a{k - 1}"/>' * 10 + "</g>" for k in range(1, 10))
+            '<path id="a0" d="M 0 0 L 1 0 L 1 1 Z"/>' + "".join(map(_level, range(1, 10)))
         ).encode(),
         "references expand to over 10,000 elements",
     ),
     "use-cycle.svg": (
-        SVG.format('<g id="a"><use href="#b"/></g><g id="b"><use xlink:href="#a"/></g>').replace(
-            "<svg ", '<svg xmlns:xlink="http://www.w3.org/1999/xlink" '
-        ).encode(),
+        SVG.format('<g id="a"><use href="#b"/></g><g id="b"><use xlink:href="#a"/></g>')
+        .replace("<svg ", '<svg xmlns:xlink="http://www.w3.org/1999/xlink" ')
+        .encode(),
         "references form a cycle",
     ),
     "use-chain.svg": (
