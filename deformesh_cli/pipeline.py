@@ -104,6 +104,12 @@ EXTRA_ENOUGH = 0.02
 EXTRA_WAYS_POINTS = 1000
 
 
+def time_bound(n_points: int) -> float:
+    """Seconds ``all`` may take on a contour of ``n_points`` points before it answers
+    with the best mesh it has, or refuses."""
+    return 20.0 + 0.2 * n_points
+
+
 def _options(options: MeshOptions | None, changes: dict) -> MeshOptions:
     """``options`` (default: :class:`MeshOptions`'s defaults) with ``changes`` applied."""
     options = MeshOptions() if options is None else options

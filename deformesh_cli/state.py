@@ -22,7 +22,7 @@ from . import __version__
 from .contour import MAX_COORDINATE, Contour, make_contour
 from .errors import InputError, OptionError, WriteError
 from .expression import Expression
-from .options import MeshOptions, flag
+from .options import MeshOptions
 from .options import fields as option_fields
 from .select import DEFAULT_MAX_NODES, Grid, Selection
 from .select.graded import Quadtree
@@ -128,7 +128,8 @@ def loads(data: bytes, name: str = "<state>", want: str | None = None) -> State:
     its ``.npy`` header before its data is read (so no member is read past what the
     grid needs), then the values and their consistency: the path steps along grid
     edges, visits each node once and carries each contour point once, in ring order,
-    onto that point; every coordinate lies in the grid's box.  Nothing is unpickled.
+    onto that point; every coordinate lies in the grid's box.  Arrays are read as
+    plain numbers, never as Python objects.
     """
     if not data:
         raise InputError(f"{name}: empty input, expected a deformesh state file")
@@ -439,7 +440,7 @@ def _options(meta: dict) -> dict:
         if f is None:
             raise _Damaged(f"options.{key} is not an option")
         if not _option_ok(f, value):
-            raise _Damaged(f"options.{key} is {_short(value)}, not a value {flag(f)} takes")
+            raise _Damaged(f"options.{key} is {_short(value)}, not {_option_kind(f)}")
     field_path = options.get("size_field")
     if field_path is not None and not Path(field_path).is_file():
         raise _Damaged(f"options.size_field: {field_path!r} is not a regular file")
@@ -449,6 +450,22 @@ def _options(meta: dict) -> dict:
         except OptionError as exc:
             raise _Damaged(f"options.size: {exc}") from None
     return options
+
+
+def _option_kind(f) -> str:
+    """What a recorded option must be, in words."""
+    kind = f.metadata["kind"]
+    return {
+        "text": "a string",
+        "path": "a string",
+        "flag": "true or false",
+        "switch": "true or false",
+        "choice": "one of " + ", ".join(map(str, f.metadata.get("choices", ()))),
+        "positive": "a finite number > 0",
+        "float": "a finite number",
+        "count": f"a whole number >= {f.metadata.get('min', 0)}",
+        "box": "a box [XMIN, YMIN, XMAX, YMAX]",
+    }[kind]
 
 
 def _option_ok(f, v) -> bool:

@@ -4,6 +4,7 @@ What the grammar allows gives the same bits as numpy evaluation of the same text
 it does not allow (attribute access, subscripts, lambdas, other names, huge constants)
 is refused before anything is evaluated, from the command line and from a state file."""
 
+import ast
 import io
 import json
 import math
@@ -36,9 +37,28 @@ _NUMPY = {name: getattr(np, name) for name in FUNCTIONS if hasattr(np, name)}
 _NUMPY.update(min=np.minimum, max=np.maximum, pi=math.pi, e=math.e)
 
 
+class _ComparisonsAsFloat(ast.NodeTransformer):
+    """A comparison is 1.0 or 0.0 in an expression (``expression._chain``), where numpy
+    gives booleans, whose ``exp`` is a float16: the reference converts a comparison
+    given to a function (elsewhere numpy's booleans give the same numbers)."""
+
+    def visit_Call(self, node):
+        self.generic_visit(node)
+        node.args = [
+            ast.Call(ast.Name("_as_float", ast.Load()), [a], [])
+            if isinstance(a, ast.Compare)
+            else a
+            for a in node.args
+        ]
+        return node
+
+
 def _reference(text, env):
+    tree = ast.fix_missing_locations(_ComparisonsAsFloat().visit(ast.parse(text, mode="eval")))
+    code = compile(tree, "<reference>", "eval")
     with np.errstate(all="ignore"):
-        return eval(text, {"__builtins__": {}}, {**_NUMPY, **env})
+        names = {**_NUMPY, "_as_float": lambda v: np.asarray(v, dtype=float), **env}
+        return eval(code, {"__builtins__": {}}, names)
 
 
 def _points(n=257, seed=0):

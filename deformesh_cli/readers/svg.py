@@ -251,7 +251,7 @@ def _check_references(data: bytes, source: str) -> None:
 
 def _tag(e) -> str:
     name = e.tag.rpartition("}")[2]
-    return f"<{name} id=\"{e.get('id')}\">" if e.get("id") else f"<{name}>"
+    return f'<{name} id="{e.get("id")}">' if e.get("id") else f"<{name}>"
 
 
 def _one_line(exc: Exception) -> str:
