@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import deadline, forced, geometry, quality, triangulate
 from . import deform as _deform
-from . import forced, geometry, quality, triangulate
 from . import improve as _improve
 from . import merge as _merge
 from . import size as _size
@@ -104,12 +104,6 @@ EXTRA_ENOUGH = 0.02
 EXTRA_WAYS_POINTS = 1000
 
 
-def time_bound(n_points: int) -> float:
-    """Seconds ``all`` may take on a contour of ``n_points`` points before it answers
-    with the best mesh it has, or refuses."""
-    return 20.0 + 0.2 * n_points
-
-
 def _options(options: MeshOptions | None, changes: dict) -> MeshOptions:
     """``options`` (default: :class:`MeshOptions`'s defaults) with ``changes`` applied."""
     options = MeshOptions() if options is None else options
@@ -159,6 +153,7 @@ def candidate_selections(
     attempts = [a for a in GRADED_ATTEMPTS if not (o.strict and a.get("extra"))]
     fell_back = None
     for attempt in attempts:
+        deadline.check()
         try:
             sel = graded(attempt)
         except (SelectionError, LimitError) as exc:
@@ -172,9 +167,14 @@ def candidate_selections(
     if fall_back is not None and not fall_back():
         return
     mode = fallback_mode(contour, o.exterior)
-    for sel in _ungraded(contour, o, mode):
-        sel.notes.insert(0, f"{fell_back}: fell back to the {mode} grid")
-        yield sel
+    try:
+        for sel in _ungraded(contour, o, mode):
+            sel.notes.insert(0, f"{fell_back}: fell back to the {mode} grid")
+            yield sel
+    except deadline.TimeUp as exc:  # (what the graded grid met says most)
+        grid = {"adapt": "adapted"}.get(mode, mode)
+        exc.add_note(f"{fell_back}, and the {grid} grid found none in time")
+        raise
 
 
 def _ungraded(contour: Contour, o: MeshOptions, mode: str) -> Iterator[Selection]:
@@ -203,8 +203,22 @@ def _ungraded(contour: Contour, o: MeshOptions, mode: str) -> Iterator[Selection
 
 
 def run_select(contour: Contour, options: MeshOptions | None = None, **changes) -> Selection:
-    """Stage 1: the first of :func:`candidate_selections` (the options' select fields)."""
-    return next(candidate_selections(contour, options, **changes))
+    """Stage 1: the first of :func:`candidate_selections` (the options' select fields),
+    searched for at most :func:`.deadline.search_bound` seconds."""
+    try:
+        with deadline.limit(deadline.search_bound(contour.n)):
+            return next(candidate_selections(contour, options, **changes))
+    except deadline.TimeUp as exc:
+        raise _time_up(contour, exc) from None
+
+
+def _time_up(contour: Contour, exc: deadline.TimeUp) -> LimitError:
+    """The refusal of a contour whose search for a grid path ran out of time."""
+    why = "".join(f"; {note}" for note in getattr(exc, "__notes__", ()))
+    return LimitError(
+        f"{contour.source}: {exc} ({contour.n} points){why}; simplify the contour or "
+        "re-space it (--resample)"
+    )
 
 
 #: The narrow band reaches this many cells (grid steps, in i or j) past the
@@ -509,49 +523,54 @@ def mesh_contour(
     def fall_back() -> bool:  # not for a few extra nodes left: not worth its time
         return best is None or best[0] > (False, enough)
 
-    try:
-        for sel in candidate_selections(contour, o, size_function=size, fall_back=fall_back):
-            with_extra = isinstance(sel, GradedSelection) and sel.extra_nodes > 0
-            # stage 3's topology (which triangles, numbered how, and their edges) needs
-            # only the selection: it runs on the second core while the deformation runs
-            # (``benchmarks/MEASURED.md``)
-            sel.triangles()  # built once, here, rather than by both threads at once
-            with ThreadPoolExecutor(max_workers=1) as pool:
-                cut = pool.submit(triangulate.cut, contour, sel, edges=True)
-                try:
-                    d = run_deform(contour, sel, o, callback=callback, size_function=size)
-                except FoldError as exc:
-                    fold = exc  # the last one: the uniform grid's, when every rung folded
+    with deadline.limit(deadline.search_bound(contour.n)):
+        try:
+            for sel in candidate_selections(contour, o, size_function=size, fall_back=fall_back):
+                with_extra = isinstance(sel, GradedSelection) and sel.extra_nodes > 0
+                # stage 3's topology (which triangles, numbered how, and their edges) needs
+                # only the selection: it runs on the second core while the deformation runs
+                # (``benchmarks/MEASURED.md``)
+                sel.triangles()  # built once, here, rather than by both threads at once
+                with ThreadPoolExecutor(max_workers=1) as pool:
+                    cut = pool.submit(triangulate.cut, contour, sel, edges=True)
+                    try:
+                        d = run_deform(contour, sel, o, callback=callback, size_function=size)
+                    except FoldError as exc:
+                        fold = exc  # the last one: the uniform grid's, when every rung folded
+                        continue
+                    try:
+                        mesh, report = run_triangulate(
+                            contour, d, o, size_function=size, cut=cut.result()
+                        )
+                    except ContractError as exc:
+                        if not with_extra:
+                            raise
+                        fold = exc  # a route the deformation did not carry faithfully: the next
+                        continue
+                if with_extra:
+                    # the graded mesh that keeps the bound with the fewest extra nodes left
+                    # after merging; the next ways, then the fallback grid, may do better
+                    got = (rank(mesh, report), sel, d, mesh, report)
+                    if best is None or got[0] < best[0]:
+                        best = got
+                    if best[0][:2] == (False, 0) and len(contour.points) > EXTRA_WAYS_POINTS:
+                        break  # (a small contour tries its other ways too, for a better angle)
                     continue
-                try:
-                    mesh, report = run_triangulate(
-                        contour, d, o, size_function=size, cut=cut.result()
-                    )
-                except ContractError as exc:
-                    if not with_extra:
-                        raise
-                    fold = exc  # a route the deformation did not carry faithfully: the next
-                    continue
-            if with_extra:
-                # the graded mesh that keeps the bound with the fewest extra nodes left
-                # after merging; the next ways, then the fallback grid, may do better
-                got = (rank(mesh, report), sel, d, mesh, report)
-                if best is None or got[0] < best[0]:
-                    best = got
-                if best[0][:2] == (False, 0) and len(contour.points) > EXTRA_WAYS_POINTS:
-                    break  # (a small contour tries its other ways too, for a better angle)
-                continue
-            if sel.h_rule != "typical-spacing" or report["min_angle"] >= MIN_ADAPTED_ANGLE:
-                break
-            flat = flat or (sel, d, mesh, report)  # nearly flat: try the next rung first
-        else:
+                if sel.h_rule != "typical-spacing" or report["min_angle"] >= MIN_ADAPTED_ANGLE:
+                    break
+                flat = flat or (sel, d, mesh, report)  # nearly flat: try the next rung first
+            else:
+                if best is None and flat is None:
+                    raise fold
+                sel, d, mesh, report = best[1:] if best is not None else flat
+        except (SelectionError, LimitError, deadline.TimeUp) as exc:  # (the uniform grid's)
             if best is None and flat is None:
-                raise fold
+                if isinstance(exc, deadline.TimeUp):
+                    raise _time_up(contour, exc) from None
+                raise
             sel, d, mesh, report = best[1:] if best is not None else flat
-    except (SelectionError, LimitError):  # from the uniform grid, after the rungs
-        if best is None and flat is None:
-            raise
-        sel, d, mesh, report = best[1:] if best is not None else flat
+            if isinstance(exc, deadline.TimeUp):
+                sel.notes.append(f"stopped searching after the time bound of {exc.seconds:.0f} s")
     if best is not None and best[1] is not sel and best[0] <= rank(mesh, report):
         sel, d, mesh, report = best[1:]  # (as good or better, on fewer nodes)
     report.update(selection_report(sel))

@@ -169,7 +169,7 @@ MAX_META_BYTES = 16 * 2**20
 _MAX_HEADER = 10_000
 
 
-class _Damaged(Exception):
+class _Damaged(InputError):
     """What is wrong with a state file (the message ``loads`` puts in parentheses)."""
 
 

@@ -284,7 +284,7 @@ def test_graded_state_files_give_the_same_mesh(sh, tmp_path):
             zout.writestr(n, v)
     (tmp_path / "bad.state").write_bytes(buf.getvalue())
     r = sh("deformesh triangulate bad.state -o bad.msh", cwd=tmp_path, check=False)
-    assert r.returncode == 1 and b"inconsistent state file" in r.stderr
+    assert r.returncode == 1 and b"damaged state file" in r.stderr
     assert r.stderr.count(b"\n") == 1 and not (tmp_path / "bad.msh").exists()
 
 

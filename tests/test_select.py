@@ -89,6 +89,19 @@ def test_grid_limit_refused_with_estimate_and_hint():
     assert "--resample 0.00224" in msg  # its median spacing (that it works: test_contour.py)
 
 
+def test_a_far_field_refusal_names_a_resample_spacing_that_works(run, tmp_path):
+    """On a 20-chord far field the median spacing's uniform grid is too large as well:
+    the refusal names the finest spacing the box allows instead, and it meshes."""
+    import re
+
+    args = ("all", SAMPLES / "naca0012.csv", "--exterior", "--box=-20,-20,21,20")
+    r = run(*args, "--grid", "uniform", "-o", tmp_path / "m.vtk")
+    assert r.exit_code == 1 and "re-space it with --resample" in r.stderr
+    spacing = re.search(r"e\.g\. --resample ([0-9.e-]+), about the finest", r.stderr).group(1)
+    r = run(*args, "--grid", "uniform", "--resample", spacing, "-o", tmp_path / "m.vtk", "-q")
+    assert r.exit_code == 0, r.stderr
+
+
 def test_grid_limit_hint_names_an_h_that_works():
     import re
 

@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 
+from .. import deadline
 from ..contour import Contour
 from ..errors import LimitError, SelectionError
 from ..geometry import signed_area
@@ -672,6 +673,7 @@ def _assign(
         steps = _Steps(cand, edges, turns, n, hops, np.array(sorted(banned), dtype=np.int64))
         changed, pick = [], None  # points whose choices changed since the last round
     for _ in range(MAX_ROUNDS):
+        deadline.check()
         if pick is not None and changed:
             # with extra nodes, rounds change a few points: solve again around them
             # (without, the whole ring is solved again, as it always was)

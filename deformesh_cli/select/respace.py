@@ -39,6 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import deadline
 from ..contour import Contour, make_contour
 from ..contour import ring_corners as corners
 from ..errors import InputError, LimitError, SelectionError
@@ -262,6 +263,7 @@ def candidate_selections(
     for slide, d in LADDER:
         if slide and rs is None:
             continue
+        deadline.check()
         ref, step = (rs.copy, h_copy / d) if slide else (contour, h_real / d)
         try:
             sel = select(

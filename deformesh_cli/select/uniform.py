@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import deadline
 from ..contour import Contour
 from ..errors import LimitError, OptionError, SelectionError
 from ..geometry import next_on_ring, signed_area, signed_areas
@@ -233,18 +234,33 @@ def _too_many_nodes(contour, est, h, rule, d_c, ka, kb, box_size, margin_cells, 
             f"{head}: try --h {h_try:.3g} (the smallest spacing between consecutive "
             "points; with a larger h crowded points get no node of their own)"
         )
+    median, fit = float(np.median(seg)), _fitting_spacing(box_size, margin_cells, max_nodes)
+    example = (
+        f"{median:.3g}, its median spacing"
+        if median >= fit
+        else f"{fit:.2g}, about the finest spacing this box allows within --max-nodes"
+    )
     fix = (
         "use fewer contour points"
-        if ratio <= EVEN_SPACING_RATIO
+        if ratio <= EVEN_SPACING_RATIO and median >= fit
         else "re-space it with --resample SPACING (corners kept; e.g. --resample "
-        f"{float(np.median(seg)):.3g}, its median spacing; the given points are then not "
-        "all boundary nodes)"
+        f"{example}; the given points are then not all boundary nodes)"
     )
     return (
         f"{head}; even h = {h_try:.3g}, the smallest spacing between consecutive points, "
         f"would need {est_try:.2g} nodes (the spacing varies {ratio:.3g}x along the contour): "
         f"{fix} or raise --max-nodes"
     )
+
+
+def _fitting_spacing(box_size, margin_cells: int, max_nodes: int) -> float:
+    """A contour spacing whose Appendix A grid (h = 0.9 d / sqrt 2) fits ``max_nodes``
+    on this box (with a tenth to spare): the smallest ``--resample`` worth suggesting."""
+    w, hgt = box_size
+    h = math.sqrt(w * hgt / max_nodes)
+    for _ in range(20):  # the margin grows with h: a few fixed-point steps
+        h = math.sqrt((w + 2 * margin_cells * h) * (hgt + 2 * margin_cells * h) / max_nodes)
+    return 1.1 * h * math.sqrt(2) / 0.9
 
 
 @dataclass
@@ -506,6 +522,7 @@ def build_path(
         D = max(abs(b[0] - a[0]), abs(b[1] - a[1]))
         if D < 2:
             continue
+        deadline.check()  # (a route may search a window of many cells)
         f = np.arange(1, D) / D
         fi = a[0] + np.floor((b[0] - a[0]) * f + 0.5).astype(np.int64)
         fj = a[1] + np.floor((b[1] - a[1]) * f + 0.5).astype(np.int64)
@@ -693,6 +710,7 @@ def fit_path(contour: Contour, grid: Grid, strict: bool = False, method: str = "
     parts, further = [], 0
     offset = 0
     for r in range(contour.n_rings):
+        deadline.check()
         order = contour.ring_order(r)
         q = contour.points[order]
         if method == "trace":
@@ -899,6 +917,7 @@ def select(
         # a far-field box is large against the contour's smallest spacing:
         # start from the coarsest step that gives every point a node
         for h_try in _coarser_steps(contour, box, margin, max_nodes, exterior):
+            deadline.check()
             try:
                 sel = select(contour, h_try, box, margin, strict, max_nodes, methods, exterior)
             except (SelectionError, LimitError):
@@ -918,6 +937,7 @@ def select(
     first_error: SelectionError | None = None
     while True:
         for method, shift in [(m, sh) for m in methods for sh in SHIFTS]:
+            deadline.check()
             g = _shifted(grid, shift, box is not None)
             if g.n_nodes > max_nodes:
                 continue
