@@ -30,7 +30,7 @@ demo: $(VENV)/.installed
 	$(BIN)/deformesh all $(SAMPLE) -o $(OUT)/demo.vtk --png $(OUT)/demo.png
 
 test: $(VENV)/.installed-test lint
-	$(BIN)/python -m pytest -q --hypothesis-profile=ci
+	$(BIN)/python -m pytest -q -n 2 --hypothesis-profile=ci
 
 lint: $(VENV)/.installed-test
 	$(BIN)/ruff check .
@@ -47,6 +47,7 @@ bench: $(VENV)/.installed-bench
 	$(BIN)/python benchmarks/run_quality.py --repeat 3
 	$(BIN)/python benchmarks/run_moving.py --repeat 3
 	$(BIN)/python benchmarks/run_graded.py
+	$(BIN)/python benchmarks/run_random.py
 
 # only the side-by-side comparison with Triangle and Gmsh (about 25 minutes)
 bench-peers: $(VENV)/.installed-bench

@@ -1,9 +1,10 @@
 """Mesh 300 random hostile contours (tests/random_polygons.py: jagged angle-sorted
 clouds, uneven stars, clusters, spikes, combs, near-touching parts, holes near the
 outline; 10 to 500 points) with ``deformesh all`` at default options, one process
-each.  Each must answer within its time bound (deformesh's own, :func:`time_bound`,
-plus the process start): a mesh that passes an independent contract check
-(tests/independent.py, numpy and shapely only), or a one-line refusal (exit 1).
+each.  Each must answer within its time bound (deformesh's search bound,
+:func:`deformesh_cli.deadline.search_bound`, plus :data:`SLACK`): a mesh that
+passes an independent contract check (tests/independent.py, numpy and shapely
+only), or a one-line refusal (exit 1).
 Writes the tally and the slowest answers into benchmarks/RESULTS.md (section
 "random").
 

@@ -128,7 +128,9 @@ def run_task(task: Task) -> tuple[dict, list[tuple[str, bytes]]]:
     try:
         if task.error is not None:
             raise DeformeshError(task.error)
-        c = load_contour(task.source, task.data, o.decimal, o.tolerance, o.element_id, o.resample)
+        c = load_contour(
+            task.source, task.data, o.decimal, o.tolerance, o.element_id, o.resample, o.stroke
+        )
         res = mesh_contour(c, o)
         outputs = formats.mesh_files(res.mesh, Path(task.output).name, o.fmt, o.msh_version)
         r = res.report

@@ -20,7 +20,7 @@ import contextvars
 import time
 from collections.abc import Iterator
 
-from .errors import DeformeshError
+from .errors import TimeUp
 
 #: Seconds every contour may search, and how many more per contour point.
 SEARCH_BASE = 10.0
@@ -29,14 +29,6 @@ SEARCH_PER_POINT = 0.02
 _DEADLINE: contextvars.ContextVar[tuple[float, float] | None] = contextvars.ContextVar(
     "deformesh_deadline", default=None
 )
-
-
-class TimeUp(DeformeshError):
-    """The search for a grid path ran past its time bound."""
-
-    def __init__(self, seconds: float):
-        super().__init__(f"no grid path found within the search's time bound of {seconds:.0f} s")
-        self.seconds = seconds
 
 
 def search_bound(n_points: int) -> float:

@@ -55,5 +55,13 @@ class SolverError(DeformeshError):
     """A linear solve of the deformation failed (an iterative solver did not converge)."""
 
 
+class TimeUp(DeformeshError):
+    """The search for a grid path ran past its time bound (:mod:`.deadline`)."""
+
+    def __init__(self, seconds: float):
+        super().__init__(f"no grid path found within the search's time bound of {seconds:.0f} s")
+        self.seconds = seconds
+
+
 class ContractError(DeformeshError):
     """A mesh does not meet the mesh contract (see docs/contract.md)."""

@@ -52,7 +52,7 @@ class MeshOptions:
     """Every option of a meshing run, grouped by the stage that reads it.
 
     Reading the contour: ``decimal``, ``tolerance``, ``element_id``,
-    ``resample``.  Stage 1 (select): ``h``, ``box``, ``margin``, ``strict``,
+    ``stroke``, ``resample``.  Stage 1 (select): ``h``, ``box``, ``margin``, ``strict``,
     ``max_nodes``, ``exterior``, ``grid``.  Stage 2 (deform): ``steps``,
     ``solver``, ``solve``, ``size``, ``size_field``.  Stage 3 (triangulate):
     ``improve``, ``merge_extra``.  Writing: ``fmt``, ``msh_version``.
@@ -72,6 +72,12 @@ class MeshOptions:
         "Default: every filled shape.",
         flag="--id",
         metavar="ID",
+    )
+    stroke: bool = _opt(
+        False,
+        "SVG: mesh the outline of the stroked shapes (line icons drawn with fill='none'), "
+        "with their stroke widths, caps and joins, instead of the filled shapes.",
+        "flag",
     )
     resample: str | None = _opt(
         None,
@@ -207,7 +213,7 @@ class MeshOptions:
 
 #: Which fields each stage reads.
 STAGES: dict[str, tuple[str, ...]] = {
-    "read": ("decimal", "tolerance", "element_id", "resample"),
+    "read": ("decimal", "tolerance", "element_id", "stroke", "resample"),
     "select": (
         "h",
         "box",

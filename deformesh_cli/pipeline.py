@@ -209,13 +209,13 @@ def run_select(contour: Contour, options: MeshOptions | None = None, **changes) 
         with deadline.limit(deadline.search_bound(contour.n)):
             return next(candidate_selections(contour, options, **changes))
     except deadline.TimeUp as exc:
-        raise _time_up(contour, exc) from None
+        raise LimitError(_time_up(contour, exc)) from None
 
 
-def _time_up(contour: Contour, exc: deadline.TimeUp) -> LimitError:
+def _time_up(contour: Contour, exc: deadline.TimeUp) -> str:
     """The refusal of a contour whose search for a grid path ran out of time."""
     why = "".join(f"; {note}" for note in getattr(exc, "__notes__", ()))
-    return LimitError(
+    return (
         f"{contour.source}: {exc} ({contour.n} points){why}; simplify the contour or "
         "re-space it (--resample)"
     )
@@ -566,7 +566,7 @@ def mesh_contour(
         except (SelectionError, LimitError, deadline.TimeUp) as exc:  # (the uniform grid's)
             if best is None and flat is None:
                 if isinstance(exc, deadline.TimeUp):
-                    raise _time_up(contour, exc) from None
+                    raise LimitError(_time_up(contour, exc)) from None
                 raise
             sel, d, mesh, report = best[1:] if best is not None else flat
             if isinstance(exc, deadline.TimeUp):

@@ -138,3 +138,25 @@ def test_an_xml_document_that_is_not_svg_is_named(run, tmp_path, text, root):
     r = run("all", f, "-o", tmp_path / "m.vtk")
     assert r.exit_code == 1 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
     assert f"not an SVG document: its root element is {root}" in r.stderr
+
+
+def test_a_real_coastline_with_a_hole_meshes_with_the_contract(run, tmp_path):
+    """South Africa from Natural Earth: a mainland with Lesotho as a hole, and an island
+    group, checked with numpy and shapely only."""
+    import json
+
+    import meshio
+
+    from deformesh_cli.readers import load_contour
+
+    from .conftest import ROOT
+    from .independent import contract_problems
+
+    f = ROOT / "tests" / "data" / "geojson" / "south_africa.geojson"
+    r = run("all", f, "-o", tmp_path / "m.msh", "--json")
+    assert r.exit_code == 0, r.stderr
+    assert json.loads(r.stdout)["contract"] == "ok"
+    c = load_contour(f)
+    assert c.n_rings == 3 and sorted(c.depth) == [0, 0, 1]  # (the hole inside the mainland)
+    m = meshio.read(tmp_path / "m.msh")
+    assert contract_problems(m.points, m.cells_dict["triangle"], c.points, c.ring) == []

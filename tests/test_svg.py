@@ -346,3 +346,59 @@ def test_the_mesh_of_a_dense_drawing_has_the_drawing_s_area(run, tmp_path):
     area = json.loads(r.stdout)["area"]
     drawn = shapely.Polygon(drawing)
     assert abs(area - drawn.area) <= 2 * 0.5 * np.pi * 20 < 20**2 * np.pi / 2
+
+
+# --- stroked shapes (--stroke): the outline the stroke paints
+
+STROKE_ICONS = SAMPLES.parent / "tests" / "data" / "stroke_icons"
+
+
+@pytest.mark.parametrize(
+    "cap,join,area",
+    [
+        ("butt", "miter", 19 + 1),  # (an L: two bars overlapping in 1, the mitred corner)
+        ("square", "miter", 19 + 1 + 2 * 2),
+        ("round", "round", 19 + np.pi / 4 + np.pi),
+        ("butt", "bevel", 19 + 0.5),
+    ],
+)
+def test_a_stroke_paints_its_width_caps_and_joins(cap, join, area):
+    """An L of width 2 (legs 6 and 4 from the corner): each cap and join adds what
+    SVG paints; round parts are within the tolerance."""
+    body = (
+        '<path d="M 2 2 L 8 2 L 8 6" fill="none" stroke="black" stroke-width="2" '
+        f'stroke-linecap="{cap}" stroke-linejoin="{join}"/>'
+    )
+    c = parse_svg(svg(body), "l.svg", tolerance=0.001, stroke=True)
+    assert c.n_rings == 1
+    assert shapely.Polygon(c.points).area == pytest.approx(area, rel=2e-3)
+
+
+def test_strokes_that_cross_are_one_region_with_its_holes():
+    """Two stroked squares overlapping: their union, with the holes it leaves."""
+    body = "".join(
+        f'<rect x="{x}" y="{x}" width="40" height="40" fill="none" stroke="red" stroke-width="4"/>'
+        for x in (10, 30)
+    )
+    c = parse_svg(svg(body), "two.svg", stroke=True)
+    holes = [label for label in c.ring_labels if "hole" in label]
+    assert c.n_rings == 4 and len(holes) == 3  # (each square's hole, cut in two by the other)
+    assert any("2 stroked SVG shape(s)" in n for n in c.notes)
+
+
+@pytest.mark.parametrize("name", sorted(p.name for p in STROKE_ICONS.glob("*.svg")))
+def test_stroked_line_icons_mesh_with_the_contract(run, tmp_path, name):
+    from .independent import contract_problems
+
+    f = STROKE_ICONS / name
+    r = run("all", f, "--stroke", "-o", tmp_path / "m.msh", "--json")
+    assert r.exit_code == 0, r.stderr
+    assert json.loads(r.stdout)["contract"] == "ok"
+    c = parse_svg(f.read_bytes(), name, stroke=True)
+    import meshio
+
+    m = meshio.read(tmp_path / "m.msh")
+    assert contract_problems(m.points, m.cells_dict["triangle"], c.points, c.ring) == []
+    # without --stroke the icon has nothing filled, and says how to mesh it
+    r = run("all", f, "-o", tmp_path / "n.msh")
+    assert r.exit_code == 1 and "give --stroke" in r.stderr

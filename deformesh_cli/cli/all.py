@@ -80,7 +80,7 @@ def command(contours, output, out_dir, jobs, scheduler, fail_fast, png, as_json,
     if jobs is not None or scheduler is not None or fail_fast:
         raise click.UsageError("--jobs, --scheduler and --fail-fast apply to batches (--out-dir)")
     fmt = check_mesh_output(output, o.fmt, as_json)
-    c = load_contour(contours[0], None, o.decimal, o.tolerance, o.element_id, o.resample)
+    c = load_contour(contours[0], None, o.decimal, o.tolerance, o.element_id, o.resample, o.stroke)
     with steps_bar(quiet) as progress:
         res = pipeline.mesh_contour(c, o, callback=progress)
     finish(

@@ -33,7 +33,9 @@ def command(mesh_path: str, output: str, contour_path: str | None, quiet: bool, 
     points, tri = formats.read_mesh(mesh_path)
     cpts = None
     if contour_path is not None:
-        c = load_contour(contour_path, None, o.decimal, o.tolerance, o.element_id, o.resample)
+        c = load_contour(
+            contour_path, None, o.decimal, o.tolerance, o.element_id, o.resample, o.stroke
+        )
         cpts = c.points
     plot.draw(
         points,

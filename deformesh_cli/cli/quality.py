@@ -36,7 +36,9 @@ def command(mesh_path: str, contour_path: str | None, as_json: bool, quiet: bool
     points, tri = formats.read_mesh(mesh_path)
     c = None
     if contour_path is not None:
-        c = load_contour(contour_path, None, o.decimal, o.tolerance, o.element_id, o.resample)
+        c = load_contour(
+            contour_path, None, o.decimal, o.tolerance, o.element_id, o.resample, o.stroke
+        )
     rep, problem = quality.assess(points, tri, c)
     rep = {"mesh": mesh_path, **rep}
     if not quiet:

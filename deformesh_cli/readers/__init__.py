@@ -24,23 +24,24 @@ def load_contour(
     tolerance: str | float | None = None,
     element_id: str | None = None,
     resample_spacing: str | float | None = None,
+    stroke: bool = False,
 ) -> Contour:
     """Read a contour file: CSV, SVG (by extension, or text starting with ``<``) or
     GeoJSON (by extension, or text starting with ``{``).
 
     ``data``, if given, are the file's bytes (``path`` names them; ``-`` is
     stdin).  ``decimal`` is the CSV decimal mark (``.`` or ``,``);
-    ``tolerance`` and ``element_id`` are the SVG options (see
+    ``tolerance``, ``element_id`` and ``stroke`` are the SVG options (see
     :func:`.svg.parse_svg`); ``resample_spacing`` (the text of
     ``--resample``) re-spaces the contour read (:func:`resample`).
     """
-    c = _read(path, data, decimal, tolerance, element_id)
+    c = _read(path, data, decimal, tolerance, element_id, stroke)
     if resample_spacing is not None:
         c = resample(c, parse_spacing(resample_spacing, c))
     return c
 
 
-def _read(path, data, decimal, tolerance, element_id) -> Contour:
+def _read(path, data, decimal, tolerance, element_id, stroke=False) -> Contour:
     name = "<stdin>" if str(path) == "-" else str(path)
     if data is None:
         data = read_bytes(str(path))
@@ -50,9 +51,9 @@ def _read(path, data, decimal, tolerance, element_id) -> Contour:
     if suffix in (".svg", ".svgz") or data.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"<"):
         from .svg import read_svg  # svgelements loads only for SVG input
 
-        return read_svg(data, name, tolerance, element_id, gzipped=suffix == ".svgz")
-    if tolerance is not None or element_id is not None:
-        raise OptionError(f"{name}: --tolerance and --id apply to SVG input only")
+        return read_svg(data, name, tolerance, element_id, suffix == ".svgz", stroke)
+    if tolerance is not None or element_id is not None or stroke:
+        raise OptionError(f"{name}: --tolerance, --id and --stroke apply to SVG input only")
     if suffix in (".geojson", ".json") or data.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"{"):
         from .geojson import read_geojson
 

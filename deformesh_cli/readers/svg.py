@@ -58,7 +58,12 @@ def parse_tolerance(value: str | float | None) -> tuple[float, bool] | None:
 
 
 def read_svg(
-    data: bytes, source: str, tolerance=None, element_id: str | None = None, gzipped=False
+    data: bytes,
+    source: str,
+    tolerance=None,
+    element_id: str | None = None,
+    gzipped=False,
+    stroke: bool = False,
 ) -> Contour:
     """An SVG or gzip-compressed SVG file's bytes as a :class:`Contour` (:func:`parse_svg`)."""
     if gzipped or data[:2] == b"\x1f\x8b":
@@ -69,16 +74,22 @@ def read_svg(
         except (OSError, EOFError, zlib.error) as exc:  # (a truncated file: EOFError)
             why = str(exc) or type(exc).__name__
             raise InputError(f"{source}: not a readable gzip-compressed SVG: {why}") from None
-    return parse_svg(data, source, tolerance, element_id)
+    return parse_svg(data, source, tolerance, element_id, stroke)
 
 
 def parse_svg(
-    data: bytes, source: str = "<svg>", tolerance=None, element_id: str | None = None
+    data: bytes,
+    source: str = "<svg>",
+    tolerance=None,
+    element_id: str | None = None,
+    stroke: bool = False,
 ) -> Contour:
     """Read SVG bytes into a validated :class:`Contour` (see the module docstring).
 
     ``tolerance`` is ``None`` (1/1000 of the drawing's diagonal), a number in
     drawing units, or the text of ``--tolerance`` (``0.5%`` = relative).
+    ``stroke``: mesh the outline of the stroked shapes instead of the filled ones
+    (:func:`_stroke_rings`).
     """
     tol_spec = parse_tolerance(tolerance)
     _check_references(data, source)
@@ -92,7 +103,7 @@ def parse_svg(
         root = re.search(rb"<([A-Za-z_][\w:.-]*)", re.sub(rb"<[?!][^>]*>", b"", data[:4096]))
         what = f"<{root.group(1).decode('ascii', 'replace')}>" if root else "not <svg>"
         raise InputError(f"{source}: not an SVG document: its root element is {what}")
-    shapes = _pick_shapes(svg, source, element_id)
+    shapes = _pick_shapes(svg, source, element_id, _stroked if stroke else _filled)
     boxes = np.array([s.bbox() for s in shapes if s.bbox() is not None], dtype=float)
     if len(boxes) == 0:
         raise InputError(f"{source}: the SVG's shapes are empty")
@@ -105,6 +116,16 @@ def parse_svg(
     # has no page to flip in (svgelements would assume 1000 px): y -> -y
     sized = svg.values.get("height") is not None or svg.viewbox is not None
     height = float(svg.height) if sized and svg.height else 0.0
+    if stroke:
+        rings, labels, notes = _stroke_rings(shapes, tol, height, 1e-9 * diag, source)
+        starts = np.cumsum([0] + [len(r) for r in rings])[:-1]
+        c = make_contour(
+            np.concatenate(rings), None, source, ring_starts=starts, ring_labels=labels
+        )
+        return Contour(
+            c.points, c.lines, source, notes=tuple(notes), starts=c.starts,
+            ring_clockwise=c.ring_clockwise, depth=c.depth, ring_labels=c.ring_labels,
+        )  # fmt: skip
 
     rings, labels, element, evenodd, notes = _collect_rings(
         shapes, tol, height, 1e-9 * diag, source
@@ -269,7 +290,86 @@ def _filled(shape) -> bool:
     return fill is not None and fill.value is not None and fill.alpha != 0
 
 
-def _pick_shapes(svg, source: str, element_id: str | None) -> list:
+def _stroked(shape) -> bool:
+    s = shape.stroke
+    width = shape.implicit_stroke_width
+    return s is not None and s.value is not None and s.alpha != 0 and bool(width) and width > 0
+
+
+#: SVG's stroke-linecap and stroke-linejoin as shapely's buffer styles.
+_CAPS = {"butt": "flat", "round": "round", "square": "square"}
+_JOINS = {"miter": "mitre", "miter-clip": "mitre", "arcs": "round", "round": "round",
+          "bevel": "bevel"}  # fmt: skip
+
+
+def _stroke_rings(shapes, tol: float, height: float, eps: float, source: str):
+    """The region the shapes' strokes paint, as rings: each subpath widened by its
+    stroke width (after transforms) with its caps and joins (``stroke-linecap``,
+    ``stroke-linejoin``, ``stroke-miterlimit``; dashes are not drawn), round parts
+    cut into chords within ``tol``, straight runs into pieces at most half the
+    thinnest stroke wide, the strokes' union split into outlines and holes.
+    Returns rings, labels and notes."""
+    parts, widths = [], []
+    for k, shape in enumerate(shapes):
+        name = _label(shape, k)
+        r = float(shape.implicit_stroke_width) / 2
+        widths.append(2 * r)
+        cap = _CAPS.get(str(shape.values.get("stroke-linecap", "butt")).strip().lower(), "flat")
+        join = _JOINS.get(str(shape.values.get("stroke-linejoin", "miter")).strip().lower())
+        try:
+            limit = float(shape.values.get("stroke-miterlimit") or 4.0)
+        except ValueError:
+            limit = 4.0
+        # chords of a round cap or join within tol of the arc: r (1 - cos(a / 2)) <= tol
+        quad = math.ceil(math.pi / 2 / (2 * math.acos(max(-1.0, 1 - tol / r)))) if tol < r else 1
+        style = {"quad_segs": int(min(256, max(1, quad))), "cap_style": cap,
+                 "join_style": join or "mitre", "mitre_limit": max(1.0, limit)}  # fmt: skip
+        for pts, closed in _subpaths(se.Path(shape), tol, f"{source}: {name}"):
+            pts[:, 1] = height - pts[:, 1]
+            check_scale(pts, source)
+            pts = _drop_repeats(pts, eps)
+            if closed and len(pts) >= 3:
+                line = shapely.LinearRing(pts)
+            elif len(pts) >= 2:
+                line = shapely.LineString(pts)
+            elif cap != "flat":  # a dot: a round or square cap on a zero-length subpath
+                line = shapely.Point(pts[0])
+            else:
+                continue
+            parts.append(line.buffer(r, **style))
+    region = shapely.union_all(parts) if parts else shapely.Polygon()
+    # the outline's points are ours, not the drawing's: straight runs get points every
+    # half the thinnest stroke, so that long sides do not make slivers
+    region = shapely.segmentize(region, min(widths) / 2) if widths else region
+    polys = sorted(getattr(region, "geoms", [region]), key=lambda p: -p.area)
+    polys = [p for p in polys if isinstance(p, shapely.Polygon) and not p.is_empty]
+    if not polys:
+        raise InputError(f"{source}: the strokes paint no area")
+    rings, labels, merged = [], [], 0
+    for i, poly in enumerate(polys):
+        for j, ring in enumerate([poly.exterior, *poly.interiors]):
+            xy = np.asarray(ring.coords)[:-1]
+            kept = _merge_close(xy, tol)
+            if _flat(kept):
+                continue
+            merged += len(xy) - len(kept)
+            rings.append(kept)
+            labels.append(f"stroke outline {i + 1}" + (f" hole {j}" if j else ""))
+    holes = sum(1 for x in labels if " hole " in x)
+    notes = [
+        f"meshed the outline of {len(shapes)} stroked SVG shape(s) (stroke widths, caps and "
+        f"joins as drawn, round parts within a chord tolerance of {tol:.3g}): "
+        f"{len(rings) - holes} part(s), {holes} hole(s)"
+    ]
+    if merged:
+        notes.append(f"merged {merged} outline point(s) closer than the tolerance {tol:.3g}")
+    return rings, labels, notes
+
+
+def _pick_shapes(svg, source: str, element_id: str | None, keep=_filled) -> list:
+    """The shapes to mesh: those ``keep`` accepts (filled, or stroked with ``--stroke``),
+    in the element ``element_id`` if given."""
+    what = "filled" if keep is _filled else "stroked"
     if element_id is not None:
         found = svg.get_element_by_id(element_id)
         if found is None:
@@ -281,16 +381,22 @@ def _pick_shapes(svg, source: str, element_id: str | None) -> list:
             )
         if isinstance(found, se.Shape):
             return [found]
-        shapes = [e for e in found.select() if isinstance(e, se.Shape) and _filled(e)]
+        shapes = [e for e in found.select() if isinstance(e, se.Shape) and keep(e)]
         if not shapes:
-            raise InputError(f"{source}: element {element_id!r} holds no filled shape")
+            raise InputError(f"{source}: element {element_id!r} holds no {what} shape")
         return shapes
     every = [e for e in svg.elements() if isinstance(e, se.Shape)]
-    shapes = [e for e in every if _filled(e)]
+    shapes = [e for e in every if keep(e)]
     if not shapes:
+        hint = (
+            "give --id to mesh one of them"
+            if keep is _filled and not any(_stroked(e) for e in every)
+            else "give --stroke to mesh their strokes' outline"
+            if keep is _filled
+            else "mesh the filled shapes without --stroke"
+        )
         raise InputError(
-            f"{source}: no filled shape in the SVG ({len(every)} unfilled "
-            "shape(s)); give --id to mesh one of them"
+            f"{source}: no {what} shape in the SVG ({len(every)} un{what} shape(s)); " + hint
         )
     return shapes
 
