@@ -393,6 +393,8 @@ def run_triangulate(
             best = (*got, under)
         if under == 0 or not (thin or merged.filled):
             break  # (the bound kept, or nothing thin in this way: the next are alike)
+        if deadline.expired():
+            break  # (past the search's bound: the mesh in hand, not another way)
     mesh, edges, merged, better = best[:4]
     # the contract check and the summary read the mesh independently; numpy and
     # scipy release the GIL in their loops, so on two cores the pair takes about as
