@@ -15,6 +15,7 @@ overlap each other (each would be a separate mesh); ``--id`` picks one.
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import math
 import re
@@ -122,10 +123,7 @@ def parse_svg(
         c = make_contour(
             np.concatenate(rings), None, source, ring_starts=starts, ring_labels=labels
         )
-        return Contour(
-            c.points, c.lines, source, notes=tuple(notes), starts=c.starts,
-            ring_clockwise=c.ring_clockwise, depth=c.depth, ring_labels=c.ring_labels,
-        )  # fmt: skip
+        return dataclasses.replace(c, notes=tuple(notes))
 
     rings, labels, element, evenodd, notes = _collect_rings(
         shapes, tol, height, 1e-9 * diag, source
@@ -156,16 +154,7 @@ def parse_svg(
         f"read {len(kept)} ring(s) from {len(shapes)} SVG shape(s), curves "
         f"flattened to a chord tolerance of {tol:.3g}",
     )
-    return Contour(
-        c.points,
-        c.lines,
-        source,
-        notes=tuple(notes),
-        starts=c.starts,
-        ring_clockwise=c.ring_clockwise,
-        depth=c.depth,
-        ring_labels=c.ring_labels,
-    )
+    return dataclasses.replace(c, notes=tuple(notes))
 
 
 def _collect_rings(shapes, tol: float, height: float, eps: float, source: str):
