@@ -385,16 +385,15 @@ def run_triangulate(
     for thin, fill in ways:
         got = _merge_and_improve(placed, cut.edges, o, thin, fill)
         merged = got[2]
-        if merged is None or not o.improve:
-            best = got
+        if merged is None or not o.improve or deadline.expired():
+            # (past the search's bound: the mesh in hand, not another way)
+            best = best or got
             break
         under = forced.under_bound(got[0].points, got[0].triangles, got[0].lines)
         if best is None or under < best[4]:
             best = (*got, under)
         if under == 0 or not (thin or merged.filled):
             break  # (the bound kept, or nothing thin in this way: the next are alike)
-        if deadline.expired():
-            break  # (past the search's bound: the mesh in hand, not another way)
     mesh, edges, merged, better = best[:4]
     # the contract check and the summary read the mesh independently; numpy and
     # scipy release the GIL in their loops, so on two cores the pair takes about as

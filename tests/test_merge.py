@@ -3,12 +3,13 @@ contour nodes and the contract are unchanged, only the extra nodes and their
 triangles go, and a run is kept where no fair triangulation exists."""
 
 import json
+import time
 
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 
-from deformesh_cli import mesh_contour
+from deformesh_cli import deadline, mesh_contour
 from deformesh_cli.contour import make_contour
 from deformesh_cli.errors import FoldError, LimitError, SelectionError
 from deformesh_cli.geometry import signed_area, signed_areas
@@ -43,6 +44,16 @@ def test_an_extra_node_is_taken_out_and_the_boundary_joined():
     assert (signed_areas(mesh.points, mesh.triangles) > 0).all()
     assert signed_areas(mesh.points, mesh.triangles).sum() == pytest.approx(1.0)
     assert len(mesh.triangles) == 4
+
+
+def test_merging_stops_once_the_search_bound_has_passed():
+    """Past the time bound (:mod:`deformesh_cli.deadline`) the runs left keep their
+    extra nodes: the mesh in hand is valid, and the answer comes in time."""
+    with deadline.limit(0.0):
+        time.sleep(0.01)
+        mesh, done = merge_extra_nodes(_square_with_extra(0.5))
+    assert (done.merged, done.left) == (0, 1) and mesh.n_extra == 1
+    assert merge_extra_nodes(_square_with_extra(0.5))[1].merged == 1  # (without the bound)
 
 
 def test_a_run_without_a_fair_triangulation_stays(monkeypatch):
@@ -147,3 +158,50 @@ def test_merging_counts_extra_nodes_only_and_keeps_the_contract():
     assert len(mesh.points) <= len(kept.mesh.points) - done.merged + done.added
     check_contract(mesh, c)
     assert np.array_equal(mesh.points[: c.n], c.points)
+
+
+#: A random star (hypothesis found it) whose adapted-grid mesh has a cavity with an
+#: extra node of the next run on a straight side: qhull left that vertex out of the
+#: fill's Delaunay triangulation, the fill was taken without it, and the next pass
+#: met an extra node with no triangle (a KeyError).
+STAR_WITH_A_LOST_VERTEX = [
+    (0.995749856, 0.091990354),
+    (0.523875183, 0.0911074974),
+    (0.85048033, 0.423300376),
+    (0.232121065, 0.199374195),
+    (0.537336425, 0.696496258),
+    (0.171397371, 0.424968605),
+    (0.0562892547, 0.640986238),
+    (-0.0370467425, 0.608005671),
+    (-0.0310108523, 0.118809518),
+    (-0.117202945, 0.347848703),
+    (-0.0597211652, 0.12649054),
+    (-0.385779057, 0.399195202),
+    (-0.680696758, 0.441901259),
+    (-0.318728558, 0.0975869741),
+    (-0.923885517, 0.0502066829),
+    (-0.374042869, -0.108566132),
+    (-0.780184394, -0.288838373),
+    (-0.186425502, -0.128406316),
+    (-0.139935247, -0.142892011),
+    (-0.612094831, -0.718978604),
+    (-0.038097947, -0.0924583497),
+    (-0.0225880369, -0.146783487),
+    (0.140663472, -0.709659343),
+    (0.259250599, -0.908663125),
+    (0.0790956928, -0.131107937),
+    (0.137924621, -0.11472043),
+    (0.46249073, -0.209753697),
+    (0.412231614, -0.116950568),
+    (0.621470601, -0.117601157),
+    (0.625087966, -1.53102395e-16)
+]
+
+
+def test_a_fill_that_leaves_out_a_cavity_vertex_is_not_taken():
+    c = make_contour(np.array(STAR_WITH_A_LOST_VERTEX), source="star")
+    res = mesh_contour(c, max_nodes=MAX_NODES)
+    used = np.zeros(len(res.mesh.points), dtype=bool)
+    used[res.mesh.triangles.ravel()] = True
+    assert used.all()
+    check_contract(res.mesh, c)
