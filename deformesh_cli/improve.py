@@ -36,12 +36,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import deadline
 from .forced import corner_angles
 from .geometry import node_stars, touching
 from .merge import clear_sharp_corners
 from .mesh import Mesh
 
-#: Rounds of (flips, smoothing, cavities) at most; a round that changes nothing ends it.
+#: Rounds of (flips, smoothing, cavities) at most; a round that changes nothing ends it,
+#: and so does one that ends past the search's time bound (:mod:`.deadline`).
 ROUNDS = 16
 #: Triangles whose smallest angle is under this (degrees) are worked on, with their
 #: neighbours; the others are left as they are.
@@ -159,6 +161,8 @@ def improve(
         stats.cavities += cavities
         if flips == 0 and moves == 0 and cavities == 0:
             break
+        if deadline.expired():
+            break  # (past the search's time bound: the mesh as this round left it)
     stats.weak = np.flatnonzero(tan < np.tan(np.radians(30.0)))
     m = len(mesh.triangles)
     idx = np.flatnonzero(touched[:m])  # changed at some point; maybe flipped back

@@ -345,3 +345,21 @@ def test_nodes_are_added_where_only_boundary_nodes_bound_a_triangle():
     assert np.array_equal(better.mesh.points[: c.n], c.points)
     assert better.report["min_angle"] > 18  # measured 18.6
     check_contract(better.mesh, c)
+
+
+def test_past_the_time_bound_the_stage_stops_after_its_round():
+    """The quality stage ends its rounds once the search's time bound has passed (the
+    mesh as the last round left it: valid, the contract kept)."""
+    import time
+
+    from deformesh_cli import deadline
+
+    c = load_contour(SAMPLES / "bracket.svg")
+    plain = pipeline.mesh_contour(c, improve=False).mesh
+    assert improve.improve(plain)[1].rounds > 1
+    with deadline.limit(0.0):
+        time.sleep(0.01)
+        mesh, stats = improve.improve(plain)
+    assert stats.rounds == 1
+    assert (signed_areas(mesh.points, mesh.triangles) > 0).all()
+    check_contract(mesh, c)
