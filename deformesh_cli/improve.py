@@ -499,19 +499,15 @@ def _move(pts, tri, nodes, inc, slot) -> int:
     a = tri[t, (slot + 1) % 3]  # the two other corners, counter-clockwise after the node
     b = tri[t, (slot + 2) % 3]
     ax, ay, bx, by = pts[a, 0], pts[a, 1], pts[b, 0], pts[b, 1]  # (n, d)
-    pad = ~valid
+    # each node's triangles one after the other, without the padding (a node of high
+    # valence pads every other node's row to its width)
+    row = np.nonzero(valid)[0]
+    first = np.concatenate([[0], np.cumsum(valid.sum(axis=1))[:-1]])
+    fax, fay, fbx, fby = (v[valid][:, None] for v in (ax, ay, bx, by))
 
     def quality(px, py):  # (n, c) candidate positions -> (n, c) tan of the smallest angle
-        q = tan_min_angle(
-            px[:, :, None],
-            py[:, :, None],
-            ax[:, None, :],
-            ay[:, None, :],
-            bx[:, None, :],
-            by[:, None, :],
-        )
-        q[np.broadcast_to(pad[:, None, :], q.shape)] = np.inf
-        return q.min(axis=2)
+        q = tan_min_angle(px[row], py[row], fax, fay, fbx, fby)
+        return np.minimum.reduceat(q, first, axis=0)
 
     px, py = pts[nodes, 0].copy(), pts[nodes, 1].copy()
     best = quality(px[:, None], py[:, None])[:, 0]

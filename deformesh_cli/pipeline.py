@@ -99,6 +99,14 @@ GRADED_ATTEMPTS = (
 EXTRA_ENOUGH = 0.02
 
 
+#: A fallback grid's selection with more extra boundary nodes than this many per
+#: contour point is not meshed (``all`` goes on to the next, or refuses): on combs and
+#: spikes the uniform grid's path took 100 to 1,500 a point, and their meshes of up to
+#: 9e6 triangles 20 to 60 s (``benchmarks/MEASURED.md``).  ``--grid uniform`` meshes
+#: them still.
+MAX_FALLBACK_EXTRA = 100
+
+
 #: A contour of at most this many points tries every graded way with extra nodes
 #: and keeps the best mesh, even after one with none left; a larger one stops there.
 EXTRA_WAYS_POINTS = 1000
@@ -167,14 +175,26 @@ def candidate_selections(
     if fall_back is not None and not fall_back():
         return
     mode = fallback_mode(contour, o.exterior)
+    grid = {"adapt": "adapted"}.get(mode, mode)
+    too_many = None
     try:
         for sel in _ungraded(contour, o, mode):
+            if sel.extra_nodes > MAX_FALLBACK_EXTRA * contour.n:
+                kind = "adapted" if sel.h_rule == "typical-spacing" else "uniform"
+                too_many = too_many or (kind, sel.extra_nodes)
+                continue
             sel.notes.insert(0, f"{fell_back}: fell back to the {mode} grid")
             yield sel
     except deadline.TimeUp as exc:  # (what the graded grid met says most)
-        grid = {"adapt": "adapted"}.get(mode, mode)
         exc.add_note(f"{fell_back}, and the {grid} grid found none in time")
         raise
+    if too_many is not None:
+        raise LimitError(
+            f"{contour.source}: {fell_back}, and the {too_many[0]} grid's path needs "
+            f"{too_many[1]:,} extra boundary nodes for {contour.n} points (over "
+            f"{MAX_FALLBACK_EXTRA} a point); re-space the contour (--resample), or give "
+            "--grid uniform to mesh it so"
+        )
 
 
 def _ungraded(contour: Contour, o: MeshOptions, mode: str) -> Iterator[Selection]:
@@ -390,7 +410,7 @@ def run_triangulate(
             best = best or got
             break
         under = forced.under_bound(got[0].points, got[0].triangles, got[0].lines)
-        if best is None or under < best[4]:
+        if best is None or (under, got[0].n_extra) < (best[4], best[0].n_extra):
             best = (*got, under)
         if under == 0 or not (thin or merged.filled):
             break  # (the bound kept, or nothing thin in this way: the next are alike)
@@ -435,10 +455,15 @@ def run_triangulate(
 
 #: How stage 3 merges extra nodes, in turn, while the quality stage leaves triangles
 #: under its bound: ``(thin, fill)`` for :func:`.merge.merge_extra_nodes`, on a
-#: graded path's extra nodes (True) and on the other grids' (False).
+#: graded path's extra nodes (True) and on the other grids' (False).  Of the ways
+#: tried, the mesh with the fewest triangles under the bound is kept, then the one
+#: with the fewest extra nodes left.  On the other grids the thin way without new
+#: points comes second: a thin bar with a few far-apart points (icon_si_x) has no
+#: fill of new points that keeps the bound, and no 20-degree triangulation of its
+#: cavities, but one down to 1 degree that keeps it (``benchmarks/MEASURED.md``).
 MERGE_WAYS = {
     True: ((True, True), (False, True), (True, False)),
-    False: ((False, True), (False, False)),
+    False: ((False, True), (True, False), (False, False)),
 }
 
 

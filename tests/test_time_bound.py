@@ -60,3 +60,23 @@ def test_the_search_stops_at_the_bound(monkeypatch):
     with deadline.limit(0.1), deadline.limit(100):  # an enclosing bound that ends sooner stays
         time.sleep(0.15)
         assert deadline.expired()
+
+
+def test_a_fallback_path_with_too_many_extra_nodes_is_refused(run, tmp_path, monkeypatch):
+    """A fallback grid's path with more extra boundary nodes than
+    ``MAX_FALLBACK_EXTRA`` a point is refused in one line, before it is deformed
+    (the X icon's adapted and uniform paths have 4 or more a point: set to 1 here)."""
+    from deformesh_cli import pipeline
+
+    from .conftest import ROOT
+
+    monkeypatch.setattr(pipeline, "MAX_FALLBACK_EXTRA", 1)
+    x = ROOT / "tests" / "data" / "corpus" / "icon_si_x.svg"
+    out = tmp_path / "m.msh"
+    r = run("all", x, "-o", out)
+    assert r.exit_code == 1 and r.stderr.count("\n") == 1, r.stderr
+    assert "extra boundary nodes for 20 points (over 1 a point)" in r.stderr
+    assert r.stderr.startswith(f"deformesh: error: {x}: the graded grid did not work here")
+    assert not out.exists()
+    monkeypatch.setattr(pipeline, "MAX_FALLBACK_EXTRA", 100)
+    assert run("all", x, "-o", out, "-q").exit_code == 0

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import deadline
 from ..contour import Contour
 from ..errors import SelectionError
 from ..geometry import next_on_ring
@@ -77,6 +78,7 @@ def measure_all(tree: graded.Quadtree, polys: list) -> list:
         u0 = (np.arange(int(nsub.sum())) - np.repeat(np.cumsum(nsub) - nsub, nsub)) / k
         mid = poly[e] + (u0 + 0.5 / k)[:, None] * d[e]
         cut.append((arc, linf, e, k, u0, mid))
+    deadline.check()
     ends = np.cumsum([len(c[5]) for c in cut])
     leaves = np.split(leaf_at(tree, np.concatenate([c[5] for c in cut])), ends[:-1])
     out = []
@@ -119,6 +121,7 @@ def fit_tree(contour: Contour, tree: graded.Quadtree, max_nodes: int | None = No
     parts = pieces(contour)
     rho = np.zeros(len(parts))
     for _ in range(ROUNDS):
+        deadline.check()  # (a round on a fine tree of a comb's slots: seconds)
         todo = []
         measured = measure_all(tree, [(poly, arc) for _, _, _, poly, arc in parts])
         for p, ((_, i, j, _, _), (mu, _, leaf, dmu)) in enumerate(zip(parts, measured)):

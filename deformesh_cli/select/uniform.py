@@ -541,6 +541,10 @@ def build_path(
     )
 
 
+#: :func:`_route` checks the search's time bound after this many nodes.
+CHECK_EVERY = 4096
+
+
 def _route(grid: Grid, a, b, used: set[int], pad: int = 2) -> list[int] | None:
     """Interior nodes of the shortest 8-connected route a -> b avoiding ``used``.
 
@@ -562,8 +566,12 @@ def _route(grid: Grid, a, b, used: set[int], pad: int = 2) -> list[int] | None:
     best = {a: 0.0}
     came: dict = {}
     heap = [(0.0, a)]
+    pops = 0
     while heap:
         cost, u = heapq.heappop(heap)
+        pops += 1
+        if pops % CHECK_EVERY == 0:
+            deadline.check()  # (a window of a long edge on a fine grid: millions of cells)
         if u == b:
             out = []
             while came[u] != a:
