@@ -135,9 +135,7 @@ def triangle_bound(
     if tree is None:
         tree = line_tree(points, lines)
     t, e = _near_edges(points, tri, tree, reach)
-    out = np.full(len(tri), 60.0)
-    np.minimum.at(out, t, forced[e])
-    return out
+    return _smallest_near(len(tri), t, e, forced)
 
 
 def line_tree(points: np.ndarray, lines: np.ndarray):
@@ -200,8 +198,7 @@ def under_bound(points: np.ndarray, tri: np.ndarray, lines: np.ndarray) -> int:
     which[e] = True
     forced = np.full(len(lines), 60.0)
     forced[which] = edge_bounds(points, lines, which=which)
-    bound = np.full(len(low), 60.0)  # as triangle_bound gives it
-    np.minimum.at(bound, t, forced[e])
+    bound = _smallest_near(len(low), t, e, forced)
     return int(np.count_nonzero(ang[low] < np.minimum(30.0, bound) / 3))
 
 
@@ -216,3 +213,11 @@ def _near_edges(points: np.ndarray, tri: np.ndarray, tree, reach: float = 1.0):
     longest = np.sqrt(np.max(((p - np.roll(p, 1, axis=1)) ** 2).sum(axis=2), axis=1))
     polys = shapely.polygons(np.concatenate([p, p[:, :1]], axis=1))
     return tree.query(polys, predicate="dwithin", distance=reach * longest)
+
+
+def _smallest_near(count: int, t: np.ndarray, e: np.ndarray, forced: np.ndarray) -> np.ndarray:
+    """For each of ``count`` triangles, the smallest ``forced[e]`` over its pairs
+    ``(t, e)`` from :func:`_near_edges` (60 where it has none)."""
+    out = np.full(count, 60.0)
+    np.minimum.at(out, t, forced[e])
+    return out

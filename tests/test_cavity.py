@@ -6,7 +6,7 @@ import shapely
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from deformesh_cli.cavity import _recover, fill
+from deformesh_cli.cavity import _delaunay, _recover, fill
 from deformesh_cli.geometry import signed_areas
 from deformesh_cli.quality import measures
 
@@ -95,3 +95,22 @@ def test_the_long_edge_cavity_shape_is_what_merge_sees():
     p = long_edge_cavity(6.0, 1.0, 6)
     assert shapely.Polygon(p).is_valid and shapely.Polygon(p).exterior.is_ccw
     check_fill(p)
+
+
+def test_a_triangulation_without_one_of_the_vertices_is_refused(monkeypatch):
+    """qhull may leave out a vertex lying on a straight side (seen on a cavity along a
+    contour edge, its points there only to the nearest double): the triangles then
+    cover the polygon, but without that vertex, and no flip can put the side back."""
+    import scipy.spatial
+
+    p = np.array([[0, 0], [1, 0], [2, 0], [2, 1], [0, 1]], dtype=float)  # (1, 0) on a side
+    edges = np.column_stack([np.arange(5), (np.arange(5) + 1) % 5])
+    poly = shapely.Polygon(p)
+
+    class WithoutVertex1:
+        def __init__(self, pts):
+            self.simplices = np.array([[0, 2, 3], [0, 3, 4]])
+
+    assert _delaunay(p, np.empty((0, 2)), edges, poly) is not None  # (qhull keeps it here)
+    monkeypatch.setattr(scipy.spatial, "Delaunay", WithoutVertex1)
+    assert _delaunay(p, np.empty((0, 2)), edges, poly) is None

@@ -10,8 +10,9 @@ import meshio
 import numpy as np
 import pytest
 
-from deformesh_cli import deadline
+from deformesh_cli import deadline, pipeline
 
+from .conftest import ROOT
 from .independent import contract_problems
 from .random_polygons import KINDS, write_csv
 
@@ -66,10 +67,6 @@ def test_a_fallback_path_with_too_many_extra_nodes_is_refused(run, tmp_path, mon
     """A fallback grid's path with more extra boundary nodes than
     ``MAX_FALLBACK_EXTRA`` a point is refused in one line, before it is deformed
     (the X icon's adapted and uniform paths have 4 or more a point: set to 1 here)."""
-    from deformesh_cli import pipeline
-
-    from .conftest import ROOT
-
     monkeypatch.setattr(pipeline, "MAX_FALLBACK_EXTRA", 1)
     x = ROOT / "tests" / "data" / "corpus" / "icon_si_x.svg"
     out = tmp_path / "m.msh"
