@@ -41,6 +41,7 @@ one triangle there with the corner's whole angle.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -271,10 +272,25 @@ def _outline(cavity: np.ndarray, a: int, b: int, run: set[int]) -> list[int] | N
     return ring
 
 
+#: Cavity outlines whose best triangulation is kept for the next time it is asked
+#: for: each merge pass, and each of stage 3's merge ways, asks again for the runs
+#: it could not merge (coast_norway: 3,375 asks for 1,175 outlines,
+#: ``benchmarks/MEASURED.md``).
+KEEP_TRIANGULATIONS = 8192
+
+
 def _best_triangulation(p: np.ndarray) -> tuple[np.ndarray, float] | None:
     """The triangulation of the simple counter-clockwise polygon ``p`` (k, 2) whose
     smallest angle is largest (dynamic programming over its chords), as ``(triangles
-    in local indices, smallest angle)``; None if none has positive areas."""
+    in local indices (read-only), smallest angle)``; None if none has positive
+    areas.  A function of ``p``'s coordinates only, so the answers are kept
+    (:data:`KEEP_TRIANGULATIONS`)."""
+    return _best_triangulation_of(np.ascontiguousarray(p, dtype=np.float64).tobytes())
+
+
+@functools.lru_cache(maxsize=KEEP_TRIANGULATIONS)
+def _best_triangulation_of(key: bytes) -> tuple[np.ndarray, float] | None:
+    p = np.frombuffer(key, dtype=np.float64).reshape(-1, 2)
     k = len(p)
     if k < 3:
         return None
@@ -307,7 +323,9 @@ def _best_triangulation(p: np.ndarray) -> tuple[np.ndarray, float] | None:
         m = int(pick[i, j])
         out.append((i, m, j))
         todo += [(i, m), (m, j)]
-    return np.array(out, dtype=np.int64), float(best[0, k - 1])
+    local = np.array(out, dtype=np.int64)
+    local.flags.writeable = False  # (kept, and handed out again)
+    return local, float(best[0, k - 1])
 
 
 def _chords(p: np.ndarray) -> np.ndarray:

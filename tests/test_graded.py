@@ -669,3 +669,21 @@ def test_solving_a_window_again_keeps_the_rest_and_finds_a_valid_path():
         full = gp._viterbi(cand, cost, steps)
         assert total(full) <= total(got) + 1e-9
         cost[:] = cost_saved
+
+
+def test_a_point_with_no_step_to_the_next_is_refused_before_the_search(monkeypatch):
+    # a star icon as given: its tips sit on cells too fine for the long edges beside
+    # them, so some points have no candidate next to the next one's
+    from deformesh_cli.errors import SelectionError
+    from deformesh_cli.select import graded_path as gp
+
+    c = load_contour(CORPUS / "icon_bi_star-fill.svg")
+    searched = []
+    real = gp._viterbi
+    monkeypatch.setattr(gp, "_viterbi", lambda *a: searched.append(1) or real(*a))
+    with pytest.raises(SelectionError, match="a neighbour of the next"):
+        gp.select_graded(c)
+    assert not searched  # (the assignment was not searched for)
+    # where every point has a step, the search runs as before
+    gp.select_graded(load_contour(SAMPLES / "circle.csv"))
+    assert searched

@@ -82,6 +82,21 @@ def test_a_cavity_grows_to_take_out_the_inner_node_hugging_the_edge():
     assert signed_areas(mesh.points, mesh.triangles).sum() == pytest.approx(1.0)
 
 
+def test_a_kept_triangulation_is_the_one_computed_afresh():
+    import deformesh_cli.merge as merge
+
+    p = np.array([[0, 0], [2, 0], [3, 1], [2, 2], [0.5, 2.5], [-1, 1]], dtype=float)
+    first = merge._best_triangulation(p)
+    assert merge._best_triangulation(p.copy()) is first  # kept: asked again, not solved
+    fresh = merge._best_triangulation_of.__wrapped__(p.tobytes())
+    assert np.array_equal(first[0], fresh[0]) and first[1] == fresh[1]
+    with pytest.raises(ValueError):
+        first[0][0, 0] = 5  # handed out again: nobody may change it
+    moved = p.copy()
+    moved[2] = (1, 1)  # another polygon, another answer (a reflex vertex)
+    assert merge._best_triangulation(moved) is not first
+
+
 def test_nothing_to_do_without_extra_nodes():
     m = _square_with_extra(0.5)
     m.n_extra = 0

@@ -679,7 +679,7 @@ def _assign(
             # (without, the whole ring is solved again, as it always was)
             pick = _resolve(cost, steps, pick, changed) if graph is not None else None
         if pick is None:
-            pick = _viterbi(cand, cost, steps)
+            pick = _viterbi(cand, cost, steps) if steps.every_point_steps() else None
         path = None if pick is None else cand[np.arange(m), pick]
         changed = []
         if path is None:
@@ -753,6 +753,12 @@ class _Steps:
     def step(self, t):
         """Steps ``cand[t, i] -> cand[t + 1, j]`` allowed (neighbours, or through nodes)."""
         return self.adj[t] | (self.hops[t] > 0)
+
+    def every_point_steps(self) -> bool:
+        """Each point has some step to the next (else no assignment exists, and
+        :func:`_viterbi` need not look: the graded grid's usual failure, a contour edge
+        longer than its neighbours' cells)."""
+        return bool((self.adj | (self.hops > 0)).any(axis=(1, 2)).all())
 
     def jump(self, t):
         return np.where(~self.adj[t] & (self.hops[t] > 0), EXTRA_COST * (self.hops[t] - 1), 0.0)
