@@ -618,12 +618,13 @@ def test_a_route_is_shortest_cuts_no_corner_and_avoids_banned_steps():
     c, prep, gp = _laid()
     pts, free = prep.grid.points, prep.free
     g = gp._Graph(prep.edges, prep.plain.turn_keys, len(pts))
+    xy = pts.tolist()
     a = int(np.flatnonzero(free)[len(pts) // 3])
     dist = _bfs(prep, free, a)
     ends = [v for v, d in dist.items() if d == 4 and free[v]][:5]
     assert ends
     for b in ends:
-        route = gp._route(a, b, -1, -1, g.neighbours, free, set(), pts, pts[a], pts[b], g.cuts)
+        route = gp._route(a, b, -1, -1, g.neighbours, free, set(), xy, pts[a], pts[b], g.cuts)
         assert route is not None and len(route) == 3
         walk = [a, *route, b]
         for x, y in zip(walk, walk[1:]):
@@ -632,7 +633,7 @@ def test_a_route_is_shortest_cuts_no_corner_and_avoids_banned_steps():
             assert not g.cuts(x, y, z)
         n = len(pts)
         ban = {min(a, route[0]) * n + max(a, route[0])}
-        other = gp._route(a, b, -1, -1, g.neighbours, free, set(), pts, pts[a], pts[b], g.cuts, ban)
+        other = gp._route(a, b, -1, -1, g.neighbours, free, set(), xy, pts[a], pts[b], g.cuts, ban)
         if other is not None:
             assert other[0] != route[0]
 

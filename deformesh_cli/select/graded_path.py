@@ -30,6 +30,7 @@ the other grids.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -239,7 +240,7 @@ def select_graded(
     turns, free = plain.turn_keys, prep.free
     grid = GradedGrid(prep.grid.tree, prep.grid.points)
     points = grid.points
-    graph = _Graph(edges, turns, len(points)) if extra else None
+    graph = _Graph(edges, turns, len(points), points) if extra else None
     banned: set[int] = set()  # steps (node pair keys) found to cross or cut the path
     for _ in range(BAN_ROUNDS):
         try:
@@ -495,8 +496,10 @@ def _hop_counts(edges: np.ndarray, n: int, free: np.ndarray, cand: np.ndarray) -
 class _Graph:
     """The grid's edges as Python sets, for the route search's many small questions."""
 
-    def __init__(self, edges: np.ndarray, turns: np.ndarray, n: int):
+    def __init__(self, edges: np.ndarray, turns: np.ndarray, n: int, points=None):
         self.n = n
+        #: the nodes' coordinates as Python pairs (for :func:`_route`), if given
+        self.xy = None if points is None else points.tolist()
         self.edge_keys = set(edges.tolist())
         #: each ring's assignment as last laid, keyed by its first point and the free
         #: nodes (:func:`_assign`)
@@ -515,7 +518,7 @@ class _Graph:
         if x == z:
             return True
         n = self.n
-        if min(x, z) * n + max(x, z) not in self.edge_keys:
+        if (x * n + z if x < z else z * n + x) not in self.edge_keys:
             return False
         return (x * n + y) * n + z not in self.turn_keys
 
@@ -544,6 +547,8 @@ def _through(
     if not gap.any():
         return path, order, q
     neighbours, cuts = graph.neighbours, graph.cuts
+    xy = points.tolist() if graph.xy is None else graph.xy
+    open_ = free.tolist()  # (a list answers one node at a time faster)
     taken = set(path.tolist())
 
     nodes, sources, targets, failed = [], [], [], []
@@ -560,7 +565,7 @@ def _through(
         after = -1 if gap[(t + 1) % len(path)] else int(path[(t + 2) % len(path)])
         limit = MAX_HOPS if far is None else max(MAX_HOPS, int(far[t]))
         route = _route(
-            a, b, before, after, neighbours, free, taken, points, qa, qb, cuts, banned, limit
+            a, b, before, after, neighbours, open_, taken, xy, qa, qb, cuts, banned, limit
         )
         if route is None:
             failed.append(t)
@@ -583,7 +588,7 @@ def _route(
     neighbours,
     free,
     taken,
-    points,
+    xy,
     qa,
     qb,
     cuts,
@@ -596,24 +601,28 @@ def _route(
     (``cuts(x, y, z)``), from the path node ``before`` ``a`` to the one ``after``
     ``b``, none of its steps ``banned``; of the shortest, the one nearest the segment
     ``qa - qb``.  A search over (previous node, node) states, so its work is bounded
-    by the nodes within reach."""
+    by the nodes within reach.  ``xy``: the nodes' coordinates, as Python pairs."""
     import heapq
 
-    d = qb - qa
-    length2 = float(d @ d) or 1.0
+    # (in Python floats: numpy's arithmetic on single points costs ten times more)
+    ax, ay = float(qa[0]), float(qa[1])
+    dx, dy = float(qb[0]) - ax, float(qb[1]) - ay
+    length2 = dx * dx + dy * dy or 1.0
     memo: dict[int, float] = {}
 
     def off(w):
-        if w not in memo:
-            u = min(max(float((points[w] - qa) @ d) / length2, 0.0), 1.0)
-            memo[w] = float(np.hypot(*(points[w] - (qa + u * d))))
-        return memo[w]
+        got = memo.get(w)
+        if got is None:
+            px, py = xy[w]
+            u = min(max(((px - ax) * dx + (py - ay) * dy) / length2, 0.0), 1.0)
+            got = memo[w] = math.hypot(px - (ax + u * dx), py - (ay + u * dy))
+        return got
 
     start = (before, a)
     best = {start: (0, 0.0)}
     parent: dict = {start: None}
     heap = [(0, 0.0, before, a)]
-    n = len(points)
+    n = len(xy)
     while heap:
         hops, dist, x, y = heapq.heappop(heap)
         if best.get((x, y)) != (hops, dist):
@@ -623,7 +632,7 @@ def _route(
             and b in neighbours.get(y, ())
             and not cuts(x, y, b)
             and not cuts(y, b, after)
-            and min(y, b) * n + max(y, b) not in banned
+            and (y * n + b if y < b else b * n + y) not in banned
         ):
             route, state = [], (x, y)
             while state != start:
@@ -634,9 +643,9 @@ def _route(
         if hops > limit:  # (with the step to b, the route would exceed limit + 2)
             continue
         for w in neighbours.get(y, ()):
-            if not free[w] or w in taken or w == x or cuts(x, y, w):
+            if w == x or w in taken or not free[w] or cuts(x, y, w):
                 continue
-            if min(y, w) * n + max(y, w) in banned:
+            if (y * n + w if y < w else w * n + y) in banned:
                 continue
             key, value = (y, w), (hops + 1, dist + off(w))
             if key not in best or value < best[key]:
