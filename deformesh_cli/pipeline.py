@@ -92,6 +92,22 @@ GRADED_ATTEMPTS = (
 )
 
 
+#: :data:`GRADED_ATTEMPTS` for a contour of more than :data:`EXTRA_WAYS_POINTS` points:
+#: the points as given with extra nodes comes second, before the slid and fitted grids
+#: without.  Such a contour stops at the first mesh with no extra node left that keeps
+#: the bound, and on the corpus's large coastlines the slid and fitted grids never had
+#: a path without extra nodes where that one meshed; laying them cost a third of the
+#: run (coast_india: 1.2 s of 3.6 s, ``benchmarks/MEASURED.md``).
+GRADED_ATTEMPTS_LARGE = (
+    {},
+    {"extra": True},
+    {"slide": True},
+    {"fit": True},
+    {"slide": True, "extra": True},
+    {"fit": True, "extra": True},
+)
+
+
 #: ``all`` keeps a graded mesh whose extra boundary nodes did not all merge, without
 #: trying the fallback grid, when they are at most this share of the contour's points
 #: (the fallback grids split more edges on every corpus contour measured, and their
@@ -158,7 +174,8 @@ def candidate_selections(
         )
 
     # as given, slid, fitted to the points; then with extra boundary nodes
-    attempts = [a for a in GRADED_ATTEMPTS if not (o.strict and a.get("extra"))]
+    order = GRADED_ATTEMPTS_LARGE if contour.n > EXTRA_WAYS_POINTS else GRADED_ATTEMPTS
+    attempts = [a for a in order if not (o.strict and a.get("extra"))]
     fell_back = None
     for attempt in attempts:
         deadline.check()

@@ -688,3 +688,26 @@ def test_a_point_with_no_step_to_the_next_is_refused_before_the_search(monkeypat
     # where every point has a step, the search runs as before
     gp.select_graded(load_contour(SAMPLES / "circle.csv"))
     assert searched
+
+
+@pytest.mark.parametrize("n", [1000, 1001])
+def test_a_large_contour_tries_extra_nodes_on_its_own_grid_second(monkeypatch, n):
+    from deformesh_cli import pipeline
+    from deformesh_cli.errors import SelectionError
+
+    tried = []
+
+    def refuse(contour, **kw):
+        tried.append({k: True for k in ("slide", "fit", "extra") if kw.get(k)})
+        raise SelectionError("no path")
+
+    monkeypatch.setattr(pipeline, "select_graded", refuse)
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    c = make_contour(np.column_stack([np.cos(t), np.sin(t)]), source="circle")
+    assert list(pipeline.candidate_selections(c, fall_back=lambda: False)) == []
+    want = pipeline.GRADED_ATTEMPTS if n <= pipeline.EXTRA_WAYS_POINTS else (
+        {}, {"extra": True}, {"slide": True}, {"fit": True},
+        {"slide": True, "extra": True}, {"fit": True, "extra": True},
+    )  # fmt: skip
+    assert tried == list(want)
+    assert sorted(map(str, tried)) == sorted(map(str, pipeline.GRADED_ATTEMPTS))  # all, once
