@@ -419,13 +419,18 @@ def run_triangulate(
     if not o.improve:  # (filling counts on the quality stage, and on the check after it)
         ways = ways[-1:]
     best = None
+    unfilled = set()  # ``thin`` of the ways that filled no cavity: without fill, the same
     for thin, fill in ways:
+        if not fill and thin in unfilled:
+            continue  # (it would give the mesh already measured)
         got = _merge_and_improve(placed, cut.edges, o, thin, fill)
         merged = got[2]
         if merged is None or not o.improve or deadline.expired():
             # (past the search's bound: the mesh in hand, not another way)
             best = best or got
             break
+        if fill and not merged.filled:
+            unfilled.add(thin)
         under = forced.under_bound(got[0].points, got[0].triangles, got[0].lines)
         if best is None or (under, got[0].n_extra) < (best[4], best[0].n_extra):
             best = (*got, under)

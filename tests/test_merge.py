@@ -16,6 +16,7 @@ from deformesh_cli.geometry import signed_area, signed_areas
 from deformesh_cli.merge import MIN_ANGLE, merge_extra_nodes
 from deformesh_cli.mesh import Mesh
 from deformesh_cli.quality import check_contract, measures
+from deformesh_cli.readers import load_contour
 
 from .conftest import ROOT, SAMPLES
 from .test_properties import MAX_NODES, star_polygons
@@ -220,3 +221,32 @@ def test_a_fill_that_leaves_out_a_cavity_vertex_is_not_taken():
     used[res.mesh.triangles.ravel()] = True
     assert used.all()
     check_contract(res.mesh, c)
+
+
+def test_a_merge_way_that_would_repeat_one_measured_is_not_run(monkeypatch):
+    # airfoil_e387: its graded mesh's extra nodes all merge down to 1 degree without
+    # filling a cavity, and the quality stage leaves a triangle under the bound, so
+    # the ways after the first are asked for; without new points the thin way would
+    # give the very mesh the first gave
+    from deformesh_cli import pipeline
+
+    real, real_stage = pipeline._merge_and_improve, pipeline.run_triangulate
+    runs = []  # per stage 3 run: its ways, with the cavities each filled
+
+    def stage(*a, **k):
+        runs.append([])
+        return real_stage(*a, **k)
+
+    def record(mesh, edges, o, thin, fill):
+        got = real(mesh, edges, o, thin, fill)
+        runs[-1].append((thin, fill, got[2].filled if got[2] is not None else None))
+        return got
+
+    monkeypatch.setattr(pipeline, "run_triangulate", stage)
+    monkeypatch.setattr(pipeline, "_merge_and_improve", record)
+    mesh_contour(load_contour(CORPUS / "airfoil_e387.csv"))
+    assert any(len(w) > 1 and w[0] == (True, True, 0) for w in runs)  # (the case)
+    for ways in runs:
+        for k, (thin, fill, _) in enumerate(ways):
+            if not fill:
+                assert not any(t == thin and f and done == 0 for t, f, done in ways[:k])
