@@ -363,3 +363,22 @@ def test_past_the_time_bound_the_stage_stops_after_its_round():
     assert stats.rounds == 1
     assert (signed_areas(mesh.points, mesh.triangles) > 0).all()
     check_contract(mesh, c)
+
+
+def test_the_smoothing_measure_is_tan_min_angle_bit_for_bit():
+    from deformesh_cli.improve import _apex_quality, tan_min_angle
+
+    rng = np.random.default_rng(7)
+    counts = rng.integers(1, 9, size=40)  # triangles per node
+    row = np.repeat(np.arange(len(counts)), counts)
+    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    a, b = rng.normal(size=(2, len(row), 2))
+    b[::7] = a[::7]  # a side of length 0
+    px, py = rng.normal(size=(2, len(counts), 8)) * 2  # some make clockwise triangles
+    px[::5, 0], py[::5, 0] = a[first[::5], 0], a[first[::5], 1]  # on a corner: flat
+    got = _apex_quality(row, first, a[:, :1], a[:, 1:], b[:, :1], b[:, 1:])(px, py)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        each = tan_min_angle(px[row], py[row], a[:, :1], a[:, 1:], b[:, :1], b[:, 1:])
+    want = np.minimum.reduceat(each, first, axis=0)
+    assert np.isneginf(want).any() and np.isfinite(want).any()
+    assert np.array_equal(got, want)
