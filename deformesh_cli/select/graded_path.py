@@ -825,7 +825,7 @@ def _viterbi(cand, cost, steps: _Steps) -> np.ndarray | None:
         tot = d[:, :, :, None] + w[t][None]
         i = np.argmin(tot, axis=1)  # (s, j, l)
         back[t + 1] = i
-        d = np.take_along_axis(tot, i[:, None, :, :], axis=1)[:, 0] + cost[t + 1][None, None, :]
+        d = tot.min(axis=1) + cost[t + 1][None, None, :]  # (the argmin's values)
     # close the ring: last -> first, and the triples around the start
     close = d.copy()
     last = m - 1
