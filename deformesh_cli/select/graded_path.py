@@ -749,10 +749,14 @@ class _Steps:
         if ban is not None and len(ban):
             adj &= ~_lookup(ban, self.pair_keys.ravel())[0].reshape(m, k, k)
         prv = np.roll(cand, 1, axis=0)
-        a = np.broadcast_to(prv[:, :, None, None], (m, k, k, k)).ravel()
-        b = np.broadcast_to(cand[:, None, :, None], (m, k, k, k)).ravel()
-        c = np.broadcast_to(nxt[:, None, None, :], (m, k, k, k)).ravel()
-        cut = (_adjacent(edges, n, a, c) | (a == c)) & ~_l_turn(a, b, c, turns, n)
+        # a triple cuts a corner where its ends are adjacent (or one node) and it is no
+        # L-turn: the ends are looked up per pair, the turns only where they are adjacent
+        a = np.broadcast_to(prv[:, :, None], (m, k, k)).ravel()
+        c = np.broadcast_to(nxt[:, None, :], (m, k, k)).ravel()
+        ends = (_adjacent(edges, n, a, c) | (a == c)).reshape(m, k, 1, k)
+        cut = np.array(np.broadcast_to(ends, (m, k, k, k)))
+        at = np.nonzero(cut)
+        cut[at] = ~_l_turn(prv[at[0], at[1]], cand[at[0], at[2]], nxt[at[0], at[3]], turns, n)
         self.adj = adj
         self.ok3 = ~cut.reshape(m, k, k, k)  # cand[t - 1, i], cand[t, j], cand[t + 1, l]
         self.hops = np.zeros((m, k, k), dtype=np.int64) if hops is None else hops
