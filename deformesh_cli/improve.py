@@ -248,12 +248,13 @@ def _edge_pairs(tri: np.ndarray):
     edge k2 of t2, walked the other way."""
     t = np.repeat(np.arange(len(tri)), 3)
     k = np.tile(np.arange(3), len(tri))
-    a = tri[t, k]
-    b = tri[t, (k + 1) % 3]
+    a = tri.ravel()
+    b = tri[:, [1, 2, 0]].ravel()
     lo, hi = np.minimum(a, b), np.maximum(a, b)
-    order = np.lexsort((hi, lo))
-    lo, hi, t, k, fwd = lo[order], hi[order], t[order], k[order], (a < b)[order]
-    same = (lo[1:] == lo[:-1]) & (hi[1:] == hi[:-1]) & (fwd[1:] != fwd[:-1])
+    key = lo.astype(np.int64) * (int(hi.max(initial=0)) + 1) + hi
+    order = np.argsort(key, kind="stable")  # (by lo, then hi: as a lexsort of the two)
+    key, t, k, fwd = key[order], t[order], k[order], (a < b)[order]
+    same = (key[1:] == key[:-1]) & (fwd[1:] != fwd[:-1])
     i = np.flatnonzero(same)
     return t[i], k[i], t[i + 1], k[i + 1]
 
