@@ -419,7 +419,7 @@ def run_triangulate(
     if not o.improve:  # (filling counts on the quality stage, and on the check after it)
         ways = ways[-1:]
     best = None
-    unfilled = set()  # ``thin`` of the ways that filled no cavity: without fill, the same
+    unfilled = set()  # the ``thin`` of each way that filled no cavity (no fill: same mesh)
     for thin, fill in ways:
         if not fill and thin in unfilled:
             continue  # (it would give the mesh already measured)
