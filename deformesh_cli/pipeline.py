@@ -425,17 +425,18 @@ def run_triangulate(
             continue  # (it would give the mesh already measured)
         got = _merge_and_improve(placed, cut.edges, o, thin, fill)
         merged = got[2]
-        if merged is None or not o.improve or deadline.expired():
-            # (past the search's bound: the mesh in hand, not another way)
-            best = best or got
+        if merged is None or not o.improve:
+            best = got  # (nothing merged, or one way only)
             break
         if fill and not merged.filled:
             unfilled.add(thin)
         under = forced.under_bound(got[0].points, got[0].triangles, got[0].lines)
         if best is None or (under, got[0].n_extra) < (best[4], best[0].n_extra):
             best = (*got, under)
-        if under == 0 or not (thin or merged.filled):
-            break  # (the bound kept, or nothing thin in this way: the next are alike)
+        if under == 0 or not (thin or merged.filled) or deadline.expired():
+            # (the bound kept, or nothing thin in this way: the next are alike; or past
+            # the search's bound: the best of the ways measured, not another)
+            break
     mesh, edges, merged, better = best[:4]
     # the contract check and the summary read the mesh independently; numpy and
     # scipy release the GIL in their loops, so on two cores the pair takes about as

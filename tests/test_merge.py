@@ -250,3 +250,36 @@ def test_a_merge_way_that_would_repeat_one_measured_is_not_run(monkeypatch):
         for k, (thin, fill, _) in enumerate(ways):
             if not fill:
                 assert not any(t == thin and f and done == 0 for t, f, done in ways[:k])
+
+
+def test_past_the_search_bound_the_way_just_run_is_still_measured(monkeypatch):
+    # airfoil_e387's graded mesh with extra nodes leaves a triangle under the bound
+    # after the first way, so a second is run; the bound passes during it: it is
+    # measured and compared with the first, and no third is tried
+    from deformesh_cli import pipeline
+    from deformesh_cli.select.graded_path import select_graded
+
+    c = load_contour(CORPUS / "airfoil_e387.csv")
+    sel = select_graded(c, extra=True)
+    d = pipeline.run_deform(c, sel)
+    real, real_under = pipeline._merge_and_improve, pipeline.forced.under_bound
+    ran, measured = [], []
+
+    def way(*a):
+        ran.append(a[3:])
+        return real(*a)
+
+    def under(*a):
+        measured.append(ran[-1])
+        return real_under(*a)
+
+    monkeypatch.setattr(pipeline, "_merge_and_improve", way)
+    monkeypatch.setattr(pipeline.forced, "under_bound", under)
+    mesh, _ = pipeline.run_triangulate(c, d)
+    assert len(ran) > 1  # (the case this is about)
+    ran.clear()
+    measured.clear()
+    monkeypatch.setattr(pipeline.deadline, "expired", lambda: len(ran) >= 2)
+    mesh, report = pipeline.run_triangulate(c, d)
+    assert ran == [(True, True), (False, True)] and measured == ran
+    check_contract(mesh, c)
