@@ -197,7 +197,7 @@ def candidate_selections(
     try:
         for sel in _ungraded(contour, o, mode):
             if sel.extra_nodes > MAX_FALLBACK_EXTRA * contour.n:
-                kind = "adapted" if sel.h_rule == "typical-spacing" else "uniform"
+                kind = "adapted" if sel.h_rule == _respace.ADAPTED else "uniform"
                 too_many = too_many or (kind, sel.extra_nodes)
                 continue
             sel.notes.insert(0, f"{fell_back}: fell back to the {mode} grid")
@@ -605,7 +605,7 @@ def mesh_contour(
                     if best[0][:2] == (False, 0) and len(contour.points) > EXTRA_WAYS_POINTS:
                         break  # (a small contour tries its other ways too, for a better angle)
                     continue
-                if sel.h_rule != "typical-spacing" or report["min_angle"] >= MIN_ADAPTED_ANGLE:
+                if sel.h_rule != _respace.ADAPTED or report["min_angle"] >= MIN_ADAPTED_ANGLE:
                     break
                 flat = flat or (sel, d, mesh, report)  # nearly flat: try the next rung first
             else:

@@ -235,6 +235,11 @@ def corner_fraction(contour: Contour) -> float:
     return n / contour.n
 
 
+#: The ``h_rule`` of every selection on the adapted grid (its step from the
+#: contour's typical spacing): what tells an adapted rung from the other grids'.
+ADAPTED = "typical-spacing"
+
+
 def candidate_selections(
     contour: Contour,
     h=None,
@@ -277,7 +282,7 @@ def candidate_selections(
             )
         except (LimitError, SelectionError):  # the estimate is made before any work
             continue
-        sel.h_rule = "typical-spacing"
+        sel.h_rule = ADAPTED
         if slide:
             s0, s1, sel.path_targets = path_arclengths(
                 rs, sel.path_source, sel.path_ring, sel.path_targets
