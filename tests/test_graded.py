@@ -617,8 +617,8 @@ def test_hop_counts_are_breadth_first_distances_through_free_nodes():
 def test_a_route_is_shortest_cuts_no_corner_and_avoids_banned_steps():
     c, prep, gp = _laid()
     pts, free = prep.grid.points, prep.free
-    g = gp._Graph(prep.edges, prep.plain.turn_keys, len(pts))
-    xy = pts.tolist()
+    g = gp._Graph(prep.edges, prep.plain.turn_keys, pts)
+    xy = g.xy
     a = int(np.flatnonzero(free)[len(pts) // 3])
     dist = _bfs(prep, free, a)
     ends = [v for v, d in dist.items() if d == 4 and free[v]][:5]

@@ -240,7 +240,7 @@ def select_graded(
     turns, free = plain.turn_keys, prep.free
     grid = GradedGrid(prep.grid.tree, prep.grid.points)
     points = grid.points
-    graph = _Graph(edges, turns, len(points), points) if extra else None
+    graph = _Graph(edges, turns, points) if extra else None
     banned: set[int] = set()  # steps (node pair keys) found to cross or cut the path
     for _ in range(BAN_ROUNDS):
         try:
@@ -496,10 +496,10 @@ def _hop_counts(edges: np.ndarray, n: int, free: np.ndarray, cand: np.ndarray) -
 class _Graph:
     """The grid's edges as Python sets, for the route search's many small questions."""
 
-    def __init__(self, edges: np.ndarray, turns: np.ndarray, n: int, points=None):
-        self.n = n
-        #: the nodes' coordinates as Python pairs (for :func:`_route`), if given
-        self.xy = None if points is None else points.tolist()
+    def __init__(self, edges: np.ndarray, turns: np.ndarray, points: np.ndarray):
+        n = self.n = len(points)
+        #: the nodes' coordinates as Python pairs (for :func:`_route`)
+        self.xy = points.tolist()
         self.edge_keys = set(edges.tolist())
         #: each ring's assignment as last laid, keyed by its first point and the free
         #: nodes (:func:`_assign`)
@@ -547,7 +547,6 @@ def _through(
     if not gap.any():
         return path, order, q
     neighbours, cuts = graph.neighbours, graph.cuts
-    xy = points.tolist() if graph.xy is None else graph.xy
     open_ = free.tolist()  # (a list answers one node at a time faster)
     taken = set(path.tolist())
 
@@ -565,7 +564,7 @@ def _through(
         after = -1 if gap[(t + 1) % len(path)] else int(path[(t + 2) % len(path)])
         limit = MAX_HOPS if far is None else max(MAX_HOPS, int(far[t]))
         route = _route(
-            a, b, before, after, neighbours, open_, taken, xy, qa, qb, cuts, banned, limit
+            a, b, before, after, neighbours, open_, taken, graph.xy, qa, qb, cuts, banned, limit
         )
         if route is None:
             failed.append(t)
