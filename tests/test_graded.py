@@ -7,7 +7,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from deformesh_cli.contour import make_contour
-from deformesh_cli.errors import InputError, LimitError
+from deformesh_cli.errors import InputError, LimitError, SelectionError
 from deformesh_cli.geometry import edge_uses, signed_areas
 from deformesh_cli.quality import measures
 from deformesh_cli.readers import load_contour
@@ -636,6 +636,47 @@ def test_a_route_is_shortest_cuts_no_corner_and_avoids_banned_steps():
         other = gp._route(a, b, -1, -1, g.neighbours, free, set(), xy, pts[a], pts[b], g.cuts, ban)
         if other is not None:
             assert other[0] != route[0]
+        # what a search saw: its route's nodes untaken; a node taken, seen taken
+        seen = (set(), set())
+        again = gp._route(
+            a, b, -1, -1, g.neighbours, free, set(), xy, pts[a], pts[b], g.cuts, limit=4, seen=seen
+        )
+        assert again == route and set(route) <= seen[0] and not seen[1]
+        seen = (set(), set())
+        taken = {route[1]}
+        other = gp._route(
+            a, b, -1, -1, g.neighbours, free, taken, xy, pts[a], pts[b], g.cuts, seen=seen
+        )
+        assert route[1] in seen[1] and route[1] not in seen[0]
+        assert other is None or route[1] not in other
+
+
+def test_route_searches_kept_between_rounds_give_the_paths_fresh_ones_give(monkeypatch):
+    """A ring assigned over many rounds (its routes failing, steps forbidden, the path
+    changing) keeps each route search; one is reused only while the nodes it saw are
+    as they were, so every attempt lays the same path as with every search fresh."""
+    from deformesh_cli.select import graded_path as gp
+
+    c = load_contour(ROOT / "tests" / "data" / "corpus" / "coast_iceland.csv")
+    searched = []
+    route = gp._route
+    monkeypatch.setattr(gp, "_route", lambda *a, **k: searched.append(1) or route(*a, **k))
+
+    def lay(**attempt):
+        try:
+            s = gp.select_graded(c, cache=cache, extra=True, **attempt)
+        except SelectionError as exc:
+            return str(exc)
+        return s.path_nodes.tolist(), s.path_targets.tolist()
+
+    cache = {}
+    kept = [lay(), lay(fit=True)]
+    kept_searches = len(searched)
+    through = gp._through
+    monkeypatch.setattr(gp, "_through", lambda *a: through(*a[:9], None))
+    searched.clear()
+    assert [lay(), lay(fit=True)] == kept
+    assert kept_searches < len(searched) / 4  # (the fitted grid's many rounds: 5,304 -> 404)
 
 
 def test_solving_a_window_again_keeps_the_rest_and_finds_a_valid_path():

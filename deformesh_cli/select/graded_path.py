@@ -532,14 +532,28 @@ class _NoRoute(SelectionError):
 
 
 def _through(
-    contour, order, path, points, free, edges, graph: _Graph | None, banned=frozenset(), far=None
+    contour,
+    order,
+    path,
+    points,
+    free,
+    edges,
+    graph: _Graph | None,
+    banned=frozenset(),
+    far=None,
+    memo: dict | None = None,
 ):
     """The ring's path with the fewest free grid nodes put between each two consecutive
     nodes that are not neighbours (at most :data:`MAX_HOPS` edges, nearest the contour
     edge; more where the assignment counted more, ``far[t]``): ``(nodes, sources,
     targets)``, -1 the source of an extra node, the extra nodes' targets evenly spaced
     on their contour edge.  :class:`_NoRoute` names the steps with no route that cuts
-    no corner through nodes the path leaves free."""
+    no corner through nodes the path leaves free.
+
+    ``memo`` (a dict kept over the calls for one ring with the same ``free`` and
+    ``banned``): each search's route and the nodes it found taken and untaken; a
+    search asked again with the same ends is answered from it while each of those
+    nodes is still as it was (the search would go the same way)."""
     n = len(points)
     q = contour.points[order]
     nxt = np.roll(path, -1)
@@ -563,9 +577,18 @@ def _through(
         before = nodes[-2] if len(nodes) > 1 else (-1 if gap[-1] else int(path[-1]))
         after = -1 if gap[(t + 1) % len(path)] else int(path[(t + 2) % len(path)])
         limit = MAX_HOPS if far is None else max(MAX_HOPS, int(far[t]))
-        route = _route(
-            a, b, before, after, neighbours, open_, taken, graph.xy, qa, qb, cuts, banned, limit
-        )
+        key = (t, a, b, before, after, limit)
+        got = None if memo is None else memo.get(key)
+        if got is not None and taken.isdisjoint(got[1]) and got[2] <= taken:
+            route = got[0]
+        else:
+            seen: tuple[set, set] = (set(), set())
+            route = _route(
+                a, b, before, after, neighbours, open_, taken, graph.xy, qa, qb, cuts, banned,
+                limit, seen,
+            )  # fmt: skip
+            if memo is not None:
+                memo[key] = (route, *seen)
         if route is None:
             failed.append(t)
             continue
@@ -593,6 +616,7 @@ def _route(
     cuts,
     banned=frozenset(),
     limit=MAX_HOPS,
+    seen: tuple[set, set] | None = None,
 ) -> list[int] | None:
     """The intermediate nodes of the shortest route from ``a`` to ``b`` through free,
     untaken nodes (at most ``limit`` + 2 edges: the assignment counted routes of up to
@@ -600,7 +624,9 @@ def _route(
     (``cuts(x, y, z)``), from the path node ``before`` ``a`` to the one ``after``
     ``b``, none of its steps ``banned``; of the shortest, the one nearest the segment
     ``qa - qb``.  A search over (previous node, node) states, so its work is bounded
-    by the nodes within reach.  ``xy``: the nodes' coordinates, as Python pairs."""
+    by the nodes within reach.  ``xy``: the nodes' coordinates, as Python pairs.
+    ``seen``: two sets, filled with the free nodes the search found untaken and
+    those it found ``taken`` (all it depends on that may change)."""
     import heapq
 
     # (in Python floats: numpy's arithmetic on single points costs ten times more)
@@ -617,6 +643,7 @@ def _route(
             got = memo[w] = math.hypot(px - (ax + u * dx), py - (ay + u * dy))
         return got
 
+    clear, took = (set(), set()) if seen is None else seen
     start = (before, a)
     best = {start: (0, 0.0)}
     parent: dict = {start: None}
@@ -642,7 +669,13 @@ def _route(
         if hops > limit:  # (with the step to b, the route would exceed limit + 2)
             continue
         for w in neighbours.get(y, ()):
-            if w == x or w in taken or not free[w] or cuts(x, y, w):
+            if w == x or not free[w]:
+                continue
+            if w in taken:
+                took.add(w)
+                continue
+            clear.add(w)
+            if cuts(x, y, w):
                 continue
             if (y * n + w if y < w else w * n + y) in banned:
                 continue
@@ -680,6 +713,7 @@ def _assign(
         hops = _hop_counts(edges, n, free, cand) if graph is not None else None
         steps = _Steps(cand, edges, turns, n, hops, np.array(sorted(banned), dtype=np.int64))
         changed, pick = [], None  # points whose choices changed since the last round
+    routes: dict = {}  # the route searches of the rounds so far (:func:`_through`)
     for _ in range(MAX_ROUNDS):
         deadline.check()
         if pick is not None and changed:
@@ -699,7 +733,9 @@ def _assign(
         if (counts == 1).all():
             try:
                 far = steps.hops[np.arange(m), pick, np.roll(pick, -1)]
-                out = _through(contour, order, path, points, free, edges, graph, banned, far)
+                out = _through(
+                    contour, order, path, points, free, edges, graph, banned, far, routes
+                )
             except _NoRoute as exc:
                 for t in exc.failed:  # that jump is not to be had
                     steps.forbid(t, pick[t], pick[(t + 1) % m])
