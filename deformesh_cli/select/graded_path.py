@@ -472,9 +472,18 @@ def _hop_counts(edges: np.ndarray, n: int, free: np.ndarray, cand: np.ndarray) -
     def counts(ts: np.ndarray, limit: int) -> np.ndarray:
         src, row = np.unique(cand[ts], return_inverse=True)
         row = row.reshape(len(ts), k)
+        rows = np.repeat(row, k, axis=1).ravel()  # (search, node) pairs asked for
+        cols = np.tile(nxt[ts], (1, k)).ravel()
         frontier = (a[src] > 0).astype(np.int32)
         dist = frontier.copy()  # grid edges to each node reached (1: a neighbour)
         for e in range(2, limit + 1):
+            # a search that has reached every node asked of it goes no further
+            missing = np.asarray(dist[rows, cols] == 0).ravel()
+            going = np.bincount(rows[missing], minlength=len(src)) > 0
+            if not going.any():
+                break
+            if not going.all():
+                frontier = sp.diags(going.astype(np.int32), dtype=np.int32) @ frontier
             reach = ((frontier @ through) > 0).astype(np.int32)
             frontier = reach - reach.multiply(dist > 0)
             frontier.eliminate_zeros()
@@ -482,8 +491,6 @@ def _hop_counts(edges: np.ndarray, n: int, free: np.ndarray, cand: np.ndarray) -
                 break
             dist = dist + e * frontier
         dist = dist.tocsr()
-        rows = np.repeat(row, k, axis=1).ravel()
-        cols = np.tile(nxt[ts], (1, k)).ravel()
         return np.asarray(dist[rows, cols]).ravel().reshape(len(ts), k, k)
 
     got = counts(np.arange(m), MAX_HOPS)
