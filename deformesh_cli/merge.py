@@ -295,24 +295,26 @@ def _best_triangulation_of(key: bytes) -> tuple[np.ndarray, float] | None:
     if k < 3:
         return None
     chord = _chords(p)
-    i, mid, j = np.array([(i, m, j) for i in range(k) for j in range(i + 2, k)
-                          for m in range(i + 1, j)]).T  # fmt: skip
+    r = np.arange(k)
+    i, mid, j = np.nonzero((r[:, None, None] < r[None, :, None]) & (r[None, :, None] < r))
     angle = np.full((k, k, k), -1.0)
     tri = np.column_stack([i, mid, j])
     ok = (signed_areas(p, tri) > 0) & chord[i, mid] & chord[mid, j] & chord[i, j]
     angle[i[ok], mid[ok], j[ok]] = measures(p, tri[ok])[0]
     best = np.full((k, k), -1.0)
     pick = np.full((k, k), -1, dtype=np.int64)
-    for i in range(k - 1):
-        best[i, i + 1] = 180.0
-    for span in range(2, k):
-        for i in range(k - span):
-            j = i + span
-            ms = np.arange(i + 1, j)
-            val = np.minimum(np.minimum(angle[i, ms, j], best[i, ms]), best[ms, j])
-            at = int(np.argmax(val))
-            if val[at] > 0:
-                best[i, j], pick[i, j] = val[at], ms[at]
+    best[r[:-1], r[1:]] = 180.0
+    for span in range(2, k):  # every (i, i + span) at once: each reads shorter spans only
+        i = r[: k - span, None]
+        j = i + span
+        ms = i + 1 + r[None, : span - 1]
+        val = np.minimum(np.minimum(angle[i, ms, j], best[i, ms]), best[ms, j])
+        at = np.argmax(val, axis=1)
+        row = r[: k - span]
+        top = val[row, at]
+        good = top > 0
+        best[row[good], row[good] + span] = top[good]
+        pick[row[good], row[good] + span] = ms[row, at][good]
     if best[0, k - 1] <= 0:
         return None
     out, todo = [], [(0, k - 1)]

@@ -8,6 +8,7 @@ import time
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from deformesh_cli import deadline, mesh_contour
 from deformesh_cli.contour import make_contour
@@ -81,6 +82,61 @@ def test_a_cavity_grows_to_take_out_the_inner_node_hugging_the_edge():
     assert len(mesh.points) == 4 and len(mesh.triangles) == 2  # node 5 went too
     assert measures(mesh.points, mesh.triangles)[0].min() == pytest.approx(45.0)
     assert signed_areas(mesh.points, mesh.triangles).sum() == pytest.approx(1.0)
+
+
+def _every_triangulation(k: int, i: int = 0, j: int | None = None):
+    """Every triangulation of the polygon's vertices ``i..j`` (all of them: j = k - 1),
+    as lists of index triples."""
+    j = k - 1 if j is None else j
+    if j - i < 2:
+        yield []
+        return
+    for m in range(i + 1, j):
+        for left in _every_triangulation(k, i, m):
+            for right in _every_triangulation(k, m, j):
+                yield [(i, m, j), *left, *right]
+
+
+@st.composite
+def _small_polygons(draw):
+    """Star-shaped polygons of 3 to 8 points, reflex corners included."""
+    n = draw(st.integers(3, 8))
+    gaps = np.array(draw(st.lists(st.floats(0.2, 1.0), min_size=n, max_size=n)))
+    theta = 2 * np.pi * np.cumsum(gaps) / gaps.sum()
+    r = np.array(draw(st.lists(st.floats(0.15, 1.0), min_size=n, max_size=n)))
+    return np.column_stack([r * np.cos(theta), r * np.sin(theta)])
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(_small_polygons())
+def test_the_best_triangulation_has_the_largest_smallest_angle_of_all(points):
+    """Against every triangulation of a small polygon whose triangles all lie inside it
+    (each side of every triangle a side or a chord: a shapely check of its own)."""
+    import shapely
+
+    import deformesh_cli.merge as merge
+
+    p = np.asarray(points, dtype=float)
+    if signed_area(p) < 0:
+        p = p[::-1].copy()
+    poly = shapely.Polygon(p)
+    best = None
+    for t in _every_triangulation(len(p)):
+        t = np.array(t)
+        if (signed_areas(p, t) <= 0).any():
+            continue
+        if not all(poly.covers(shapely.Polygon(p[tri])) for tri in t):
+            continue
+        if abs(signed_areas(p, t).sum() - poly.area) > 1e-9 * poly.area:
+            continue
+        angle = measures(p, t)[0].min()
+        best = angle if best is None else max(best, angle)
+    got = merge._best_triangulation_of.__wrapped__(np.ascontiguousarray(p).tobytes())
+    if best is None:
+        assert got is None
+    else:
+        assert got is not None and got[1] == pytest.approx(best, abs=1e-9)
+        assert measures(p, got[0])[0].min() == pytest.approx(got[1])
 
 
 def test_a_kept_triangulation_is_the_one_computed_afresh():
