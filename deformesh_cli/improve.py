@@ -214,14 +214,16 @@ def _flip_all(pts: np.ndarray, tri: np.ndarray, target: float, max_passes: int =
         t1, k1, t2, k2 = _edge_pairs(tri)
         if len(t1) == 0:
             break
-        u, w, x = tri[t1, k1], tri[t1, (k1 + 1) % 3], tri[t1, (k1 + 2) % 3]
-        y = tri[t2, (k2 + 2) % 3]
         tan = _tan_min(pts, tri)
         before = np.minimum(tan[t1], tan[t2])
+        low = before < target  # (only these pairs may flip: the others are not measured)
+        t1, k1, t2, k2, before = t1[low], k1[low], t2[low], k2[low], before[low]
+        u, w, x = tri[t1, k1], tri[t1, (k1 + 1) % 3], tri[t1, (k1 + 2) % 3]
+        y = tri[t2, (k2 + 2) % 3]
         after = np.minimum(
             _tan_min(pts, np.column_stack([u, y, x])), _tan_min(pts, np.column_stack([y, w, x]))
         )
-        ok = (before < target) & (after > _raised(before))
+        ok = after > _raised(before)
         gain = after - before
         if not ok.any():
             break
@@ -579,7 +581,14 @@ def _apex_quality(row, first, ax, ay, bx, by):
     return quality
 
 
+_GAIN_RADIANS = np.radians(GAIN)
+_BELOW_RIGHT = np.pi / 2 - 1e-12
+
+
 def _raised(tan_angle: np.ndarray) -> np.ndarray:
-    """The tangent of an angle :data:`GAIN` degrees larger (a move must beat it)."""
-    with np.errstate(invalid="ignore"):
-        return np.tan(np.minimum(np.arctan(tan_angle) + np.radians(GAIN), np.pi / 2 - 1e-12))
+    """The tangent of an angle :data:`GAIN` degrees larger (a move must beat it); NaN
+    stays NaN, -inf (a folded triangle) the tangent of GAIN over -90 degrees."""
+    a = np.arctan(tan_angle)
+    a += _GAIN_RADIANS
+    np.minimum(a, _BELOW_RIGHT, out=a)
+    return np.tan(a, out=a)
