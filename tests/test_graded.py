@@ -586,6 +586,24 @@ def _bfs(prep, free, s):
     return dist
 
 
+def test_pieces_measured_together_measure_as_each_alone():
+    """The fitted grid measures all pieces of a contour in flat arrays: each piece's
+    sums, arc lengths and leaves are those it has measured on its own."""
+    from deformesh_cli.select import graded_fit
+
+    c = load_contour(ROOT / "tests" / "data" / "corpus" / "coast_iceland.csv")
+    lo, hi = c.points.min(axis=0), c.points.max(axis=0)
+    box = (*(lo - 1.0), *(hi + 1.0))
+    tree = graded.build(c, box, local=graded_fit.initial_sizes(c), roots=graded_fit.ROOTS)
+    parts = [(p, a) for _, _, _, p, a in graded_fit.pieces(c)]
+    assert len(parts) > 50
+    together = graded_fit.measure_all(tree, parts)
+    for (poly, arc), got in zip(parts, together):
+        alone = graded_fit.measure_all(tree, [(poly, arc)])[0]
+        assert all(np.array_equal(x, y) for x, y in zip(got, alone))
+        assert len(got[0]) == len(got[1]) == len(got[2]) + 1 and got[1][-1] == arc[-1]
+
+
 def test_hop_counts_are_breadth_first_distances_through_free_nodes():
     c, prep, gp = _laid()
     n = len(prep.grid.points)

@@ -63,30 +63,40 @@ def measure(tree: graded.Quadtree, poly: np.ndarray, arc: np.ndarray):
 
 
 def measure_all(tree: graded.Quadtree, polys: list) -> list:
-    """:func:`measure` of each ``(poly, arc)``, the leaf lookups of all of them at once
-    (one lookup per piece is most of the time on a coastline's hundreds of pieces)."""
+    """:func:`measure` of each ``(poly, arc)``, with the pieces' points, segments and
+    sub-segments in flat arrays (a coastline has hundreds of pieces: a few numpy calls
+    each, not a score); only the running sums go piece by piece, in order."""
     sizes = tree.sizes()
-    ends = np.cumsum([len(poly) for poly, _ in polys])
-    at_all = np.split(sizes[leaf_at(tree, np.concatenate([p for p, _ in polys]))], ends[:-1])
-    cut = []
-    for (poly, arc), at in zip(polys, at_all):
-        d = np.diff(poly, axis=0)
-        linf = np.abs(d).max(axis=1)
-        nsub = np.maximum(1, np.ceil(4 * linf / np.minimum(at[:-1], at[1:]))).astype(np.int64)
-        e = np.repeat(np.arange(len(d)), nsub)
-        k = np.repeat(nsub, nsub)
-        u0 = (np.arange(int(nsub.sum())) - np.repeat(np.cumsum(nsub) - nsub, nsub)) / k
-        mid = poly[e] + (u0 + 0.5 / k)[:, None] * d[e]
-        cut.append((arc, linf, e, k, u0, mid))
+    counts = np.array([len(poly) for poly, _ in polys], dtype=np.int64)
+    pts = np.concatenate([poly for poly, _ in polys])
+    arc = np.concatenate([a for _, a in polys])
+    at = sizes[leaf_at(tree, pts)]
+    # segment s joins points s and s + 1 of one piece: every point but each piece's last
+    last = np.cumsum(counts) - 1
+    seg = np.ones(len(pts), dtype=bool)
+    seg[last] = False
+    seg = np.flatnonzero(seg)
+    d = pts[seg + 1] - pts[seg]
+    linf = np.abs(d).max(axis=1)
+    nsub = np.maximum(1, np.ceil(4 * linf / np.minimum(at[seg], at[seg + 1]))).astype(np.int64)
+    e = np.repeat(np.arange(len(seg)), nsub)
+    k = np.repeat(nsub, nsub)
+    u0 = (np.arange(int(nsub.sum())) - np.repeat(np.cumsum(nsub) - nsub, nsub)) / k
+    mid = pts[seg[e]] + (u0 + 0.5 / k)[:, None] * d[e]
     deadline.check()
-    ends = np.cumsum([len(c[5]) for c in cut])
-    leaves = np.split(leaf_at(tree, np.concatenate([c[5] for c in cut])), ends[:-1])
+    leaf = leaf_at(tree, mid)
+    dmu = linf[e] / k / sizes[leaf]
+    a0 = arc[seg[e]]
+    sarc = a0 + u0 * (arc[seg[e] + 1] - a0)
+    # each piece's sub-segments, in order
+    piece = np.repeat(np.arange(len(counts)), counts - 1)  # each segment's piece
+    bounds = np.cumsum(np.bincount(piece, weights=nsub, minlength=len(counts)))[:-1]
+    bounds = bounds.astype(np.int64)
     out = []
-    for (arc, linf, e, k, u0, _), leaf in zip(cut, leaves):
-        dmu = linf[e] / k / sizes[leaf]
-        mu = np.concatenate([[0.0], np.cumsum(dmu)])
-        sarc = np.concatenate([arc[e] + u0 * (arc[e + 1] - arc[e]), [arc[-1]]])
-        out.append((mu, sarc, leaf, dmu))
+    for (_, a), dm, sa, lf in zip(
+        polys, np.split(dmu, bounds), np.split(sarc, bounds), np.split(leaf, bounds)
+    ):
+        out.append((np.concatenate([[0.0], np.cumsum(dm)]), np.concatenate([sa, [a[-1]]]), lf, dm))
     return out
 
 
