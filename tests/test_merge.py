@@ -84,6 +84,22 @@ def test_a_cavity_grows_to_take_out_the_inner_node_hugging_the_edge():
     assert signed_areas(mesh.points, mesh.triangles).sum() == pytest.approx(1.0)
 
 
+def test_chords_go_through_the_inside_and_touch_no_other_vertex():
+    import deformesh_cli.merge as merge
+
+    # a 4 x 2 rectangle with a vertex in the middle of its bottom side, and a notch from
+    # the top whose tip (vertex 5) lies on the segment from vertex 0 to vertex 3, a
+    # quarter of the way: that segment stays in the polygon, its midpoint inside
+    p = np.array([[0, 0], [2, 0], [4, 0], [4, 2], [1.5, 2], [1, 0.5], [0.5, 2], [0, 2]])
+    c = merge._chords(p.astype(float))
+    n = len(p)
+    assert (c == c.T).all() and all(c[i, (i + 1) % n] for i in range(n))  # the sides
+    assert not c[0, 2]  # along the bottom, through vertex 1
+    assert not c[0, 3]  # through the notch's tip
+    assert not c[4, 6]  # outside, across the notch
+    assert c[1, 3] and c[1, 5] and c[2, 5] and c[0, 5] and c[3, 5]
+
+
 def _every_triangulation(k: int, i: int = 0, j: int | None = None):
     """Every triangulation of the polygon's vertices ``i..j`` (all of them: j = k - 1),
     as lists of index triples."""
