@@ -159,19 +159,24 @@ def _delaunay(p, new, edges, poly):
     centre = pts[tri].mean(axis=1)
     tri = tri[shapely.contains_xy(poly, centre[:, 0], centre[:, 1])]
     a = signed_areas(pts, tri)
-    if len(tri) == 0 or (a <= 0).any() or not np.isclose(a.sum(), poly.area, rtol=1e-9, atol=0):
+    area = poly.area
+    if len(tri) == 0 or (a <= 0).any() or not abs(a.sum() - area) <= 1e-9 * abs(area):
         return None  # (a flat triangle, from points on a line: no mesh here)
-    if len(np.unique(tri)) < len(pts) or not _has_edges(tri, edges, len(pts)).all():
+    if np.bincount(tri.ravel(), minlength=len(pts)).min() == 0:
         return None  # (qhull leaves out a vertex on a straight side: no side recovers it)
+    if not _has_edges(tri, edges, len(pts)).all():
+        return None
     _flip_all(pts, tri, np.inf)  # (the polygon's sides have one triangle: never flipped)
     return tri
 
 
 def _has_edges(tri: np.ndarray, edges: np.ndarray, n: int) -> np.ndarray:
     """Whether each of ``edges`` is an edge of the triangles ``tri`` (``n`` nodes)."""
-    a, b = tri.ravel(), np.roll(tri, -1, axis=1).ravel()
-    have = np.minimum(a, b) * n + np.maximum(a, b)
-    return np.isin(np.minimum(edges[:, 0], edges[:, 1]) * n + np.max(edges, axis=1), have)
+    a, b = tri.ravel(), tri[:, [1, 2, 0]].ravel()
+    have = np.sort(np.minimum(a, b) * n + np.maximum(a, b))
+    want = np.minimum(edges[:, 0], edges[:, 1]) * n + np.maximum(edges[:, 0], edges[:, 1])
+    at = np.minimum(np.searchsorted(have, want), len(have) - 1)
+    return have[at] == want if len(have) else np.zeros(len(want), dtype=bool)
 
 
 #: Flips at most, per side recovered.
