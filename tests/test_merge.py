@@ -8,7 +8,6 @@ import time
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
 
 from deformesh_cli import deadline, mesh_contour
 from deformesh_cli.contour import make_contour
@@ -113,18 +112,8 @@ def _every_triangulation(k: int, i: int = 0, j: int | None = None):
                 yield [(i, m, j), *left, *right]
 
 
-@st.composite
-def _small_polygons(draw):
-    """Star-shaped polygons of 3 to 8 points, reflex corners included."""
-    n = draw(st.integers(3, 8))
-    gaps = np.array(draw(st.lists(st.floats(0.2, 1.0), min_size=n, max_size=n)))
-    theta = 2 * np.pi * np.cumsum(gaps) / gaps.sum()
-    r = np.array(draw(st.lists(st.floats(0.15, 1.0), min_size=n, max_size=n)))
-    return np.column_stack([r * np.cos(theta), r * np.sin(theta)])
-
-
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(_small_polygons())
+@given(star_polygons(r_min=0.15, max_points=8))
 def test_the_best_triangulation_has_the_largest_smallest_angle_of_all(points):
     """Against every triangulation of a small polygon whose triangles all lie inside it
     (each side of every triangle a side or a chord: a shapely check of its own)."""

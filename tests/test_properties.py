@@ -20,10 +20,10 @@ MAX_NODES = 60_000  # keeps each example well under a second
 
 
 @st.composite
-def star_polygons(draw, r_min: float = 0.4):
-    """Simple polygons: star-shaped around the origin with random angles and radii
-    from ``r_min`` to 1 (0.1: corners down to a few degrees)."""
-    n = draw(st.integers(3, 40))
+def star_polygons(draw, r_min: float = 0.4, max_points: int = 40):
+    """Simple polygons of 3 to ``max_points`` points: star-shaped around the origin with
+    random angles and radii from ``r_min`` to 1 (0.1: corners down to a few degrees)."""
+    n = draw(st.integers(3, max_points))
     gaps = np.array(draw(st.lists(st.floats(0.2, 1.0), min_size=n, max_size=n)))
     theta = 2 * np.pi * np.cumsum(gaps) / gaps.sum()
     r = np.array(draw(st.lists(st.floats(r_min, 1.0), min_size=n, max_size=n)))
