@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry import signed_areas
+from .geometry import signed_areas, sorted_lookup
 from .quality import measures
 
 #: Sizes grow by this much per unit of distance from a polygon vertex.
@@ -175,8 +175,7 @@ def _has_edges(tri: np.ndarray, edges: np.ndarray, n: int) -> np.ndarray:
     a, b = tri.ravel(), tri[:, [1, 2, 0]].ravel()
     have = np.sort(np.minimum(a, b) * n + np.maximum(a, b))
     want = np.minimum(edges[:, 0], edges[:, 1]) * n + np.maximum(edges[:, 0], edges[:, 1])
-    at = np.minimum(np.searchsorted(have, want), len(have) - 1)
-    return have[at] == want if len(have) else np.zeros(len(want), dtype=bool)
+    return sorted_lookup(have, want)[0]
 
 
 #: Flips at most, per side recovered.

@@ -132,3 +132,10 @@ def node_stars(tri: np.ndarray):
         return rows[lo:hi]
 
     return star
+
+
+def sorted_lookup(sorted_keys: np.ndarray, k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(found, position)`` of each of ``k`` in ``sorted_keys`` (ascending)."""
+    pos = np.clip(np.searchsorted(sorted_keys, k), 0, max(len(sorted_keys) - 1, 0))
+    found = sorted_keys[pos] == k if len(sorted_keys) else np.zeros(len(k), dtype=bool)
+    return found, pos

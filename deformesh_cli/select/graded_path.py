@@ -39,7 +39,7 @@ import shapely
 from .. import deadline
 from ..contour import Contour
 from ..errors import LimitError, SelectionError
-from ..geometry import signed_area
+from ..geometry import signed_area, sorted_lookup
 from . import graded, graded_fit
 from .respace import path_arclengths, respace
 
@@ -433,13 +433,12 @@ def _allowed_edges(tri0, plain: _Plain) -> np.ndarray:
 
 def _l_turn(a, b, c, turns, n) -> np.ndarray:
     """``a -> b -> c`` is an L-turn (one of the sorted ``turns`` keys)."""
-    return _lookup(turns, (a * n + b) * n + c)[0]
+    return sorted_lookup(turns, (a * n + b) * n + c)[0]
 
 
 def _adjacent(edges: np.ndarray, n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     k = np.minimum(a, b) * n + np.maximum(a, b)
-    pos = np.clip(np.searchsorted(edges, k), 0, len(edges) - 1)
-    return (edges[pos] == k) & (a != b)
+    return sorted_lookup(edges, k)[0] & (a != b)
 
 
 #: The most grid edges one contour edge may take (so at most this less one extra
@@ -789,7 +788,7 @@ class _Steps:
         self.pair_keys = (np.minimum(x, y) * n + np.maximum(x, y)).reshape(m, k, k)
         adj = _adjacent(edges, n, x, y).reshape(m, k, k)  # cand[t, i] -> cand[t + 1, j]
         if ban is not None and len(ban):
-            adj &= ~_lookup(ban, self.pair_keys.ravel())[0].reshape(m, k, k)
+            adj &= ~sorted_lookup(ban, self.pair_keys.ravel())[0].reshape(m, k, k)
         prv = np.roll(cand, 1, axis=0)
         # a triple cuts a corner where its ends are adjacent (or one node) and it is no
         # L-turn: the ends are looked up per pair, the turns only where they are adjacent
@@ -832,7 +831,7 @@ class _Steps:
     def ban(self, keys: np.ndarray, pick: np.ndarray) -> list[int]:
         """Take out the steps ``keys`` (sorted ``lo * n + hi``); the points where
         ``pick`` took one of them, and the next ones."""
-        hit = _lookup(keys, self.pair_keys.ravel())[0].reshape(self.m, self.k, self.k)
+        hit = sorted_lookup(keys, self.pair_keys.ravel())[0].reshape(self.m, self.k, self.k)
         hit &= self.adj
         ts = np.flatnonzero(hit.any(axis=(1, 2)))
         self.adj &= ~hit
@@ -955,7 +954,7 @@ def _force_diagonals(contour, n_leaves, plain: _Plain, path_nodes, path_ring) ->
     force = np.full(n_leaves, -1, dtype=np.int64)
     # diagonal steps
     k = np.minimum(nodes, nxt) * n + np.maximum(nodes, nxt)
-    hit, at = _lookup(plain.diag_keys, k)
+    hit, at = sorted_lookup(plain.diag_keys, k)
     leaf, d = plain.diag_leaf[at[hit]], plain.diag_dir[at[hit]]
     both = np.unique(leaf[d == 1])
     clash = np.intersect1d(np.unique(leaf[d == 0]), both)
@@ -969,7 +968,7 @@ def _force_diagonals(contour, n_leaves, plain: _Plain, path_nodes, path_ring) ->
         )
     force[leaf] = d
     # L-turns, where no diagonal step decided (a U-turn: the first of its two)
-    hit, at = _lookup(plain.turn_keys, (prv * n + nodes) * n + nxt)
+    hit, at = sorted_lookup(plain.turn_keys, (prv * n + nodes) * n + nxt)
     leaf, d = plain.turn_leaf[at[hit]], plain.turn_dir[at[hit]]
     first = np.unique(leaf, return_index=True)[1]
     leaf, d = leaf[first], d[first]
@@ -978,13 +977,6 @@ def _force_diagonals(contour, n_leaves, plain: _Plain, path_nodes, path_ring) ->
     out = np.zeros(n_leaves, dtype=np.uint8)
     out[force >= 0] = force[force >= 0]
     return out
-
-
-def _lookup(sorted_keys: np.ndarray, k: np.ndarray):
-    """``(found, position)`` of each of ``k`` in ``sorted_keys``."""
-    pos = np.clip(np.searchsorted(sorted_keys, k), 0, max(len(sorted_keys) - 1, 0))
-    found = sorted_keys[pos] == k if len(sorted_keys) else np.zeros(len(k), dtype=bool)
-    return found, pos
 
 
 def _fair_ears(sel: GradedSelection, ears: np.ndarray) -> np.ndarray:
