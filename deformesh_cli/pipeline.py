@@ -128,6 +128,14 @@ MAX_FALLBACK_EXTRA = 100
 EXTRA_WAYS_POINTS = 1000
 
 
+def _tries_every_way(contour: Contour) -> bool:
+    """Whether ``contour`` is small enough to try every graded way
+    (:data:`EXTRA_WAYS_POINTS`); a larger one stops at the first mesh with no extra
+    node left, and tries its own grid with extra nodes second
+    (:data:`GRADED_ATTEMPTS_LARGE`)."""
+    return contour.n <= EXTRA_WAYS_POINTS
+
+
 def _options(options: MeshOptions | None, changes: dict) -> MeshOptions:
     """``options`` (default: :class:`MeshOptions`'s defaults) with ``changes`` applied."""
     options = MeshOptions() if options is None else options
@@ -174,7 +182,7 @@ def candidate_selections(
         )
 
     # as given, slid, fitted to the points; then with extra boundary nodes
-    order = GRADED_ATTEMPTS_LARGE if contour.n > EXTRA_WAYS_POINTS else GRADED_ATTEMPTS
+    order = GRADED_ATTEMPTS if _tries_every_way(contour) else GRADED_ATTEMPTS_LARGE
     attempts = [a for a in order if not (o.strict and a.get("extra"))]
     fell_back = None
     for attempt in attempts:
@@ -602,7 +610,7 @@ def mesh_contour(
                     got = (rank(mesh, report), sel, d, mesh, report)
                     if best is None or got[0] < best[0]:
                         best = got
-                    if best[0][:2] == (False, 0) and len(contour.points) > EXTRA_WAYS_POINTS:
+                    if best[0][:2] == (False, 0) and not _tries_every_way(contour):
                         break  # (a small contour tries its other ways too, for a better angle)
                     continue
                 if sel.h_rule != _respace.ADAPTED or report["min_angle"] >= MIN_ADAPTED_ANGLE:

@@ -691,7 +691,7 @@ def test_route_searches_kept_between_rounds_give_the_paths_fresh_ones_give(monke
     kept = [lay(), lay(fit=True)]
     kept_searches = len(searched)
     through = gp._through
-    monkeypatch.setattr(gp, "_through", lambda *a: through(*a[:9], None))
+    monkeypatch.setattr(gp, "_through", lambda *a: through(*a[:9], {}))  # (nothing kept)
     searched.clear()
     assert [lay(), lay(fit=True)] == kept
     assert kept_searches < len(searched) / 4  # (the fitted grid's many rounds: 5,304 -> 404)

@@ -545,9 +545,9 @@ def _through(
     free,
     edges,
     graph: _Graph | None,
-    banned=frozenset(),
-    far=None,
-    memo: dict | None = None,
+    banned,
+    far,
+    memo: dict,
 ):
     """The ring's path with the fewest free grid nodes put between each two consecutive
     nodes that are not neighbours (at most :data:`MAX_HOPS` edges, nearest the contour
@@ -557,9 +557,10 @@ def _through(
     no corner through nodes the path leaves free.
 
     ``memo`` (a dict kept over the calls for one ring with the same ``free`` and
-    ``banned``): each search's route and the nodes it found taken and untaken; a
-    search asked again with the same ends is answered from it while each of those
-    nodes is still as it was (the search would go the same way)."""
+    ``banned``; a new one searches afresh): each search's route and the nodes it
+    found taken and untaken; a search asked again with the same ends is answered
+    from it while each of those nodes is still as it was (the search would go the
+    same way)."""
     n = len(points)
     q = contour.points[order]
     nxt = np.roll(path, -1)
@@ -584,7 +585,7 @@ def _through(
         after = -1 if gap[(t + 1) % len(path)] else int(path[(t + 2) % len(path)])
         limit = MAX_HOPS if far is None else max(MAX_HOPS, int(far[t]))
         key = (t, a, b, before, after, limit)
-        got = None if memo is None else memo.get(key)
+        got = memo.get(key)
         if got is not None and taken.isdisjoint(got[1]) and got[2] <= taken:
             route = got[0]
         else:
@@ -593,8 +594,7 @@ def _through(
                 a, b, before, after, neighbours, open_, taken, graph.xy, qa, qb, cuts, banned,
                 limit, seen,
             )  # fmt: skip
-            if memo is not None:
-                memo[key] = (route, *seen)
+            memo[key] = (route, *seen)
         if route is None:
             failed.append(t)
             continue
@@ -812,7 +812,7 @@ class _Steps:
         """Each point has some step to the next (else no assignment exists, and
         :func:`_viterbi` need not look: the graded grid's usual failure, a contour edge
         longer than its neighbours' cells)."""
-        return bool((self.adj | (self.hops > 0)).any(axis=(1, 2)).all())
+        return bool(self.step(slice(None)).any(axis=(1, 2)).all())
 
     def jump(self, t):
         return np.where(~self.adj[t] & (self.hops[t] > 0), EXTRA_COST * (self.hops[t] - 1), 0.0)
