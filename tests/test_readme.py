@@ -121,3 +121,20 @@ def test_no_history_in_the_docs():
     for page, text in PAGES.items():
         assert not re.search(r"issue ?[0-9]", text, re.I), page
         assert "/".join(["..", "shared"]) not in text, page  # the workplace's folder
+
+
+def test_readme_speed_numbers_are_the_benchmark_files():
+    """The README's "How fast" claims are the numbers ``make bench`` last wrote."""
+    results = (ROOT / "benchmarks" / "RESULTS.md").read_text()
+    corpus = results.split("<!-- section:corpus -->")[1].split("<!-- end:corpus -->")[0]
+    contours, wall = re.search(r"(\d+) contours in (\d+) s wall", corpus).groups()
+    meshed = re.search(r"\| all \| \d+ \| (\d+) \(", corpus).group(1)
+    claim = re.search(r"(\d+) of (\d+) real contours .*? in (\d+) s as one batch", README, re.S)
+    assert claim is not None
+    assert claim.groups() == (meshed, contours, wall)
+    ratios = re.findall(
+        r"(\d\.\d\d) times\s+Triangle's time on a circle and (\d\.\d\d) on a bean", README
+    )
+    assert ratios
+    for r in ratios[0]:
+        assert f"| {r} |" in results
