@@ -14,7 +14,16 @@ bounds the smallest angle of e's triangle in *every* mesh whose boundary
 nodes are exactly the contour's points, ours or anyone's.  A corner of angle
 ``theta`` gives its two edges ``F <= theta``; a part thinner than ``w`` gives
 an edge of length ``L`` across from it about ``atan(2 w / L)``.  At a boundary
-node, :func:`node_angles` bounds the worst of its triangles.  A thin strip
+node, :func:`node_angles` bounds the worst of its triangles: one triangle there
+is the ear, or two or more share the corner's angle ``theta`` and, side by side,
+must also grade the length of one boundary edge to the other's.  In a triangle
+with angle ``alpha`` at the node and all angles at least ``phi``, its two sides at
+the node differ at most ``sin(alpha + phi) / sin(phi)`` times (law of sines), so
+``k`` triangles grade at most ``(sin(theta / k + phi) / sin(phi)) ** k`` times (equal
+angles grade most: ``log sin`` is concave).  Edges that differ more than that
+force a smaller angle (:func:`fan_angles`; Mitchell's bound, that edges in line
+differing over 27 times force an angle under 30 degrees, is the case ``theta =
+180``, ``k = 6``).  A thin strip
 between two facing edges forces about half of F in tangent (the two triangles'
 apexes share the width), which is why the bound we test is ``min(30, B) / 3``,
 ``B`` the smallest of these near a triangle (README, "What the boundary forces,
@@ -99,14 +108,16 @@ def node_angles(points: np.ndarray, lines: np.ndarray, geom, nodes=None) -> np.n
     boundary is ``lines``, domain on their left): in any mesh with these boundary
     nodes, the worst of p's triangles has no larger smallest angle.  One triangle
     there is the *ear* (previous node, it, next node), which must lie in the
-    domain; with two or more, one of them has at most half the corner's angle.
-    So C(p) = max(angle / 2, the ear's smallest angle if the ear lies in the
-    domain)."""
+    domain; two or more share the corner's angle and grade its two edges' lengths
+    (:func:`fan_angles`, at most half the angle).  So C(p) = max(the fan's bound,
+    the ear's smallest angle if the ear lies in the domain)."""
     from .quality import measures
 
     ends, angle = corner_angles(points, lines)
     p = lines[:, 0] if nodes is None else nodes
-    half = angle[p] / 2
+    before = np.linalg.norm(points[ends[p, 1]] - points[p], axis=1)
+    after = np.linalg.norm(points[ends[p, 0]] - points[p], axis=1)
+    fan = fan_angles(angle[p], np.maximum(before, after) / np.minimum(before, after))
     ears = np.column_stack([p, ends[p, 0], ends[p, 1]])
     convex = angle[p] < 180
     ear = np.zeros(len(p))
@@ -114,7 +125,49 @@ def node_angles(points: np.ndarray, lines: np.ndarray, geom, nodes=None) -> np.n
         e = ears[convex]
         fits = _fits(geom, points[e[:, 0]], points[e[:, 1]], points[e[:, 2]])
         ear[convex] = np.where(fits, measures(points, e)[0], 0.0)
-    return np.maximum(half, ear)
+    return np.maximum(fan, ear)
+
+
+#: :func:`fan_angles` tries fans of up to this many triangles; a fan of more has one
+#: whose angle at the node is under ``angle / FANS``, which it allows for.
+FANS = 64
+
+
+def fan_angles(angle: np.ndarray, ratio: np.ndarray) -> np.ndarray:
+    """For boundary corners of ``angle`` degrees between edges whose lengths differ
+    ``ratio`` (>= 1) times: the largest ``phi`` (degrees, at most half the angle and
+    60) such that two or more triangles with no angle under ``phi`` can fill the
+    corner and grade one edge's length to the other's (module docstring).
+
+    Bisected like :func:`edge_angles`: the value returned is never below the true
+    one, so in any mesh with two or more triangles at such a corner, one of them has
+    no larger smallest angle.
+    """
+    angle = np.asarray(angle, dtype=np.float64)
+    grade = np.log(np.asarray(ratio, dtype=np.float64))
+    k = np.arange(2, FANS + 1, dtype=np.float64)
+    top = np.minimum(angle / 2, 60.0)
+
+    def fits(phi: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        p = np.radians(phi)[:, None]
+        a = np.radians(angle[rows])[:, None] / k  # each triangle's angle at the node
+        with np.errstate(divide="ignore", invalid="ignore"):
+            most = k * np.log(np.sin(a + p) / np.sin(p))
+        real = (a >= p * (1 - 1e-12)) & (a + 2 * p <= np.pi)  # a triangle, angles >= phi
+        return (real & (most >= grade[rows, None])).any(axis=1)
+
+    out = top.copy()
+    rows = np.flatnonzero(~fits(top, np.arange(len(angle))))
+    lo, hi = np.zeros(len(rows)), top[rows]
+    for _ in range(STEPS):
+        if len(rows) == 0:
+            break
+        mid = 0.5 * (lo + hi)
+        ok = fits(mid, rows)
+        lo = np.where(ok, mid, lo)
+        hi = np.where(ok, hi, mid)
+    out[rows] = np.maximum(hi, angle[rows] / FANS)
+    return out
 
 
 def _fits(geom, a, b, apex) -> np.ndarray:

@@ -280,9 +280,33 @@ def test_forced_angles_by_hand():
     f = forced.edge_angles(strip, lines, geom)
     assert f[[0, 2]] == pytest.approx(np.degrees(np.arctan(0.2)), abs=1e-5)
     assert (f[[1, 3]] == 60).all()  # the short ends: the equilateral apex fits
-    # its corners: the ear (a 1 x 0.1 right triangle) has 5.7 degrees, half the
-    # corner 45: C = 45
-    assert forced.node_angles(strip, lines, geom) == pytest.approx(45)
+    # its corners: the ear (a 1 x 0.1 right triangle) has 5.7 degrees; two or more
+    # triangles must grade 0.1 to 1 over 90 degrees: four of 22.5 degrees at the
+    # corner grade (sin 45 / sin 22.5) ** 4 = 11.7 times, three with all angles at
+    # 22.5 only 8.9 times, so C = 22.5
+    assert forced.node_angles(strip, lines, geom) == pytest.approx(22.5, abs=1e-5)
+
+
+def test_fan_angles_by_hand():
+    # edges of one length: half the corner (at most 60), a fan of two equal triangles
+    assert forced.fan_angles([40.0, 90.0, 180.0], [1.0, 1.0, 1.0]) == pytest.approx(
+        [20.0, 45.0, 60.0]
+    )
+    # Mitchell: along a straight boundary, six 30-60-90 triangles grade sqrt(3) ** 6
+    # = 27 times, and no fan with all angles at 30 grades more
+    at = forced.fan_angles([180.0, 180.0], [26.9, 27.1])
+    assert at[0] >= 30 > at[1] > 29.9
+    # an 80 degree corner grading 19 times (coast_norway's tongue at (12.79, 66.10)):
+    # four triangles of 20 degrees; a fifth would be under the angle it allows
+    phi = forced.fan_angles([80.0], [19.0])[0]
+    assert (np.sin(np.radians(20 + phi)) / np.sin(np.radians(phi))) ** 4 == pytest.approx(
+        19, rel=1e-5
+    )
+    assert 16.5 < phi < 16.6
+    # more grading, smaller angles, never below angle / FANS
+    ratios = np.logspace(0, 8, 30)
+    got = forced.fan_angles(np.full(30, 90.0), ratios)
+    assert (np.diff(got) <= 1e-9).all() and got.min() >= 90.0 / forced.FANS
 
 
 def _wedge(degrees):
