@@ -114,6 +114,12 @@ def check_contract(
         raise ContractError(
             f"{src}: triangle {t} near ({c[0]:.6g}, {c[1]:.6g}) has signed area {area[t]:.3g}"
         )
+    used = np.bincount(tri.ravel(), minlength=len(pts))
+    if not used.all():  # (a node of no triangle leaves a solver's matrix singular)
+        k = int(np.argmin(used))
+        raise ContractError(
+            f"{src}: node {k} at ({pts[k, 0]:.6g}, {pts[k, 1]:.6g}) is a corner of no triangle"
+        )
     # 2. the boundary is exactly the rings (and the box)
     _check_boundary(mesh, contour, box, edges)
     # 4. area conservation

@@ -162,3 +162,7 @@ def test_the_contract_names_each_broken_clause(peanut):
     # a hole punched inside: the boundary is no longer the contour
     with pytest.raises(ContractError, match="is not the contour's boundary chain"):
         check_contract(_with(mesh, triangles=np.delete(mesh.triangles, len(tri) // 2, axis=0)), c)
+    # a node no triangle uses (a solver's matrix would be singular)
+    lone = np.vstack([mesh.points, mesh.points[-1:] + 1e-3])
+    with pytest.raises(ContractError, match=f"node {len(pts)} at .* is a corner of no triangle"):
+        check_contract(_with(mesh, points=lone), c)
