@@ -145,7 +145,8 @@ def merge_extra_nodes(
         if deadline.expired():
             break  # (past the search's bound: the runs left keep their extra nodes)
         first = cavity = sorted({t for x in run for t in star[x]})
-        inner: list[int] = []  # inner nodes the cavity takes in as it grows
+        # inner nodes the cavity holds (all of whose triangles it takes), more as it grows
+        inner = _inner(tri, stars, cavity, on_boundary)
         new = None
         for _ in range(GROW + 1):
             if dead[cavity].any():  # shares a triangle with a run merged before: later
@@ -195,7 +196,7 @@ def _filled(pts, tri, stars, boundary, dead, cavity, a, b, run, base):
     the new points numbered from ``base``; or None."""
     from . import cavity as _cavity
 
-    inner: list[int] = []
+    inner = _inner(tri, stars, cavity, boundary)
     for _ in range(FILL_GROW + 1):
         if cavity is None or dead[cavity].any():
             return None
@@ -218,11 +219,15 @@ def _grow(tri: np.ndarray, stars, cavity: list[int], boundary: np.ndarray, limit
     grown = sorted({t for v in verts.tolist() for t in stars(v)})
     if len(grown) > (MAX_CAVITY if limit is None else limit):
         return None, None
-    held = set(grown)
-    inside = [
-        v for v in np.unique(tri[grown]).tolist() if not boundary[v] and set(stars(v)) <= held
-    ]
-    return grown, inside
+    return grown, _inner(tri, stars, grown, boundary)
+
+
+def _inner(tri: np.ndarray, stars, cavity: list[int], boundary: np.ndarray) -> list[int]:
+    """The nodes of the triangles ``cavity`` that are not on the ``boundary`` mask and
+    have all their triangles in it: re-meshing the cavity takes them out (left in,
+    they would be corners of no triangle)."""
+    held = set(cavity)
+    return [v for v in np.unique(tri[cavity]).tolist() if not boundary[v] and set(stars(v)) <= held]
 
 
 def _retriangulate(pts, cavity: np.ndarray, a: int, b: int, run: set[int], least=MIN_ANGLE):

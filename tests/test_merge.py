@@ -47,6 +47,19 @@ def test_an_extra_node_is_taken_out_and_the_boundary_joined():
     assert len(mesh.triangles) == 4
 
 
+def test_an_inner_node_whose_triangles_all_go_goes_with_them():
+    # a triangle 0-1-2 with extra nodes 3, 4, 5 on its bottom edge and an inner node 6
+    # each of whose triangles has an extra node: merging takes out all of them (left,
+    # node 6 would be a corner of no triangle; coast_india's graded mesh had one)
+    pts = np.array([[0, 0], [1, 0], [0.5, 1], [0.25, 0], [0.5, 0], [0.75, 0], [0.5, 0.3]])
+    tri = np.array([[0, 3, 2], [3, 4, 6], [4, 5, 6], [5, 2, 6], [2, 3, 6], [5, 1, 2]])
+    lines = np.array([[0, 3], [3, 4], [4, 5], [5, 1], [1, 2], [2, 0]])
+    mesh, done = merge_extra_nodes(Mesh(pts.astype(float), tri, lines, n_contour=3, n_extra=3))
+    assert (done.merged, done.left) == (3, 0)
+    assert len(mesh.points) == 3 and mesh.triangles.tolist() == [[0, 1, 2]]
+    check_contract(mesh, make_contour(pts[:3].astype(float), source="t"))
+
+
 def test_merging_stops_once_the_search_bound_has_passed():
     """Past the time bound (:mod:`deformesh_cli.deadline`) the runs left keep their
     extra nodes: the mesh in hand is valid, and the answer comes in time."""
