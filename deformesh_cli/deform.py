@@ -184,27 +184,44 @@ def deform_band(
     path_nodes: np.ndarray,
     targets: np.ndarray,
     fixed_nodes: np.ndarray,
-    active: np.ndarray,
+    active: np.ndarray | None,
     describe=None,
+    kept: np.ndarray | None = None,
     **kwargs,
 ) -> tuple[np.ndarray, DeformStats]:
-    """:func:`deform` on the triangles whose three corners are all ``active`` (a band).
+    """:func:`deform` on the triangles whose three corners are all ``active`` (a band),
+    and, with ``kept`` (a triangle mask), that are kept; ``active=None``: every kept
+    triangle.
 
-    Only those triangles move.  An active node that also belongs to a
-    triangle outside the band is held (``U = 0``, like the box), so every
-    other triangle keeps its shape exactly and cannot fold.  The path nodes
-    must lie strictly inside the band.
+    Only those triangles move.  An active node that also belongs to a kept
+    triangle outside the band is held (``U = 0``, like the box), so every other
+    kept triangle keeps its shape exactly and cannot fold.  The path nodes must
+    lie strictly inside the band.
+
+    ``kept``: the triangles on the domain's side of the path.  A triangle
+    outside them is neither solved for nor checked for folds: its free nodes
+    stay where they are, while those of the path move, so it may fold, and the
+    mesh drops it.  With the path's nodes given, the two sides' systems share
+    no unknown, so the kept side's solution is the one a direct solve on both
+    sides gives, as long as no fold on the other side halves a step.
     """
     # (t, 3) reductions and np.unique are slow on a whole grid's triangles: per-corner
     # masks and scatters instead
-    corner = [active[tri[:, k]] for k in range(3)]
-    inside = corner[0] & corner[1] & corner[2]
+    edge = np.zeros(len(points), dtype=bool)
+    if active is None:
+        inside = np.ones(len(tri), dtype=bool) if kept is None else kept
+    else:
+        corner = [active[tri[:, k]] for k in range(3)]
+        inside = corner[0] & corner[1] & corner[2]
+        rim = ~inside & (corner[0] | corner[1] | corner[2])  # touch the band
+        if kept is not None:
+            inside &= kept
+            rim &= kept
+        edge[tri[rim].ravel()] = True
     sub_tri = tri[inside]
     used = np.zeros(len(points), dtype=bool)
     used[sub_tri.ravel()] = True
     nodes = np.flatnonzero(used)
-    edge = np.zeros(len(points), dtype=bool)
-    edge[tri[~inside & (corner[0] | corner[1] | corner[2])].ravel()] = True  # touch the band
     edge[fixed_nodes] = True
     held = nodes[edge[nodes]]
     if edge[path_nodes].any():
@@ -212,7 +229,7 @@ def deform_band(
     remap = np.full(len(points), -1, dtype=np.int64)
     remap[nodes] = np.arange(len(nodes))
     sub_describe = None if describe is None else (lambda t: describe(nodes[t]))
-    if kwargs.get("solver", "auto") == "auto":
+    if active is not None and kwargs.get("solver", "auto") == "auto":
         kwargs["solver"] = "direct"  # a band: see SOLVERS
     sub, st = deform(
         points[nodes],

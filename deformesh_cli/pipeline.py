@@ -320,7 +320,10 @@ def run_deform(
 
     ``solve="band"`` moves only the cells near the path (:func:`band_nodes`),
     unless a size function is given (it shapes every cell) or the band would
-    cover half the grid; ``"full"`` solves on the whole grid.
+    cover half the grid; ``"full"`` solves on the whole grid.  On the graded grid
+    without a size function only the domain's side of the path is solved for
+    (:func:`.deform.deform_band`'s ``kept``): the other side's triangles are dropped,
+    and a fold there does not stop the deformation.
     """
     o = _options(options, changes)
     if o.solve not in SOLVES:
@@ -347,9 +350,14 @@ def run_deform(
         ),
     }
     args = (pts0, tri, sel.path_nodes, sel.path_targets, grid.boundary_nodes())
+    kept = None  # (the uniform grid deforms both sides, as the paper does)
+    if isinstance(sel, GradedSelection) and size is None:
+        kept = sel.kept_triangles()
     try:
         try:
-            if band is None:
+            if kept is not None:
+                pos, st = _deform.deform_band(*args, band, kept=kept, **kwargs)
+            elif band is None:
                 pos, st = _deform.deform(*args, **kwargs)
             else:
                 pos, st = _deform.deform_band(*args, band, **kwargs)
@@ -588,6 +596,8 @@ def mesh_contour(
                 # only the selection: it runs on the second core while the deformation runs
                 # (``benchmarks/MEASURED.md``)
                 sel.triangles()  # built once, here, rather than by both threads at once
+                if isinstance(sel, GradedSelection):
+                    sel.kept_triangles()
                 with ThreadPoolExecutor(max_workers=1) as pool:
                     cut = pool.submit(triangulate.cut, contour, sel, edges=True)
                     try:

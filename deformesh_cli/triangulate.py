@@ -5,13 +5,13 @@ minus holes, islands in holes again inside), or, for an exterior mesh, the
 box minus that.  Inside/outside is decided by topology on the undeformed
 grid: the even-odd rule applied to the rings' grid paths, by counting, along
 each row of triangle centroids, the path edges crossed (exact: integer
-arithmetic in thirds of a cell).  If no triangle folded, the deformation is a
-homeomorphism and maps those cells onto the domain (DESIGN.md section 3).
-Every triangle the deformation moved is also tested by geometry, shapely on
-its deformed centroid against the rings, and the two must agree; a
-disagreement is a contract violation.  (Triangles it did not move are grid
-cells in place; the contract check that follows, boundary = contour, no
-fold, area conserved, covers them.)
+arithmetic in thirds of a cell).  If no kept triangle folded, the kept cells,
+whose boundary the path nodes carry onto the rings, map one to one onto the
+domain (DESIGN.md section 3).  Every kept triangle the deformation moved is also
+tested by geometry, shapely on its deformed centroid against the rings; one
+outside is a contract violation.  (Triangles it did not move are grid cells in
+place; the contract check that follows, boundary = contour, no fold, area
+conserved, covers them.)
 """
 
 from __future__ import annotations
@@ -74,9 +74,7 @@ def cut(contour: Contour, sel: Selection, edges: bool = False) -> Cut:
     grid = sel.grid
     tri = sel.triangles()
     path_nodes, path_source, path_ring = sel.path_nodes, sel.path_source, sel.path_ring
-    inside = sel.inside_triangles()
-    if sel.exterior:
-        inside = ~inside
+    inside = sel.kept_triangles()
     kept = tri[inside]
     m = contour.n
     new_id = np.full(grid.n_nodes, -1, dtype=np.int64)
@@ -133,20 +131,22 @@ def cut(contour: Contour, sel: Selection, edges: bool = False) -> Cut:
 def place(contour: Contour, sel: Selection, c: Cut, points: np.ndarray) -> Mesh:
     """The mesh of cut ``c`` at the deformed ``points`` (every grid node).
 
-    Every triangle the deformation moved is tested by geometry (shapely, its
-    deformed centroid against the rings); a disagreement with the topology is a
-    :class:`ContractError`.
+    Every kept triangle the deformation moved is tested by geometry (shapely, its
+    deformed centroid against the rings); one whose centroid falls outside the
+    domain is a :class:`ContractError`.  The dropped triangles are not tested: on
+    the graded grid the deformation leaves them be, and those along the path may
+    fold.
     """
     grid, tri = sel.grid, sel.triangles()
     g = grid.coords()
     moved = (points[:, 0] != g[:, 0]) | (points[:, 1] != g[:, 1])
-    near = np.flatnonzero(touching(moved, tri))
+    near = np.flatnonzero(touching(moved, tri) & c.inside)
     rings = [contour.points[contour.ring_order(r)] for r in range(contour.n_rings)]
     cen = _centroids(points, tri[near])
     box = grid.box if sel.exterior else None
     geometric = shapely.contains_xy(domain(rings, box), cen[:, 0], cen[:, 1])
-    if not np.array_equal(geometric, c.inside[near]):
-        t = int(np.argmax(geometric != c.inside[near]))
+    if not geometric.all():
+        t = int(np.argmin(geometric))
         x, y = cen[t]
         raise ContractError(
             f"{contour.source}: inside/outside disagree near ({x:.6g}, {y:.6g}): the "

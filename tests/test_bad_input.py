@@ -82,12 +82,6 @@ CASES = {
         r"open\.svg: path#p subpath 1 is not closed: it ends at \(4, 2\)",
     ),
     "broken.svg": ("<svg><path d='M0 0", 1, r"broken\.svg: not a readable SVG file"),
-    # a slit 1e-7 wide: beyond the adapted grid (its path touches itself) and Appendix A's
-    "slit.csv": (
-        "0,0\n1,0\n1,1\n0.5,1\n0.5,1e-7\n0.4999999,1\n0,1\n",
-        1,
-        r"slit\.csv: the background grid would need .* nodes .*points 3 and 5\)",
-    ),
 }
 
 

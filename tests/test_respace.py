@@ -146,15 +146,15 @@ def test_when_no_rung_selects_the_uniform_grid_meshes_and_says_so(monkeypatch):
 
 
 def test_a_slit_meshes_on_a_rung_or_is_refused_by_the_uniform_grid():
-    # a slit 1e-7 wide: the graded grid finds no path, and the uniform grid it falls back
-    # to (the median spacing is only twice the smallest) is out of reach; its refusal
-    # names the two close points
+    # a slit 1e-7 wide (the graded grid meshes it: tests/test_kept_side.py): the fallback
+    # would be the uniform grid (the median spacing is only twice the smallest), which
+    # is out of reach; its refusal names the two close points
     c = make_contour(
         np.array([[0, 0], [1, 0], [1, 1], [0.5, 1], [0.5, 1e-7], [0.4999999, 1], [0, 1]])
     )
     assert fallback_mode(c) == "uniform"
     with pytest.raises(LimitError, match=r"points 3 and 5"):
-        mesh_contour(c, max_nodes=200_000)
+        mesh_contour(c, grid="uniform", max_nodes=200_000)
     # forced onto the ladder it meshes, with the sliver the 1e-7 gap forces
     res = mesh_contour(c, grid="adapt", max_nodes=200_000)
     assert res.report["h_rule"] == "typical-spacing" and res.report["min_angle"] < 1e-3

@@ -142,6 +142,7 @@ class GradedSelection:
     #: contour (:mod:`.respace`), or None for straight moves
     path_slide: np.ndarray | None = None
     _triangles: np.ndarray | None = field(default=None, init=False, repr=False)
+    _kept: np.ndarray | None = field(default=None, init=False, repr=False)
 
     @property
     def extra_nodes(self) -> int:
@@ -163,6 +164,14 @@ class GradedSelection:
             ring = shapely.Polygon(p[self.path_nodes[self.path_ring == r]])
             inside ^= shapely.contains_xy(ring, cen[:, 0], cen[:, 1])
         return inside
+
+    def kept_triangles(self) -> np.ndarray:
+        """Per triangle: on the domain's side of the paths (:meth:`inside_triangles`,
+        or outside them for an exterior mesh)."""
+        if self._kept is None:
+            inside = self.inside_triangles()
+            self._kept = ~inside if self.exterior else inside
+        return self._kept
 
     def band_nodes(self) -> np.ndarray | None:
         """Nodes within :data:`BAND_HOPS` edges of the path, or None if half the grid

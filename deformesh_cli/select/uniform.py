@@ -315,6 +315,12 @@ class Selection:
         n_rings = int(self.path_ring.max()) + 1 if len(self.path_ring) else 0
         return topology_inside(self.grid, self.diagonals, self.path_nodes, self.path_ring, n_rings)
 
+    def kept_triangles(self) -> np.ndarray:
+        """Per triangle: on the domain's side of the paths (outside them for an
+        exterior mesh)."""
+        inside = self.inside_triangles()
+        return ~inside if self.exterior else inside
+
 
 def grid_triangles(
     grid: Grid, diagonals: np.ndarray, cells: np.ndarray | None = None
