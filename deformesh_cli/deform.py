@@ -28,6 +28,10 @@ from .geometry import signed_areas
 #: Default number of pseudo-time steps (the paper's example uses 10).
 DEFAULT_STEPS = 10
 
+#: With ``keep_folds``, a triangle whose signed area is at most this times the mean
+#: of theirs counts as folded: its sign is round-off.
+FLAT = 1e-12
+
 
 #: What a fold message advises: at the last step (the targets themselves cannot be
 #: reached), and before it.
@@ -45,6 +49,7 @@ class DeformStats:
     solver: str = ""
     iterations: list[int] = field(default_factory=list)
     moved_nodes: int = 0  # nodes the solves covered (the band, or every node)
+    fold: str | None = None  # with ``keep_folds``: what would have been raised, or None
 
 
 #: Solvers offered by ``--solver``.  "auto" picks "direct" on a narrow band (its
@@ -259,8 +264,10 @@ def deform_(
     size=None,
     slide=None,
     advice: tuple[str, str] = ADVICE,
+    keep_folds: bool = False,
 ) -> tuple[np.ndarray, DeformStats]:
-    """Deform ``points`` so that ``points[path_nodes] == targets`` exactly, never folding.
+    """Deform ``points`` so that ``points[path_nodes] == targets`` exactly, never folding
+    (unless ``keep_folds``).
 
     With ``size`` (a :class:`deformesh_cli.size.SizePath`: ``g = 1/f`` and
     ``dg/dt`` along pseudo-time) the cells also take the areas ``f`` asks for:
@@ -288,6 +295,11 @@ def deform_(
         equal ``slide.at(1)``.
     advice : what a fold message tells the user to do (:data:`ADVICE`: at the
         last step, and before it).
+    keep_folds : at the first step that would fold a triangle or leave one flat
+        (:data:`FLAT`), go the rest of the way to the targets in one step instead,
+        without halving (this step's solution, scaled), and keep the fold's message
+        in the stats' ``fold``.  The result may then have folded triangles
+        (:mod:`.untangle` mends those of a mesh).
 
     Returns the new coordinates and :class:`DeformStats`.
     """
@@ -344,14 +356,28 @@ def deform_(
             if last:
                 new[path_nodes] = targets
             area = signed_areas(new, tri)
+            if keep_folds:  # (flat counts as folded: :func:`.untangle.tangled`)
+                area = area - FLAT * np.abs(area).mean()
             if (area > 0).all():
                 break
-            if stats.halvings >= max_halvings * steps or theta <= 2.0**-max_halvings:
-                raise FoldError(
-                    _fold_message(new, tri, area, steps, remaining, last, describe, advice)
-                )
+            if keep_folds or stats.halvings >= max_halvings * steps or theta <= 2.0**-max_halvings:
+                message = _fold_message(new, tri, area, steps, remaining, last, describe, advice)
+                if not keep_folds:
+                    raise FoldError(message)
+                # the rest of the way in one step, solved on this (unfolded) mesh: solves on
+                # folded or flat triangles would magnify round-off into the free nodes.  No
+                # halving first: each halved step accepted close to a fold turns on whether
+                # a nearly flat triangle's area is a hair above zero, so where the rest of
+                # the way starts from would be round-off
+                stats.fold = message
+                pos = pos + disp / frac
+                pos[path_nodes] = targets
+                remaining = 0.0
+                break
             theta *= 0.5
             stats.halvings += 1
+        if stats.fold is not None:
+            break
         pos = new
         if asm.n_free:
             prev = u_free / frac * (1.0 - theta * frac)  # U, not f U: what the solve returns

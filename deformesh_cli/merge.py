@@ -305,7 +305,9 @@ def _best_triangulation_of(key: bytes) -> tuple[np.ndarray, float] | None:
     angle = np.full((k, k, k), -1.0)
     tri = np.column_stack([i, mid, j])
     ok = (signed_areas(p, tri) > 0) & chord[i, mid] & chord[mid, j] & chord[i, j]
-    angle[i[ok], mid[ok], j[ok]] = measures(p, tri[ok])[0]
+    # to 1e-9 degrees: angles equal but for round-off (a grid's right angles, carried
+    # alike) tie exactly, and the first chord wins, wherever the polygon lies
+    angle[i[ok], mid[ok], j[ok]] = np.round(measures(p, tri[ok])[0], 9)
     best = np.full((k, k), -1.0)
     pick = np.full((k, k), -1, dtype=np.int64)
     best[r[:-1], r[1:]] = 180.0
@@ -409,7 +411,7 @@ def clear_sharp_corners(mesh: Mesh) -> tuple[Mesh, int]:
             cav = sorted(set(around) | set(star(x)))
             if dead[cav].any():
                 continue
-            ring = _loop(tri[cav], x)
+            ring = _loop(tri[cav], {x})
             if ring is None or len(ring) > MAX_CAVITY:
                 continue
             got = _best_triangulation(pts[ring])
@@ -427,9 +429,9 @@ def clear_sharp_corners(mesh: Mesh) -> tuple[Mesh, int]:
     return _renumber(mesh, np.concatenate([tri[~dead], *added]), gone), len(added)
 
 
-def _loop(cavity: np.ndarray, inner: int) -> list[int] | None:
+def _loop(cavity: np.ndarray, inner: set[int]) -> list[int] | None:
     """The outline of the triangles ``cavity`` counter-clockwise, if it is one simple
-    loop through every node of them but ``inner``; else None."""
+    loop through every node of them but the ``inner`` ones; else None."""
     edges = [(int(t[k]), int(t[(k + 1) % 3])) for t in cavity for k in range(3)]
     both = set(edges)
     after: dict[int, int] = {}
@@ -439,12 +441,14 @@ def _loop(cavity: np.ndarray, inner: int) -> list[int] | None:
         if u in after:
             return None
         after[u] = v
+    if not after:  # (every edge paired: triangles folded onto each other)
+        return None
     start = next(iter(after))
     ring = [start]
     while after.get(ring[-1], start) != start:
         ring.append(after[ring[-1]])
         if len(ring) > len(after):
             return None
-    if len(ring) != len(after) or set(cavity.ravel().tolist()) - set(ring) != {inner}:
+    if len(ring) != len(after) or set(cavity.ravel().tolist()) - set(ring) != inner:
         return None
     return ring

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import deadline, forced, geometry, quality, triangulate
+from . import deadline, forced, geometry, quality, triangulate, untangle
 from . import deform as _deform
 from . import improve as _improve
 from . import merge as _merge
@@ -45,6 +45,7 @@ class Deformed:
     selection: Selection
     points: np.ndarray
     stats: DeformStats | None = None
+    mend: bool = False  # deformed keeping its folds: stage 3 mends them (:mod:`.untangle`)
 
 
 @dataclass
@@ -148,6 +149,7 @@ def candidate_selections(
     *,
     size_function: SizeFunction | None = None,
     fall_back: Callable[[], bool] | None = None,
+    mend: list[GradedSelection] | None = None,
     **changes,
 ) -> Iterator[Selection]:
     """The selections ``all`` tries in turn.
@@ -158,6 +160,9 @@ def candidate_selections(
     The graded grid is refined for the size function (``size_function``, else the
     options' ``size`` or ``size_field``).  ``fall_back()``, asked once the graded
     grid's selections are done, says whether to go on to the fallback grid.
+    ``mend``: the graded selections whose deformation folded, listed by the caller
+    as it goes; if ``fall_back()`` asks for more, they are yielded again first, for
+    the caller to deform keeping the folds and mend them (:mod:`.untangle`).
     """
     o = _options(options, changes)
     mode = grid_mode(contour, o.grid, o.h, o.exterior)
@@ -197,6 +202,8 @@ def candidate_selections(
             sel.notes.insert(0, f"{fell_back}; with extra boundary nodes on the graded grid")
         yield sel
         fell_back = "the graded grid's deformation folded"
+    if mend and (fall_back is None or fall_back()):
+        yield from list(mend)
     if fall_back is not None and not fall_back():
         return
     mode = fallback_mode(contour, o.exterior)
@@ -312,6 +319,7 @@ def run_deform(
     *,
     callback: Callback | None = None,
     size_function: SizeFunction | None = None,
+    keep_folds: bool = False,
     **changes,
 ) -> Deformed:
     """Stage 2 (the options' deform fields).  The size function (``size_function``, else
@@ -324,6 +332,12 @@ def run_deform(
     without a size function only the domain's side of the path is solved for
     (:func:`.deform.deform_band`'s ``kept``): the other side's triangles are dropped,
     and a fold there does not stop the deformation.
+
+    ``keep_folds``: a fold that cannot be avoided does not stop the deformation
+    (:func:`.deform.deform_`);
+    the stats' ``fold`` then says where it first folded, and stage 3 mends the mesh
+    (:mod:`.untangle`).  A deformation that cannot go on at all still raises
+    :class:`FoldError`.
     """
     o = _options(options, changes)
     if o.solve not in SOLVES:
@@ -349,6 +363,8 @@ def run_deform(
             contour, sel.path_ring, sel.path_slide[:, 0], sel.path_slide[:, 1], sel.path_targets
         ),
     }
+    if keep_folds:
+        kwargs["keep_folds"] = True
     args = (pts0, tri, sel.path_nodes, sel.path_targets, grid.boundary_nodes())
     kept = None  # (the uniform grid deforms both sides, as the paper does)
     if isinstance(sel, GradedSelection) and size is None:
@@ -366,8 +382,12 @@ def run_deform(
                 raise
             pos, st = _fit_then_size(args, kwargs, size, sel)
     except SolverError as exc:
+        if keep_folds:  # (a triangle squeezed flat on the way: nothing to mend)
+            raise FoldError(f"{contour.source}: the deformation folded and failed: {exc}") from None
         raise SolverError(f"{contour.source}: deformation failed: {exc}") from None
-    return Deformed(sel, pos, st)
+    if st.fold is not None and not np.isfinite(pos).all():
+        raise FoldError(st.fold)
+    return Deformed(sel, pos, st, mend=keep_folds)
 
 
 def _fit_then_size(args: tuple, kwargs: dict, size: SizeFunction, sel: GradedSelection):
@@ -427,7 +447,15 @@ def run_triangulate(
     sel = d.selection
     if cut is None:
         cut = triangulate.cut(contour, sel)
-    placed = triangulate.place(contour, sel, cut, d.points)
+    placed = triangulate.place(contour, sel, cut, d.points, folded=d.mend)
+    edges = cut.edges
+    if d.mend:
+        mended = untangle.untangle(placed, untangle.most_tangled(placed))
+        if mended is None:
+            raise FoldError(d.stats.fold or f"{contour.source}: flat triangles could not be mended")
+        if mended is not placed:
+            sel.notes.append("the deformation folded; the folded triangles were meshed again")
+            placed, edges = mended, None  # (the contract check counts the new triangles' edges)
     # merged down to 1 degree (a graded path's extra nodes) or 20, cavities filled with
     # new points where that is not enough; if the quality stage then leaves triangles
     # under its bound, the next way that leaves fewer (``MERGE_WAYS``)
@@ -439,7 +467,7 @@ def run_triangulate(
     for thin, fill in ways:
         if not fill and thin in unfilled:
             continue  # (it would give the mesh already measured)
-        got = _merge_and_improve(placed, cut.edges, o, thin, fill)
+        got = _merge_and_improve(placed, edges, o, thin, fill)
         merged = got[2]
         if merged is None or not o.improve:
             best = got  # (nothing merged, or one way only)
@@ -569,8 +597,10 @@ def mesh_contour(
 
     On an adapted grid, a rung whose deformation folds, or whose mesh has an
     angle under :data:`MIN_ADAPTED_ANGLE`, gives way to the next one (the
-    nearly flat mesh is kept if nothing later meshes).  The result meets the
-    contract or this raises.
+    nearly flat mesh is kept if nothing later meshes).  A graded selection whose
+    deformation folds is deformed again keeping its folds, and its mesh mended
+    (:mod:`.untangle`), if no graded mesh was good enough to skip the fallback
+    grid.  The result meets the contract or this raises.
     """
     o = _options(options, changes)
     size = size_function
@@ -578,6 +608,7 @@ def mesh_contour(
         size = _size.make(o.size, o.size_field, contour)
     fold = flat = best = None
     enough = EXTRA_ENOUGH * len(contour.points)
+    folded: list[GradedSelection] = []  # graded selections whose deformation folded
 
     def rank(mesh: Mesh, report: dict) -> tuple:
         """Meshes that keep the quality stage's bound first, then fewer extra nodes,
@@ -590,8 +621,11 @@ def mesh_contour(
 
     with deadline.limit(deadline.search_bound(contour.n)):
         try:
-            for sel in candidate_selections(contour, o, size_function=size, fall_back=fall_back):
+            for sel in candidate_selections(
+                contour, o, size_function=size, fall_back=fall_back, mend=folded
+            ):
                 with_extra = isinstance(sel, GradedSelection) and sel.extra_nodes > 0
+                mending = any(sel is s for s in folded)  # (yielded again, to be mended)
                 # stage 3's topology (which triangles, numbered how, and their edges) needs
                 # only the selection: it runs on the second core while the deformation runs
                 # (``benchmarks/MEASURED.md``)
@@ -601,18 +635,32 @@ def mesh_contour(
                 with ThreadPoolExecutor(max_workers=1) as pool:
                     cut = pool.submit(triangulate.cut, contour, sel, edges=True)
                     try:
-                        d = run_deform(contour, sel, o, callback=callback, size_function=size)
+                        d = run_deform(
+                            contour,
+                            sel,
+                            o,
+                            callback=callback,
+                            size_function=size,
+                            keep_folds=mending,
+                        )
                     except FoldError as exc:
                         fold = exc  # the last one: the uniform grid's, when every rung folded
+                        if isinstance(sel, GradedSelection) and not mending:
+                            folded.append(sel)
                         continue
                     try:
                         mesh, report = run_triangulate(
                             contour, d, o, size_function=size, cut=cut.result()
                         )
-                    except ContractError as exc:
-                        if not with_extra:
+                    except (ContractError, FoldError) as exc:
+                        if not (with_extra or mending):
                             raise
-                        fold = exc  # a route the deformation did not carry faithfully: the next
+                        # a route the deformation did not carry faithfully (flat triangles
+                        # on a contour edge, to be mended later), or folds that could not
+                        # be mended: the next
+                        fold = exc
+                        if isinstance(exc, ContractError) and not mending:
+                            folded.append(sel)
                         continue
                 if with_extra:
                     # the graded mesh that keeps the bound with the fewest extra nodes left

@@ -128,19 +128,30 @@ def cut(contour: Contour, sel: Selection, edges: bool = False) -> Cut:
     return out
 
 
-def place(contour: Contour, sel: Selection, c: Cut, points: np.ndarray) -> Mesh:
+def place(
+    contour: Contour, sel: Selection, c: Cut, points: np.ndarray, folded: bool = False
+) -> Mesh:
     """The mesh of cut ``c`` at the deformed ``points`` (every grid node).
 
     Every kept triangle the deformation moved is tested by geometry (shapely, its
     deformed centroid against the rings); one whose centroid falls outside the
     domain is a :class:`ContractError`.  The dropped triangles are not tested: on
     the graded grid the deformation leaves them be, and those along the path may
-    fold.
+    fold.  ``folded``: the deformation kept folds; the kept triangles touching a
+    folded or flat one (:func:`.untangle.tangled`) are not tested (:mod:`.untangle`
+    mends them, and the contract check holds the mended mesh).
     """
     grid, tri = sel.grid, sel.triangles()
     g = grid.coords()
     moved = (points[:, 0] != g[:, 0]) | (points[:, 1] != g[:, 1])
-    near = np.flatnonzero(touching(moved, tri) & c.inside)
+    tested = touching(moved, tri) & c.inside
+    if folded:
+        from .untangle import tangled
+
+        near_fold = np.zeros(len(points), dtype=bool)
+        near_fold[tri[c.inside][tangled(points, tri[c.inside])].ravel()] = True
+        tested &= ~touching(near_fold, tri)
+    near = np.flatnonzero(tested)
     rings = [contour.points[contour.ring_order(r)] for r in range(contour.n_rings)]
     cen = _centroids(points, tri[near])
     box = grid.box if sel.exterior else None

@@ -1,0 +1,127 @@
+"""Stage 3, where the deformation folded: the folded triangles of a mesh, mended.
+
+A deformation let go on past a fold (:func:`.deform.deform_` with
+``keep_folds``) can leave a few triangles turned over where the path's targets
+squeeze the cells between them, at the tip of a tongue thinner than its cells,
+or flat: three path nodes of one grid triangle carried onto one contour edge,
+whose signed area is then round-off, a hair above or below zero (:func:`tangled`).
+Each is mended as :mod:`.merge` re-meshes the cavity of an extra node:
+
+1. the *cavity*: the tangled triangle and every triangle at its inner corners
+   (those not on the boundary);
+2. the cavity's inner nodes (all of whose triangles are in it) are taken out;
+   its outline must be one simple counter-clockwise loop through all its other
+   nodes, and a simple polygon where they now are.  Its signed area is the sum
+   of the cavity's signed areas, so the mesh's area does not change;
+3. the outline is triangulated again, by the triangulation of its own vertices
+   with the largest smallest angle (:func:`.merge._best_triangulation`), if that
+   is at least :data:`.merge.THIN_ANGLE` (no new points);
+4. otherwise the cavity grows by the triangles around it, up to :data:`GROW`
+   times and :data:`MAX_TRIANGLES` triangles, its outline up to
+   :data:`.merge.MAX_CAVITY` nodes.
+
+Boundary nodes never move and every boundary edge of the cavity is a side of
+its outline, so the boundary is the one the deformation gave.  With no triangle
+tangled, that boundary and every triangle counter-clockwise make the mesh an
+exact cover of the domain (each point is covered as many times as the boundary
+winds round it: once); the contract check afterwards holds the mended mesh to
+that as any other.  The quality stage then works on it as on any other.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import merge
+from .deform import FLAT
+from .geometry import node_stars, signed_areas
+from .mesh import Mesh
+
+#: A cavity grows at most this many times (by the triangles touching it) ...
+GROW = 6
+#: ... and to at most this many triangles.
+MAX_TRIANGLES = 300
+
+#: Tangled triangles mended at most, one cavity at a time; more and the mesh is refused.
+MAX_CAVITIES = 50
+
+#: What the pipeline mends at most (:func:`most_tangled`): this share of a mesh's
+#: triangles, or one if more.  More is not a deformation folded in a few places but
+#: one that went wrong as a whole (a fold in the first step, carried the whole
+#: way), and meshing most of it again would answer with whatever round-off favoured.
+MAX_TANGLED_SHARE = 0.01
+
+
+def most_tangled(mesh: Mesh) -> int:
+    """The most tangled triangles the pipeline has ``mesh`` mended
+    (:data:`MAX_TANGLED_SHARE`)."""
+    return max(1, int(MAX_TANGLED_SHARE * len(mesh.triangles)))
+
+
+def tangled(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Which triangles are folded or flat (:data:`.deform.FLAT`): the ones :func:`untangle`
+    meshes again.  A flat one's centroid lies on its side, so whether the domain
+    holds it is round-off too."""
+    area = signed_areas(points, tri)
+    return area <= FLAT * np.abs(area).mean() if len(area) else area > 0
+
+
+def untangle(mesh: Mesh, most: int | None = None) -> Mesh | None:
+    """``mesh`` with no tangled triangle (:func:`tangled`, module docstring),
+    renumbered; ``mesh`` itself if none is; None if one cannot be mended, or if
+    more than ``most`` are tangled."""
+    if most is not None and tangled(mesh.points, mesh.triangles).sum() > most:
+        return None
+    for _ in range(MAX_CAVITIES):
+        folded = np.flatnonzero(tangled(mesh.points, mesh.triangles))
+        if len(folded) == 0:
+            return mesh
+        mesh = _mend(mesh, int(folded[0]))
+        if mesh is None:
+            return None
+    return None
+
+
+def _mend(mesh: Mesh, t: int) -> Mesh | None:
+    """``mesh`` with the cavity of its tangled triangle ``t`` meshed again, or None."""
+    pts, tri = mesh.points, mesh.triangles
+    boundary = np.zeros(len(pts), dtype=bool)
+    boundary[mesh.lines.ravel()] = True
+    stars = node_stars(tri)
+    cav = sorted({t, *(s for v in tri[t].tolist() if not boundary[v] for s in stars(v))})
+    for _ in range(GROW + 1):
+        held = set(cav)
+        corners = np.unique(tri[cav]).tolist()
+        inner = {v for v in corners if not boundary[v] and set(stars(v)) <= held}
+        ring = merge._loop(tri[cav], inner)
+        if ring is not None and len(ring) > merge.MAX_CAVITY:
+            return None
+        local = None if ring is None else _remesh(pts[ring])
+        if local is not None:
+            dead = np.zeros(len(tri), dtype=bool)
+            dead[cav] = True
+            gone = np.zeros(len(pts), dtype=bool)
+            gone[sorted(inner)] = True
+            new = np.asarray(ring, dtype=np.int64)[local]
+            return merge._renumber(mesh, np.concatenate([tri[~dead], new]), gone)
+        cav = sorted({s for v in corners for s in stars(v)})
+        if len(cav) > MAX_TRIANGLES:
+            return None
+    return None
+
+
+def _remesh(p: np.ndarray) -> np.ndarray | None:
+    """The triangles of the outline ``p`` (module docstring, step 3) in its local
+    indices, or None if it is not a simple counter-clockwise polygon or no
+    triangulation reaches :data:`.merge.THIN_ANGLE`."""
+    import shapely
+
+    x, y = p[:, 0], p[:, 1]
+    if np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y) <= 0:
+        return None
+    if not shapely.Polygon(p).is_valid:
+        return None
+    got = merge._best_triangulation(p)
+    if got is None or got[1] < merge.THIN_ANGLE:
+        return None
+    return got[0]
