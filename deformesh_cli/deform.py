@@ -28,8 +28,11 @@ from .geometry import signed_areas
 #: Default number of pseudo-time steps (the paper's example uses 10).
 DEFAULT_STEPS = 10
 
-#: With ``keep_folds``, a triangle whose signed area is at most this times the mean
-#: of theirs counts as folded: its sign is round-off.
+#: A triangle whose signed area is within this times the mean of theirs of zero is
+#: flat: its sign, and whether its centroid lies in the domain, are round-off (a free
+#: node carried onto the line through two path nodes, or three path nodes onto one
+#: contour edge).  With ``flat_ok`` the deformation lets it pass, whatever its sign,
+#: for stage 3 to mesh it again (:mod:`.untangle`).
 FLAT = 1e-12
 
 
@@ -265,6 +268,7 @@ def deform_(
     slide=None,
     advice: tuple[str, str] = ADVICE,
     keep_folds: bool = False,
+    flat_ok: bool = False,
 ) -> tuple[np.ndarray, DeformStats]:
     """Deform ``points`` so that ``points[path_nodes] == targets`` exactly, never folding
     (unless ``keep_folds``).
@@ -295,11 +299,14 @@ def deform_(
         equal ``slide.at(1)``.
     advice : what a fold message tells the user to do (:data:`ADVICE`: at the
         last step, and before it).
-    keep_folds : at the first step that would fold a triangle or leave one flat
-        (:data:`FLAT`), go the rest of the way to the targets in one step instead,
+    keep_folds : at the first step that would fold a triangle, go the rest of the
+        way to the targets in one step instead,
         without halving (this step's solution, scaled), and keep the fold's message
         in the stats' ``fold``.  The result may then have folded triangles
         (:mod:`.untangle` mends those of a mesh).
+    flat_ok : a triangle flat at the end (:data:`FLAT`) is not a fold, whatever the
+        sign of its area (the caller meshes it again); one flat before the end is a
+        fold, whatever its sign (the next step's solve divides by its area).
 
     Returns the new coordinates and :class:`DeformStats`.
     """
@@ -356,8 +363,9 @@ def deform_(
             if last:
                 new[path_nodes] = targets
             area = signed_areas(new, tri)
-            if keep_folds:  # (flat counts as folded: :func:`.untangle.tangled`)
-                area = area - FLAT * np.abs(area).mean()
+            if flat_ok:  # flat: at the end either sign passes; before it, a fold (the
+                # next solve would divide by its area, and magnify round-off into the nodes)
+                area += (1.0 if last else -1.0) * FLAT * np.abs(area).mean()
             if (area > 0).all():
                 break
             if keep_folds or stats.halvings >= max_halvings * steps or theta <= 2.0**-max_halvings:

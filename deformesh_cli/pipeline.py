@@ -369,6 +369,7 @@ def run_deform(
     kept = None  # (the uniform grid deforms both sides, as the paper does)
     if isinstance(sel, GradedSelection) and size is None:
         kept = sel.kept_triangles()
+        kwargs["flat_ok"] = True  # (stage 3 meshes flat triangles again)
     try:
         try:
             if kept is not None:
@@ -447,14 +448,19 @@ def run_triangulate(
     sel = d.selection
     if cut is None:
         cut = triangulate.cut(contour, sel)
-    placed = triangulate.place(contour, sel, cut, d.points, folded=d.mend)
+    graded = isinstance(sel, GradedSelection)
+    placed = triangulate.place(contour, sel, cut, d.points, folded=graded)
     edges = cut.edges
-    if d.mend:
+    if graded:  # folded triangles (a deformation that kept them) or flat ones: mended
         mended = untangle.untangle(placed, untangle.most_tangled(placed))
         if mended is None:
-            raise FoldError(d.stats.fold or f"{contour.source}: flat triangles could not be mended")
+            raise FoldError(
+                d.stats.fold
+                or f"{contour.source}: the deformation left triangles flat that could not "
+                "be meshed again"
+            )
         if mended is not placed:
-            sel.notes.append("the deformation folded; the folded triangles were meshed again")
+            sel.notes.append("folded or flat triangles of the deformed grid were meshed again")
             placed, edges = mended, None  # (the contract check counts the new triangles' edges)
     # merged down to 1 degree (a graded path's extra nodes) or 20, cavities filled with
     # new points where that is not enough; if the quality stage then leaves triangles
@@ -653,11 +659,11 @@ def mesh_contour(
                             contour, d, o, size_function=size, cut=cut.result()
                         )
                     except (ContractError, FoldError) as exc:
-                        if not (with_extra or mending):
+                        if not isinstance(sel, GradedSelection):
                             raise
-                        # a route the deformation did not carry faithfully (flat triangles
-                        # on a contour edge, to be mended later), or folds that could not
-                        # be mended: the next
+                        # a triangle left flat (its sign, and whether its centroid lies in
+                        # the domain, round-off; to be mended later), or folds that could
+                        # not be mended: the next
                         fold = exc
                         if isinstance(exc, ContractError) and not mending:
                             folded.append(sel)
