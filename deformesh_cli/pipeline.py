@@ -45,7 +45,6 @@ class Deformed:
     selection: Selection
     points: np.ndarray
     stats: DeformStats | None = None
-    mend: bool = False  # deformed keeping its folds: stage 3 mends them (:mod:`.untangle`)
 
 
 @dataclass
@@ -388,7 +387,7 @@ def run_deform(
         raise SolverError(f"{contour.source}: deformation failed: {exc}") from None
     if st.fold is not None and not np.isfinite(pos).all():
         raise FoldError(st.fold)
-    return Deformed(sel, pos, st, mend=keep_folds)
+    return Deformed(sel, pos, st)
 
 
 def _fit_then_size(args: tuple, kwargs: dict, size: SizeFunction, sel: GradedSelection):

@@ -137,8 +137,9 @@ def place(
     deformed centroid against the rings); one whose centroid falls outside the
     domain is a :class:`ContractError`.  The dropped triangles are not tested: on
     the graded grid the deformation leaves them be, and those along the path may
-    fold.  ``folded``: the deformation kept folds; the kept triangles touching a
-    folded or flat one (:func:`.untangle.tangled`) are not tested (:mod:`.untangle`
+    fold.  ``folded``: the mesh may hold folded or flat triangles, which stage 3
+    meshes again (a graded deformation); the kept triangles touching one
+    (:func:`.untangle.tangled`) are not tested (:mod:`.untangle`
     mends them, and the contract check holds the mended mesh).
     """
     grid, tri = sel.grid, sel.triangles()
@@ -148,8 +149,9 @@ def place(
     if folded:
         from .untangle import tangled
 
+        kept = tri[c.inside]
         near_fold = np.zeros(len(points), dtype=bool)
-        near_fold[tri[c.inside][tangled(points, tri[c.inside])].ravel()] = True
+        near_fold[kept[tangled(points, kept)].ravel()] = True
         tested &= ~touching(near_fold, tri)
     near = np.flatnonzero(tested)
     rings = [contour.points[contour.ring_order(r)] for r in range(contour.n_rings)]
