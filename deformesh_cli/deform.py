@@ -380,7 +380,6 @@ def deform_(
                 stats.fold = message
                 pos = pos + disp / frac
                 pos[path_nodes] = targets
-                remaining = 0.0
                 break
             theta *= 0.5
             stats.halvings += 1

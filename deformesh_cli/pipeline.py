@@ -361,9 +361,8 @@ def run_deform(
         else _respace.Slide(
             contour, sel.path_ring, sel.path_slide[:, 0], sel.path_slide[:, 1], sel.path_targets
         ),
+        "keep_folds": keep_folds,
     }
-    if keep_folds:
-        kwargs["keep_folds"] = True
     args = (pts0, tri, sel.path_nodes, sel.path_targets, grid.boundary_nodes())
     kept = None  # (the uniform grid deforms both sides, as the paper does)
     if isinstance(sel, GradedSelection) and size is None:

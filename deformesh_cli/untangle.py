@@ -70,15 +70,16 @@ def untangle(mesh: Mesh, most: int | None = None) -> Mesh | None:
     """``mesh`` with no tangled triangle (:func:`tangled`, module docstring),
     renumbered; ``mesh`` itself if none is; None if one cannot be mended, or if
     more than ``most`` are tangled."""
-    if most is not None and tangled(mesh.points, mesh.triangles).sum() > most:
+    folded = np.flatnonzero(tangled(mesh.points, mesh.triangles))
+    if most is not None and len(folded) > most:
         return None
     for _ in range(MAX_CAVITIES):
-        folded = np.flatnonzero(tangled(mesh.points, mesh.triangles))
         if len(folded) == 0:
             return mesh
         mesh = _mend(mesh, int(folded[0]))
         if mesh is None:
             return None
+        folded = np.flatnonzero(tangled(mesh.points, mesh.triangles))
     return None
 
 
