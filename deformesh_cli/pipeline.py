@@ -92,7 +92,7 @@ GRADED_ATTEMPTS = (
 )
 
 
-#: :data:`GRADED_ATTEMPTS` for a contour of more than :data:`EXTRA_WAYS_POINTS` points:
+#: :data:`GRADED_ATTEMPTS` for a contour of more than :data:`LARGE_ORDER_POINTS` points:
 #: the points as given with extra nodes comes second, before the slid and fitted grids
 #: without.  Such a contour stops at the first mesh with no extra node left that keeps
 #: the bound, and on the corpus's large coastlines the slid and fitted grids never had
@@ -124,15 +124,22 @@ MAX_FALLBACK_EXTRA = 100
 
 
 #: A contour of at most this many points tries every graded way with extra nodes
-#: and keeps the best mesh, even after one with none left; a larger one stops there.
-EXTRA_WAYS_POINTS = 1000
+#: and keeps the best mesh, even after one with none left; a larger one stops there,
+#: and mends a way that folded at once.  On the corpus the contours of 452 points or
+#: fewer take 0.1-3 s; coast_norway (993) spent 2.5 s on two more ways that folded
+#: before mending the first, the mesh it kept (``benchmarks/MEASURED.md``).
+EXTRA_WAYS_POINTS = 500
+
+
+#: A contour of more than this many points tries its ways in the order of
+#: :data:`GRADED_ATTEMPTS_LARGE`.
+LARGE_ORDER_POINTS = 1000
 
 
 def _tries_every_way(contour: Contour) -> bool:
     """Whether ``contour`` is small enough to try every graded way
     (:data:`EXTRA_WAYS_POINTS`); a larger one stops at the first mesh with no extra
-    node left, and tries its own grid with extra nodes second
-    (:data:`GRADED_ATTEMPTS_LARGE`)."""
+    node left that keeps the bound, and mends a fold at once."""
     return contour.n <= EXTRA_WAYS_POINTS
 
 
@@ -160,8 +167,10 @@ def candidate_selections(
     options' ``size`` or ``size_field``).  ``fall_back()``, asked once the graded
     grid's selections are done, says whether to go on to the fallback grid.
     ``mend``: the graded selections whose deformation folded, listed by the caller
-    as it goes; if ``fall_back()`` asks for more, they are yielded again first, for
-    the caller to deform keeping the folds and mend them (:mod:`.untangle`).
+    as it goes; if ``fall_back()`` asks for more, they are yielded again, for the
+    caller to deform keeping the folds and mend them (:mod:`.untangle`): once the
+    graded ways are done, or, for a contour too large to try every way
+    (:func:`_tries_every_way`), each one right after it folded.
     """
     o = _options(options, changes)
     mode = grid_mode(contour, o.grid, o.h, o.exterior)
@@ -186,7 +195,8 @@ def candidate_selections(
         )
 
     # as given, slid, fitted to the points; then with extra boundary nodes
-    order = GRADED_ATTEMPTS if _tries_every_way(contour) else GRADED_ATTEMPTS_LARGE
+    every = _tries_every_way(contour)
+    order = GRADED_ATTEMPTS if contour.n <= LARGE_ORDER_POINTS else GRADED_ATTEMPTS_LARGE
     attempts = [a for a in order if not (o.strict and a.get("extra"))]
     fell_back = None
     for attempt in attempts:
@@ -201,7 +211,9 @@ def candidate_selections(
             sel.notes.insert(0, f"{fell_back}; with extra boundary nodes on the graded grid")
         yield sel
         fell_back = "the graded grid's deformation folded"
-    if mend and (fall_back is None or fall_back()):
+        if not every and mend and mend[-1] is sel and (fall_back is None or fall_back()):
+            yield sel  # (a large contour keeps its first good mesh: its folds mended now)
+    if every and mend and (fall_back is None or fall_back()):
         yield from list(mend)
     if fall_back is not None and not fall_back():
         return

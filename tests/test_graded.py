@@ -749,8 +749,8 @@ def test_a_point_with_no_step_to_the_next_is_refused_before_the_search(monkeypat
     assert searched
 
 
-@pytest.mark.parametrize("n", [1000, 1001])
-def test_a_large_contour_tries_extra_nodes_on_its_own_grid_second(monkeypatch, n):
+@pytest.mark.parametrize("more", [0, 1])
+def test_a_large_contour_tries_extra_nodes_on_its_own_grid_second(monkeypatch, more):
     from deformesh_cli import pipeline
     from deformesh_cli.errors import SelectionError
 
@@ -761,12 +761,43 @@ def test_a_large_contour_tries_extra_nodes_on_its_own_grid_second(monkeypatch, n
         raise SelectionError("no path")
 
     monkeypatch.setattr(pipeline, "select_graded", refuse)
+    n = pipeline.LARGE_ORDER_POINTS + more
     t = np.linspace(0, 2 * np.pi, n, endpoint=False)
     c = make_contour(np.column_stack([np.cos(t), np.sin(t)]), source="circle")
     assert list(pipeline.candidate_selections(c, fall_back=lambda: False)) == []
-    want = pipeline.GRADED_ATTEMPTS if n <= pipeline.EXTRA_WAYS_POINTS else (
+    want = pipeline.GRADED_ATTEMPTS if not more else (
         {}, {"extra": True}, {"slide": True}, {"fit": True},
         {"slide": True, "extra": True}, {"fit": True, "extra": True},
     )  # fmt: skip
     assert tried == list(want)
     assert sorted(map(str, tried)) == sorted(map(str, pipeline.GRADED_ATTEMPTS))  # all, once
+
+
+@pytest.mark.parametrize("more", [0, 1])
+def test_a_large_contour_mends_a_fold_at_once_a_small_one_after_every_way(monkeypatch, more):
+    # the caller lists each selection whose deformation folded: here every one folds
+    from types import SimpleNamespace
+
+    from deformesh_cli import pipeline
+
+    def lay(contour, **kw):
+        way = tuple(k for k in ("slide", "fit", "extra") if kw.get(k))
+        return SimpleNamespace(way=way, extra_nodes=int("extra" in way), notes=[])
+
+    monkeypatch.setattr(pipeline, "select_graded", lay)
+    monkeypatch.setattr(pipeline, "_ungraded", lambda *a: iter(()))  # (no fallback grid)
+    n = pipeline.EXTRA_WAYS_POINTS + more
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    c = make_contour(np.column_stack([np.cos(t), np.sin(t)]), source="circle")
+    folded, got = [], []
+    for sel in pipeline.candidate_selections(c, fall_back=lambda: True, mend=folded):
+        mending = any(sel is s for s in folded)
+        got.append((sel.way, mending))
+        if not mending:
+            folded.append(sel)
+    ways = [tuple(k for k in ("slide", "fit", "extra") if a.get(k)) for a in
+            pipeline.GRADED_ATTEMPTS]  # fmt: skip
+    if more:  # each way, then its mend
+        assert got == [(w, m) for w in ways for m in (False, True)]
+    else:  # every way, then the mends in the same order
+        assert got == [(w, False) for w in ways] + [(w, True) for w in ways]
