@@ -446,11 +446,14 @@ def run_triangulate(
     *,
     size_function: SizeFunction | None = None,
     cut: triangulate.Cut | None = None,
+    fill: bool = True,
     **changes,
 ) -> tuple[Mesh, dict]:
     """Stage 3: the mesh and its summary.  ``cut``: :func:`.triangulate.cut` of this
     selection, if already made.  The options' ``improve`` runs the quality stage
-    (:mod:`.improve`); their size function (or ``size_function``) is reported on."""
+    (:mod:`.improve`); their size function (or ``size_function``) is reported on.
+    ``fill=False``: of :data:`MERGE_WAYS`, only the ways without new points.  The
+    summary's ``merge_ways`` lists the ways measured against the bound."""
     o = _options(options, changes)
     size = size_function
     if size is None:
@@ -478,19 +481,30 @@ def run_triangulate(
     ways = MERGE_WAYS[isinstance(sel, GradedSelection)]
     if not o.improve:  # (filling counts on the quality stage, and on the check after it)
         ways = ways[-1:]
+    elif not fill:
+        ways = tuple(w for w in ways if not w[1])
     best = None
     unfilled = set()  # the ``thin`` of each way that filled no cavity (no fill: same mesh)
-    for thin, fill in ways:
-        if not fill and thin in unfilled:
+    measured = []  # each way measured against the bound
+    for thin, fills in ways:
+        if not fills and thin in unfilled:
             continue  # (it would give the mesh already measured)
-        got = _merge_and_improve(placed, edges, o, thin, fill)
+        got = _merge_and_improve(placed, edges, o, thin, fills)
         merged = got[2]
         if merged is None or not o.improve:
             best = got  # (nothing merged, or one way only)
             break
-        if fill and not merged.filled:
+        if fills and not merged.filled:
             unfilled.add(thin)
         under = forced.under_bound(got[0].points, got[0].triangles, got[0].lines)
+        measured.append(
+            {
+                "thin": thin,
+                "fill": fills,
+                "extra_boundary_nodes": int(got[0].n_extra),
+                "under_bound": int(under),
+            }
+        )
         if best is None or (under, got[0].n_extra) < (best[4], best[0].n_extra):
             best = (*got, under)
         if under == 0 or not (thin or merged.filled) or deadline.expired():
@@ -507,6 +521,7 @@ def run_triangulate(
         report = summary.result()
     report["contract"] = "ok"
     report["merged_extra_nodes"] = 0 if merged is None else merged.merged
+    report["merge_ways"] = measured
     report["improve"] = (
         None
         if better is None
@@ -619,7 +634,9 @@ def mesh_contour(
     nearly flat mesh is kept if nothing later meshes).  A graded selection whose
     deformation folds is deformed again keeping its folds, and its mesh mended
     (:mod:`.untangle`), if no graded mesh was good enough to skip the fallback
-    grid.  The result meets the contract or this raises.
+    grid.  Once stage 3's ways with new points have done worse than one without
+    (:func:`_fill_lost`), the later meshes skip them.  The result meets the
+    contract or this raises.
     """
     o = _options(options, changes)
     size = size_function
@@ -628,6 +645,7 @@ def mesh_contour(
     fold = flat = best = None
     enough = EXTRA_ENOUGH * len(contour.points)
     folded: list[GradedSelection] = []  # graded selections whose deformation folded
+    fill = True  # stage 3 tries the ways with new points (until they lose: ``_fill_lost``)
 
     def rank(mesh: Mesh, report: dict) -> tuple:
         """Meshes that keep the quality stage's bound first, then fewer extra nodes,
@@ -669,7 +687,7 @@ def mesh_contour(
                         continue
                     try:
                         mesh, report = run_triangulate(
-                            contour, d, o, size_function=size, cut=cut.result()
+                            contour, d, o, size_function=size, cut=cut.result(), fill=fill
                         )
                     except (ContractError, FoldError) as exc:
                         if not isinstance(sel, GradedSelection):
@@ -681,6 +699,7 @@ def mesh_contour(
                         if isinstance(exc, ContractError) and not mending:
                             folded.append(sel)
                         continue
+                fill = fill and not _fill_lost(report["merge_ways"])
                 if with_extra:
                     # the graded mesh that keeps the bound with the fewest extra nodes left
                     # after merging; the next ways, then the fallback grid, may do better
@@ -711,6 +730,22 @@ def mesh_contour(
     if d.stats is not None:
         report["moved_nodes"] = int(d.stats.moved_nodes)  # the band's nodes, or every node
     return MeshResult(mesh, sel, d.stats, report)
+
+
+def _fill_lost(ways: list[dict]) -> bool:
+    """Whether, of stage 3's ways measured (a summary's ``merge_ways``), one without new
+    points left fewer triangles under the bound than every one with them.
+
+    Then the contour's later meshes skip the ways with new points: where the points
+    are few along thin parts, filled cavities there are slivers on any grid.  On
+    icon_si_nodedotjs (long edges down bars one cell wide) the graded grid's fill
+    left 88 triangles under the bound, the way without new points 2, and the adapted
+    grid's fill 165, a second of a 3 s run; on the corpus, the samples and 400 random
+    polygons no other contour meets this, and no mesh changes
+    (``benchmarks/MEASURED.md``)."""
+    filled = [w["under_bound"] for w in ways if w["fill"]]
+    unfilled = [w["under_bound"] for w in ways if not w["fill"]]
+    return bool(filled and unfilled) and min(unfilled) < min(filled)
 
 
 def selection_report(sel: Selection) -> dict:

@@ -361,3 +361,50 @@ def test_past_the_search_bound_the_way_just_run_is_still_measured(monkeypatch):
     mesh, report = pipeline.run_triangulate(c, d)
     assert ran == [(True, True)] and measured == ran
     check_contract(mesh, c)
+
+
+def test_once_new_points_did_worse_the_later_meshes_skip_them(monkeypatch):
+    # icon_si_nodedotjs: long edges down bars one cell wide.  On its graded mesh the
+    # way with new points leaves more triangles under the bound than the way
+    # without; the fallback grid's mesh then tries no way with new points, and the
+    # mesh kept is the one it would keep after trying them (its way without new
+    # points is the only one that keeps the bound)
+    from deformesh_cli import pipeline
+
+    real = pipeline.run_triangulate
+    runs = []  # (h_rule, fill asked, the ways measured)
+
+    def stage(contour, d, *a, **k):
+        mesh, report = real(contour, d, *a, **k)
+        runs.append((d.selection.h_rule, k.get("fill", True), report["merge_ways"]))
+        return mesh, report
+
+    monkeypatch.setattr(pipeline, "run_triangulate", stage)
+    res = mesh_contour(load_contour(CORPUS / "icon_si_nodedotjs.svg"))
+    graded = [r for r in runs if r[0] == "graded"]
+    assert graded and graded[0][1] and pipeline._fill_lost(graded[0][2])  # (the case)
+    after = runs[runs.index(graded[0]) + 1 :]
+    assert after and all(not fill for _, fill, _ in after)
+    assert all(not w["fill"] for _, _, ways in after for w in ways)
+    assert res.report["h_rule"] != "graded" and res.report["merge_ways"][-1]["under_bound"] == 0
+    check_contract(res.mesh, load_contour(CORPUS / "icon_si_nodedotjs.svg"))
+
+
+@pytest.mark.parametrize(
+    "unders, lost",
+    [
+        (((True, 5), (False, 2)), True),  # (fill, triangles under the bound) per way
+        (((True, 2), (False, 2)), False),
+        (((True, 0),), False),
+        (((False, 0),), False),
+        (((True, 9), (True, 3), (False, 4)), False),
+        (((True, 9), (True, 5), (False, 4)), True),
+    ],
+)
+def test_new_points_lose_only_to_a_way_without_them_that_left_fewer_under(unders, lost):
+    from deformesh_cli.pipeline import _fill_lost
+
+    ways = [
+        {"fill": f, "under_bound": u, "thin": True, "extra_boundary_nodes": 0} for f, u in unders
+    ]
+    assert _fill_lost(ways) is lost
