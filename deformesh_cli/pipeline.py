@@ -125,10 +125,12 @@ MAX_FALLBACK_EXTRA = 100
 
 #: A contour of at most this many points tries every graded way with extra nodes
 #: and keeps the best mesh, even after one with none left; a larger one stops there,
-#: and mends a way that folded at once.  On the corpus the contours of 452 points or
-#: fewer take 0.1-3 s; coast_norway (993) spent 2.5 s on two more ways that folded
-#: before mending the first, the mesh it kept (``benchmarks/MEASURED.md``).
-EXTRA_WAYS_POINTS = 500
+#: and mends a way that folded at once.  The other ways cost about as much as the
+#: first again and, on the corpus, gained something only below 400 points
+#: (icon_si_rust, 374: 13.2 -> 13.8 degrees); coast_iceland (452) spent 1 s on two
+#: that gave no mesh, coast_norway (993) 2.5 s on two that folded before mending
+#: the first, the mesh it kept (``benchmarks/MEASURED.md``).
+EXTRA_WAYS_POINTS = 400
 
 
 #: A contour of more than this many points tries its ways in the order of
