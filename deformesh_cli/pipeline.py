@@ -92,6 +92,21 @@ GRADED_ATTEMPTS = (
 )
 
 
+#: :data:`GRADED_ATTEMPTS` for a contour that stops at its first mesh
+#: (:func:`_tries_every_way`) of at most :data:`LARGE_ORDER_POINTS` points: the
+#: fitted grid, which costs most to lay, after the points as given with extra
+#: nodes.  On the corpus it never had a path without extra nodes on such a
+#: contour, and coast_norway spent 0.3-0.5 s laying it (``benchmarks/MEASURED.md``).
+GRADED_ATTEMPTS_FIRST = (
+    {},
+    {"slide": True},
+    {"extra": True},
+    {"fit": True},
+    {"slide": True, "extra": True},
+    {"fit": True, "extra": True},
+)
+
+
 #: :data:`GRADED_ATTEMPTS` for a contour of more than :data:`LARGE_ORDER_POINTS` points:
 #: the points as given with extra nodes comes second, before the slid and fitted grids
 #: without.  Such a contour stops at the first mesh with no extra node left that keeps
@@ -198,7 +213,10 @@ def candidate_selections(
 
     # as given, slid, fitted to the points; then with extra boundary nodes
     every = _tries_every_way(contour)
-    order = GRADED_ATTEMPTS if contour.n <= LARGE_ORDER_POINTS else GRADED_ATTEMPTS_LARGE
+    if contour.n > LARGE_ORDER_POINTS:
+        order = GRADED_ATTEMPTS_LARGE
+    else:
+        order = GRADED_ATTEMPTS if every else GRADED_ATTEMPTS_FIRST
     attempts = [a for a in order if not (o.strict and a.get("extra"))]
     fell_back = None
     for attempt in attempts:

@@ -749,28 +749,37 @@ def test_a_point_with_no_step_to_the_next_is_refused_before_the_search(monkeypat
     assert searched
 
 
-@pytest.mark.parametrize("more", [0, 1])
-def test_a_large_contour_tries_extra_nodes_on_its_own_grid_second(monkeypatch, more):
+P, S, F, E = (), ("slide",), ("fit",), ("extra",)
+
+
+@pytest.mark.parametrize(
+    "size, want",
+    [
+        ("small", [P, S, F, E, S + E, F + E]),  # every way, for the best angle
+        ("mid", [P, S, E, F, S + E, F + E]),  # the fitted grid, dearest, after extra nodes
+        ("large", [P, E, S, F, S + E, F + E]),  # extra nodes on its own grid second
+    ],
+)
+def test_the_order_of_the_graded_ways_by_contour_size(monkeypatch, size, want):
     from deformesh_cli import pipeline
     from deformesh_cli.errors import SelectionError
 
     tried = []
 
     def refuse(contour, **kw):
-        tried.append({k: True for k in ("slide", "fit", "extra") if kw.get(k)})
+        tried.append(tuple(k for k in ("slide", "fit", "extra") if kw.get(k)))
         raise SelectionError("no path")
 
     monkeypatch.setattr(pipeline, "select_graded", refuse)
-    n = pipeline.LARGE_ORDER_POINTS + more
+    n = {
+        "small": pipeline.EXTRA_WAYS_POINTS,
+        "mid": pipeline.LARGE_ORDER_POINTS,
+        "large": pipeline.LARGE_ORDER_POINTS + 1,
+    }[size]
     t = np.linspace(0, 2 * np.pi, n, endpoint=False)
     c = make_contour(np.column_stack([np.cos(t), np.sin(t)]), source="circle")
     assert list(pipeline.candidate_selections(c, fall_back=lambda: False)) == []
-    want = pipeline.GRADED_ATTEMPTS if not more else (
-        {}, {"extra": True}, {"slide": True}, {"fit": True},
-        {"slide": True, "extra": True}, {"fit": True, "extra": True},
-    )  # fmt: skip
-    assert tried == list(want)
-    assert sorted(map(str, tried)) == sorted(map(str, pipeline.GRADED_ATTEMPTS))  # all, once
+    assert tried == want
 
 
 @pytest.mark.parametrize("more", [0, 1])
@@ -796,7 +805,7 @@ def test_a_large_contour_mends_a_fold_at_once_a_small_one_after_every_way(monkey
         if not mending:
             folded.append(sel)
     ways = [tuple(k for k in ("slide", "fit", "extra") if a.get(k)) for a in
-            pipeline.GRADED_ATTEMPTS]  # fmt: skip
+            (pipeline.GRADED_ATTEMPTS_FIRST if more else pipeline.GRADED_ATTEMPTS)]  # fmt: skip
     if more:  # each way, then its mend
         assert got == [(w, m) for w in ways for m in (False, True)]
     else:  # every way, then the mends in the same order
