@@ -36,6 +36,12 @@ DEFAULT_STEPS = 10
 FLAT = 1e-12
 
 
+def flat_margin(area: np.ndarray) -> float:
+    """How near zero a signed area of ``area`` (every triangle's) is flat: :data:`FLAT`
+    times their mean size (0 for no triangle)."""
+    return FLAT * float(np.abs(area).mean()) if len(area) else 0.0
+
+
 #: What a fold message advises: at the last step (the targets themselves cannot be
 #: reached), and before it.
 ADVICE = (
@@ -365,7 +371,7 @@ def deform_(
             area = signed_areas(new, tri)
             if flat_ok:  # flat: at the end either sign passes; before it, a fold (the
                 # next solve would divide by its area, and magnify round-off into the nodes)
-                area += (1.0 if last else -1.0) * FLAT * np.abs(area).mean()
+                area += (1.0 if last else -1.0) * flat_margin(area)
             if (area > 0).all():
                 break
             if keep_folds or stats.halvings >= max_halvings * steps or theta <= 2.0**-max_halvings:

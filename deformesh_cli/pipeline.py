@@ -670,7 +670,11 @@ def mesh_contour(
     def rank(mesh: Mesh, report: dict) -> tuple:
         """Meshes that keep the quality stage's bound first, then fewer extra nodes,
         then the larger smallest angle."""
-        under = forced.under_bound(mesh.points, mesh.triangles, mesh.lines)
+        ways = report["merge_ways"]  # (the mesh kept is the way with the fewest under)
+        if ways:
+            under = min(w["under_bound"] for w in ways)
+        else:
+            under = forced.under_bound(mesh.points, mesh.triangles, mesh.lines)
         return (under > 0, report["extra_boundary_nodes"], -report["min_angle"])
 
     def fall_back() -> bool:  # not for a few extra nodes left: not worth its time

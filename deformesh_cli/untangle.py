@@ -33,8 +33,8 @@ from __future__ import annotations
 import numpy as np
 
 from . import merge
-from .deform import FLAT
-from .geometry import node_stars, signed_areas
+from .deform import flat_margin
+from .geometry import node_stars, signed_area, signed_areas
 from .mesh import Mesh
 
 #: A cavity grows at most this many times (by the triangles touching it) ...
@@ -63,7 +63,7 @@ def tangled(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
     meshes again.  A flat one's centroid lies on its side, so whether the domain
     holds it is round-off too."""
     area = signed_areas(points, tri)
-    return area <= FLAT * np.abs(area).mean() if len(area) else area > 0
+    return area <= flat_margin(area)
 
 
 def untangle(mesh: Mesh, most: int | None = None) -> Mesh | None:
@@ -90,11 +90,9 @@ def _mend(mesh: Mesh, t: int) -> Mesh | None:
     boundary[mesh.lines.ravel()] = True
     stars = node_stars(tri)
     cav = sorted({t, *(s for v in tri[t].tolist() if not boundary[v] for s in stars(v))})
+    inner = merge._inner(tri, stars, cav, boundary)
     for _ in range(GROW + 1):
-        held = set(cav)
-        corners = np.unique(tri[cav]).tolist()
-        inner = {v for v in corners if not boundary[v] and set(stars(v)) <= held}
-        ring = merge._loop(tri[cav], inner)
+        ring = merge._loop(tri[cav], set(inner))
         if ring is not None and len(ring) > merge.MAX_CAVITY:
             return None
         local = None if ring is None else _remesh(pts[ring])
@@ -102,11 +100,11 @@ def _mend(mesh: Mesh, t: int) -> Mesh | None:
             dead = np.zeros(len(tri), dtype=bool)
             dead[cav] = True
             gone = np.zeros(len(pts), dtype=bool)
-            gone[sorted(inner)] = True
+            gone[inner] = True
             new = np.asarray(ring, dtype=np.int64)[local]
             return merge._renumber(mesh, np.concatenate([tri[~dead], new]), gone)
-        cav = sorted({s for v in corners for s in stars(v)})
-        if len(cav) > MAX_TRIANGLES:
+        cav, inner = merge._grow(tri, stars, cav, boundary, MAX_TRIANGLES)
+        if cav is None:
             return None
     return None
 
@@ -117,8 +115,7 @@ def _remesh(p: np.ndarray) -> np.ndarray | None:
     triangulation reaches :data:`.merge.THIN_ANGLE`."""
     import shapely
 
-    x, y = p[:, 0], p[:, 1]
-    if np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y) <= 0:
+    if signed_area(p) <= 0:
         return None
     if not shapely.Polygon(p).is_valid:
         return None

@@ -132,6 +132,9 @@ def test_readme_speed_numbers_are_the_benchmark_files():
     claim = re.search(r"(\d+) of (\d+) real contours .*? in (\d+) s as one batch", README, re.S)
     assert claim is not None
     assert claim.groups() == (meshed, contours, wall)
+    slowest = re.search(r"\| all \| \d+ \| \d+ \(\d+%\) \| \d+ \| [\d.]+ \| ([\d.]+) \|", corpus)
+    said = re.search(r"as one batch \(none over (\d+\.\d) s\)", README)
+    assert said is not None and float(said.group(1)) == round(float(slowest.group(1)), 1)
     # the time ratios of the million-triangle runs ("Speed against peers")
     peers = results.split("<!-- section:peers-triangle -->")[1].split("<!-- end:")[0]
     ratio = {}
