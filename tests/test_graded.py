@@ -97,6 +97,37 @@ def test_cells_follow_the_size_field(path):
     assert top / 2 < h0 <= top * (1 + 1e-12)
 
 
+@pytest.mark.parametrize("n", [3, 40, 700])
+def test_graded_sizes_lie_between_the_growth_and_twice_it(n):
+    """The growth-limited sizes are at least the exact lower envelope of the cones
+    ``s_q' + (growth - 1) |q - q'|`` and at most the same with twice the slope
+    (Delaunay paths are at most about twice the straight distance), and never above
+    ``s`` itself; the exact envelope is computed here over all pairs."""
+    rng = np.random.default_rng(n)
+    p = rng.random((n, 2)) * [3.0, 1.0]
+    s = 10.0 ** rng.uniform(-3, -0.5, n)
+    got = graded.graded_sizes(p, s, 1.5)
+    d = np.hypot(*(p[:, None] - p[None]).transpose(2, 0, 1))
+    exact = np.min(s[None, :] + 0.5 * d, axis=1)
+    assert (got >= exact * (1 - 1e-12)).all()
+    assert (got <= np.min(s[None, :] + 1.0 * d, axis=1) * (1 + 1e-12)).all()
+    assert (got <= s).all() and (n < 40 or (got < s).any())
+
+
+def test_graded_sizes_on_one_circle_and_one_line():
+    """Points on one circle (Qhull's slow, degenerate case) and points on one line
+    (no triangulation at all) both get sizes."""
+    t = np.linspace(0, 2 * np.pi, 2000, endpoint=False)
+    circle = np.column_stack([np.cos(t), np.sin(t)])
+    s = np.full(2000, 1e-2)
+    s[0] = 1e-5
+    got = graded.graded_sizes(circle, s, 2.0)
+    assert got[0] == 1e-5 and np.isclose(got[1], 1e-5 + np.hypot(*(circle[1] - circle[0])))
+    line = np.column_stack([np.arange(5.0), np.zeros(5)])
+    got = graded.graded_sizes(line, np.array([0.1, 5, 5, 5, 5]), 2.0)
+    assert np.allclose(got, [0.1, 1.1, 2.1, 3.1, 4.1])
+
+
 def test_the_two_sides_of_a_thin_part_get_cells_of_their_own():
     """A strip 0.01 thick and 1 long with points 0.05 apart: the local size is the
     thickness, so no leaf holds points of both sides."""

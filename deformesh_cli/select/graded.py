@@ -95,14 +95,46 @@ def _prev_on_ring(contour: Contour) -> np.ndarray:
 
 
 def graded_sizes(points: np.ndarray, s: np.ndarray, growth: float) -> np.ndarray:
-    """``s`` made consistent with the growth: ``min over q' of s_q' + (growth - 1) |q - q'|``
-    at every point ``q`` (so no point asks for cells much larger than a neighbour's)."""
+    """``s`` made consistent with the growth: at every point ``q``, the least over the
+    points ``q'`` of ``s_q' + (growth - 1) * D(q, q')``, ``D`` the shortest path between
+    them along the edges of the points' Delaunay triangulation.
+
+    So no point asks for cells much larger than a neighbour's: along every Delaunay edge
+    the result changes by at most ``(growth - 1)`` times the edge's length.  ``D`` is at
+    least the straight distance and at most about twice it (the Delaunay graph is a
+    spanner), so the result lies between ``min over q' of s_q' + (growth - 1) |q - q'|``
+    and the same with twice the growth.  One Dijkstra from a source joined to every
+    point by ``s_q / (growth - 1)``: ``O(n log n)``.
+    """
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import dijkstra
+    from scipy.spatial import Delaunay, QhullError
+
     alpha = growth - 1.0
-    out = np.array(s, dtype=np.float64, copy=True)
-    for a in range(0, len(points), 2048):
-        d = np.hypot(*(points[a : a + 2048, None, :] - points[None, :, :]).transpose(2, 0, 1))
-        out[a : a + 2048] = np.min(s[None, :] + alpha * d, axis=1)
-    return out
+    s = np.asarray(s, dtype=np.float64)
+    n = len(points)
+    # (points on one circle are Qhull's slow case: it triangulates them after a fixed,
+    # seeded shift of 1e-9 of their extent, the same on every machine; the edges it
+    # gives are weighed by the points' true distances)
+    extent = float(np.ptp(points, axis=0).max()) if n else 0.0
+    shift = np.random.default_rng(0).uniform(-1e-9, 1e-9, points.shape) * extent
+    try:
+        simplices = Delaunay(points + shift).simplices
+    except QhullError:  # (all on one line: consecutive points are the only neighbours)
+        order = np.lexsort((points[:, 1], points[:, 0]))
+        simplices = np.column_stack([order[:-1], order[1:], order[1:]])
+    a = simplices.ravel()
+    b = np.roll(simplices, -1, axis=1).ravel()
+    pairs = np.unique(np.sort(np.column_stack([a, b]), axis=1), axis=0)  # (each edge once)
+    a, b = pairs[:, 0], pairs[:, 1]
+    w = np.hypot(*(points[a] - points[b]).T)
+    src = np.full(n, n)
+    rows = np.concatenate([a, b, src])
+    cols = np.concatenate([b, a, np.arange(n)])
+    vals = np.concatenate([w, w, s / alpha])
+    graph = sp.csr_matrix((vals, (rows, cols)), shape=(n + 1, n + 1))
+    dist = dijkstra(graph, directed=True, indices=n)[:n]
+    return np.minimum(s, alpha * dist)
 
 
 @dataclass
