@@ -6,11 +6,10 @@ explode: a jagged polygon of a few hundred points kept the uniform grid's
 router busy for minutes before it refused.  :func:`limit` sets a bound for
 the search (:func:`search_bound`: it grows with the number of contour points),
 and the search loops call :func:`check`, which raises :class:`TimeUp` once the
-bound has passed.  Stage 3's optional work stops at the same bound
-(:func:`expired`): no further extra boundary node is merged out, no further way
-of merging is tried, and the mesh in hand is finished.  What a found selection
-must cost afterwards (deformation, triangulation, quality stage, contract check,
-writing) is bounded by its grid, not here.
+bound has passed, and the contour is refused.  Nothing after the search reads
+the clock: what a found selection costs afterwards (deformation, triangulation,
+merging, quality stage, contract check, writing) is bounded by its grid, and the
+same selection always gives the same mesh.
 
 The bound lives in a context variable, so a batch's workers and the tests each
 have their own; code run outside :func:`limit` is never stopped.
@@ -60,9 +59,3 @@ def check() -> None:
     d = _DEADLINE.get()
     if d is not None and time.monotonic() > d[0]:
         raise TimeUp(d[1])
-
-
-def expired() -> bool:
-    """Whether the bound set by :func:`limit` has passed (False outside one)."""
-    d = _DEADLINE.get()
-    return d is not None and time.monotonic() > d[0]

@@ -26,10 +26,8 @@ are, down to :data:`THIN_ANGLE`.  The quality stage then works on the new mesh
 as on any other, and :func:`.pipeline.run_triangulate` checks the finished
 mesh against the quality stage's bound (:func:`.forced.under_bound`).
 
-Merging is bounded in time with the search for a grid path (:mod:`.deadline`):
-once that bound has passed, the runs not yet merged keep their extra nodes (a
-uniform grid's fallback path on a comb of 54 points has 31,000 of them, whose
-cavities take half a minute to fill).
+Merging never reads the clock: each run of extra nodes is tried once per pass,
+so the same mesh always merges the same way, on any machine under any load.
 
 :func:`clear_sharp_corners` does the same for an inner node in the tip of a
 sharp corner (under :data:`SHARP` degrees), where a coarse cell left the
@@ -46,7 +44,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from . import deadline
 from .geometry import node_stars, signed_areas
 from .mesh import Mesh
 from .quality import measures
@@ -142,8 +139,6 @@ def merge_extra_nodes(
     new_points: list[np.ndarray] = []  # inner points of filled cavities, numbered from n
     count = n
     for a, run, b in runs:
-        if deadline.expired():
-            break  # (past the search's bound: the runs left keep their extra nodes)
         first = cavity = sorted({t for x in run for t in star[x]})
         # inner nodes the cavity holds (all of whose triangles it takes), more as it grows
         inner = _inner(tri, stars, cavity, on_boundary)
@@ -181,7 +176,7 @@ def merge_extra_nodes(
         mesh = replace(mesh, points=grown)
         gone = np.concatenate([gone, np.zeros(len(grown) - n, dtype=bool)])
     out = _renumber(mesh, triangles, gone)
-    if merged < e and passes > 1 and not deadline.expired():  # (runs next to merged ones)
+    if merged < e and passes > 1:  # (runs next to merged ones)
         out, more = merge_extra_nodes(out, passes - 1, thin, fill)
         merged += more.merged
         filled += more.filled

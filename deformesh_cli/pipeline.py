@@ -527,10 +527,8 @@ def run_triangulate(
         )
         if best is None or (under, got[0].n_extra) < (best[4], best[0].n_extra):
             best = (*got, under)
-        if under == 0 or not (thin or merged.filled) or deadline.expired():
-            # (the bound kept, or nothing thin in this way: the next are alike; or past
-            # the search's bound: the best of the ways measured, not another)
-            break
+        if under == 0 or not (thin or merged.filled):
+            break  # (the bound kept, or nothing thin in this way: the next are alike)
     mesh, edges, merged, better = best[:4]
     # the contract check and the summary read the mesh independently; numpy and
     # scipy release the GIL in their loops, so on two cores the pair takes about as
@@ -740,14 +738,14 @@ def mesh_contour(
                 if best is None and flat is None:
                     raise fold
                 sel, d, mesh, report = best[1:] if best is not None else flat
-        except (SelectionError, LimitError, deadline.TimeUp) as exc:  # (the uniform grid's)
+        except deadline.TimeUp as exc:
+            # (refused even with a mesh in hand: which mesh the search had reached by
+            # then would depend on the machine's load, and a mesh never does)
+            raise LimitError(_time_up(contour, exc)) from None
+        except (SelectionError, LimitError) as exc:  # (the uniform grid's)
             if best is None and flat is None:
-                if isinstance(exc, deadline.TimeUp):
-                    raise LimitError(_time_up(contour, exc)) from None
                 raise
             sel, d, mesh, report = best[1:] if best is not None else flat
-            if isinstance(exc, deadline.TimeUp):
-                sel.notes.append(f"stopped searching after the time bound of {exc.seconds:.0f} s")
     if best is not None and best[1] is not sel and best[0] <= rank(mesh, report):
         sel, d, mesh, report = best[1:]  # (as good or better, on fewer nodes)
     report.update(selection_report(sel))
