@@ -250,6 +250,21 @@ def test_graded_meshes_meet_the_contract_with_no_extra_node(path):
     assert np.array_equal(res.mesh.points[: c.n], c.points)
 
 
+@pytest.mark.parametrize("w,h", [(5, 1), (6, 1), (8, 1), (10, 1), (20, 3), (1, 0.2)])
+def test_a_rectangle_given_by_its_four_corners_meshes(w, h):
+    """The commonest CFD domain, drawn with its corners only, meshes at default
+    options with its four corners as the only boundary nodes (a grid too coarse
+    for a point to take a node used to end in a traceback)."""
+    from deformesh_cli import mesh_contour
+
+    pts = np.array([[0, 0], [w, 0], [w, h], [0, h]], dtype=float)
+    c = make_contour(pts, source="rectangle")
+    res = mesh_contour(c)  # raises unless the contract holds
+    assert res.report["extra_boundary_nodes"] == 0
+    assert np.array_equal(res.mesh.points[:4], pts)
+    assert np.isclose(signed_areas(res.mesh.points, res.mesh.triangles).sum(), w * h)
+
+
 def test_graded_exterior_and_size_function():
     from deformesh_cli import mesh_contour
 

@@ -720,6 +720,8 @@ def _assign(
         changed = steps.ban(np.array(sorted(banned), dtype=np.int64), pick)
     else:
         idx = np.flatnonzero(free)
+        if len(idx) == 0:  # (a grid of boundary and centre nodes only: a coarse polygon)
+            raise SelectionError(f"{contour.source}: the graded grid has no node a point may take")
         kd = cKDTree(points[idx])
         k = min(CANDIDATES, len(idx))
         dist, near = kd.query(q, k=k)
