@@ -742,7 +742,7 @@ def mesh_contour(
             # (refused even with a mesh in hand: which mesh the search had reached by
             # then would depend on the machine's load, and a mesh never does)
             raise LimitError(_time_up(contour, exc)) from None
-        except (SelectionError, LimitError) as exc:  # (the uniform grid's)
+        except (SelectionError, LimitError):  # (the uniform grid's)
             if best is None and flat is None:
                 raise
             sel, d, mesh, report = best[1:] if best is not None else flat
