@@ -347,6 +347,31 @@ def build(
     if local is None:  # (a caller that needs them too passes them)
         local = local_sizes(contour)
     s = graded_sizes(contour.points, local, growth) * factor
+    return _lay(contour.points, s, box, growth, max_h, box_given, max_nodes, roots, field)
+
+
+def build_from(
+    points: np.ndarray,
+    sizes: np.ndarray,
+    box: tuple[float, float, float, float],
+    growth: float = DEFAULT_GROWTH,
+    max_h: float | None = None,
+    box_given: bool = False,
+    max_nodes: int | None = None,
+    roots: int | None = None,
+    field=None,
+) -> Quadtree:
+    """The balanced quadtree over ``box`` whose cells near each of ``points`` are
+    about its size (``sizes``, made consistent with the growth by
+    :func:`graded_sizes`): :func:`build` for sizes given point by point."""
+    if not growth > 1.0:
+        raise OptionError(f"--growth must be > 1 (cells grow away from the contour), got {growth}")
+    s = graded_sizes(points, sizes, growth)
+    return _lay(points, s, box, growth, max_h, box_given, max_nodes, roots, field)
+
+
+def _lay(points, s, box, growth, max_h, box_given, max_nodes, roots, field) -> Quadtree:
+    """Root cells over ``box`` for the sizes ``s`` at ``points``, refined and balanced."""
     xmin, ymin, xmax, ymax = box
     w, h = xmax - xmin, ymax - ymin
     nx, ny, top, h0 = root_cells(w, h, float(s.min()), max_h, exact=box_given, roots=roots)
@@ -362,7 +387,7 @@ def build(
         x0, y0, hx, hy, top, nx, ny,
         np.full(nx * ny, top, np.int64), i.ravel().astype(np.int64), j.ravel().astype(np.int64),
     )  # fmt: skip
-    tree = refine(tree, contour.points, s, growth, max_nodes, field)
+    tree = refine(tree, points, s, growth, max_nodes, field)
     return balance(tree)
 
 

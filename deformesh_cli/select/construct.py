@@ -1,0 +1,473 @@
+"""Stage 1 on the graded grid, constructed: one selection for every valid contour.
+
+1. **Sizes from geometry** (:func:`feature_samples`): at each contour point the
+   smaller of its two edges and its distance to the nearest contour edge not
+   incident to it; along each edge, samples where another part of the contour
+   (a non-adjacent edge, or an adjacent one at an acute angle) comes closer than
+   the edge's own pieces are long.  Spatial index queries bounded by each
+   sample's own length: the cost grows with the samples, never all pairs.
+2. **A quadtree that resolves them** (:func:`.graded.build_from`): cells about
+   each sample's size, growing by at most ``growth`` away, balanced 2:1, split
+   into right isosceles triangles.
+3. **The region and its loops** (:func:`region`): the triangles whose centroid
+   lies in the domain.  Its boundary, the triangles' edges used once, is a set
+   of closed loops of grid edges within one cell of the contour.  A node where
+   the region touches itself at a corner only (a pinch) takes the triangles
+   around it, so every loop is simple.
+4. **Selection** (:func:`_assign`): each contour point takes the nearest node
+   of its ring's loop; the loop nodes between two consecutive points' nodes
+   are extra boundary nodes, carried to that contour edge in proportion to
+   their distance along the loop.  A region triangle whose three nodes all
+   have targets, and whose targets would not make a counter-clockwise
+   triangle, would flatten or fold: it leaves the region and the loop is laid
+   again.  Where two points take one node, or take nodes out of the ring's
+   order, the cells at those points are halved and the grid laid again, at
+   most :data:`REFINE_ROUNDS` times (the loop then passes nearer each point
+   than half the distance to its neighbours).
+
+The deformation carries every loop node onto its target; stage 3 then takes
+the extra boundary nodes out again (:mod:`..merge`), so the boundary nodes of
+the mesh are exactly the contour's points.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import shapely
+
+from ..contour import Contour
+from ..errors import LimitError, SelectionError
+from ..geometry import boundary_edges, next_on_ring, signed_areas
+from . import graded
+from .graded_path import GradedGrid, GradedSelection
+
+#: Cells next to a contour point measure about this times its size (its shorter edge,
+#: or its distance to the nearest edge not incident to it).
+CELL_FACTOR = 1.0
+
+#: Cells along an edge measure about this times the clearance there (the distance to
+#: the nearest other part of the contour): the loops of two parts stay apart.
+CLEARANCE_FACTOR = 0.5
+
+#: Times the cells at points that took one node, or nodes out of order, are halved.
+REFINE_ROUNDS = 8
+
+#: Edges shorter than this fraction of the contour's extent are not bisected further.
+FLOOR = 1e-9
+
+
+def _prev_on_ring(contour: Contour) -> np.ndarray:
+    idx = np.arange(contour.n)
+    starts = np.asarray(contour.starts)
+    ring = contour.ring
+    first = starts[ring]
+    size = np.diff(starts)[ring]
+    return first + (idx - first - 1) % size
+
+
+def _point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance from each point ``p[i]`` to the segment ``a[i] b[i]``."""
+    ab = b - a
+    ll = np.einsum("ij,ij->i", ab, ab)
+    t = np.einsum("ij,ij->i", p - a, ab) / np.where(ll > 0, ll, 1.0)
+    q = a + np.clip(t, 0.0, 1.0)[:, None] * ab
+    return np.hypot(*(p - q).T)
+
+
+def feature_samples(contour: Contour) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(points, sizes, point_sizes, edge)``: where the cells must be how small, and
+    the contour point (for an edge's sample, the edge's first point) each belongs to.
+
+    ``point_sizes[k]`` is contour point ``k``'s size: the smaller of its two
+    edges and its distance to the nearest edge not incident to it.  ``points``
+    and ``sizes`` are those points and sizes followed by samples along the edges:
+    each edge is bisected while a piece is longer than the clearance at its
+    middle (the distance to the nearest other edge, an adjacent one counting only
+    at an acute angle), except a piece at an end that is no longer than that
+    end's point size.  A sample's size is :data:`CLEARANCE_FACTOR` times its
+    clearance, at most its piece's length.
+    """
+    p = contour.points
+    m = contour.n
+    nxt = next_on_ring(contour.ring)
+    prv = _prev_on_ring(contour)
+    a, b = p, p[nxt]
+    length = contour.edge_lengths()
+    segs = shapely.linestrings(np.stack([a, b], axis=1))
+    tree = shapely.STRtree(segs)
+    # point sizes: the shorter edge, and the nearest edge not incident (within it)
+    s = np.minimum(length, length[prv])
+    qi, si = tree.query(shapely.points(p), predicate="dwithin", distance=s)
+    far = (si != qi) & (si != prv[qi])
+    qi, si = qi[far], si[far]
+    np.minimum.at(s, qi, _point_segment_distance(p[qi], a[si], b[si]))
+    # acute angles: an adjacent edge counts as "another part" only there
+    d_in = a - p[prv]  # the edge into each point
+    cos_at = np.einsum("ij,ij->i", -d_in, b - a)  # > 0: acute angle at the point
+    acute_at_start = cos_at > 0  # edge e's start point (e) is an acute corner
+    acute_at_end = cos_at[nxt] > 0  # edge e's end point (nxt[e])
+    floor = FLOOR * float(np.ptp(p, axis=0).max())
+    seg = np.arange(m)
+    t0 = np.zeros(m)
+    t1 = np.ones(m)
+    out_xy, out_size, out_edge = [p], [s], [np.arange(m)]
+    while len(seg):
+        ell = (t1 - t0) * length[seg]
+        tm = (t0 + t1) / 2
+        mid = a[seg] + tm[:, None] * (b[seg] - a[seg])
+        qi, si = tree.query(shapely.points(mid), predicate="dwithin", distance=ell)
+        e = seg[qi]
+        other = (
+            (si != e) & ((si != prv[e]) | acute_at_start[e]) & ((si != nxt[e]) | acute_at_end[e])
+        )
+        qi, si = qi[other], si[other]
+        c = np.full(len(seg), np.inf)
+        np.minimum.at(c, qi, _point_segment_distance(mid[qi], a[si], b[si]))
+        end_size = np.minimum(
+            np.where(t0 == 0, s[seg], np.inf), np.where(t1 == 1, s[nxt[seg]], np.inf)
+        )
+        end_size[np.isinf(end_size)] = 0.0  # (a piece inside an edge stops at c alone)
+        split = (ell > c) & (ell > end_size) & (ell > floor)
+        done = ~split & np.isfinite(c)
+        out_xy.append(mid[done])
+        out_size.append(np.minimum(ell[done], CLEARANCE_FACTOR * c[done]))
+        out_edge.append(seg[done])
+        seg, t0, t1, tm = seg[split], t0[split], t1[split], tm[split]
+        seg = np.repeat(seg, 2)
+        t0, t1 = np.column_stack([t0, tm]).ravel(), np.column_stack([tm, t1]).ravel()
+    return np.concatenate(out_xy), np.concatenate(out_size), s, np.concatenate(out_edge)
+
+
+def region(
+    tri: np.ndarray,
+    inside: np.ndarray,
+    n: int,
+    fixed: np.ndarray,
+    banned: np.ndarray,
+    in_domain: np.ndarray,
+):
+    """``inside`` without pinches (a node with two or more region edges leaving it):
+    a pinch node inside the domain (``in_domain``) takes the triangles around it
+    (a neck of the domain thinner than the cells), one outside it gives up its
+    region triangles (two parts of the domain across a gap thinner than the
+    cells).  Triangles taken in are not given up, nor ``banned`` ones or ones of
+    ``fixed`` nodes only taken in, so this ends.  Returns the region and its
+    boundary's next node per node (-1 off the boundary)."""
+    inside = inside.copy()
+    banned = banned.copy()
+    taken = np.zeros(len(tri), dtype=bool)
+    for _ in range(len(tri) + 1):
+        e = boundary_edges(tri[inside], n)
+        e = e[~(fixed[e[:, 0]] & fixed[e[:, 1]])]  # (the box's sides are not a loop)
+        out = np.bincount(e[:, 0], minlength=n)
+        pinch = out > 1
+        if not pinch.any():
+            nxt = np.full(n, -1, dtype=np.int64)
+            nxt[e[:, 0]] = e[:, 1]
+            return inside, nxt
+        fill = np.zeros(n, dtype=bool)
+        fill[pinch & in_domain] = True
+        cut = pinch & ~in_domain
+        add = fill[tri].any(axis=1) & ~inside & ~banned & ~fixed[tri].all(axis=1)
+        drop = cut[tri].any(axis=1) & inside & ~taken
+        if not (add.any() or drop.any()):
+            raise SelectionError("the region's boundary has a pinch that no triangle mends")
+        inside |= add
+        taken |= add
+        inside &= ~drop
+        banned |= drop
+    raise SelectionError("the region's boundary has a pinch that no triangle mends")
+
+
+def _loops(nxt: np.ndarray) -> list[np.ndarray]:
+    """The closed loops of the successor map ``nxt`` (each from its smallest node)."""
+    seen = nxt < 0
+    loops = []
+    for start in np.flatnonzero(~seen):
+        if seen[start]:
+            continue
+        loop = [start]
+        seen[start] = True
+        v = nxt[start]
+        while v != start:
+            if seen[v]:
+                raise SelectionError("the region's boundary is not a set of closed loops")
+            loop.append(v)
+            seen[v] = True
+            v = nxt[v]
+        loops.append(np.array(loop, dtype=np.int64))
+    return loops
+
+
+def select_constructed(
+    contour: Contour,
+    box: tuple[float, float, float, float] | None = None,
+    margin: float | None = None,
+    exterior: bool = False,
+    growth: float = graded.DEFAULT_GROWTH,
+    max_nodes: int | None = None,
+    max_h: float | None = None,
+    field=None,
+) -> GradedSelection:
+    """The graded grid laid for ``contour`` and each ring's loop fitted to its points
+    (the module's steps).  ``field``: a further size field (points -> sizes) the
+    cells must not exceed, as a size function asks."""
+    xy, size, s, edge = feature_samples(contour)
+    prv = _prev_on_ring(contour)
+    lo, hi = contour.points.min(axis=0), contour.points.max(axis=0)
+    given = box is not None
+    if box is None:
+        if margin is None:
+            margin = float((hi - lo).max()) if exterior else 3.0 * float(s.max())
+        box = (lo[0] - margin, lo[1] - margin, hi[0] + margin, hi[1] + margin)
+    factor = np.full(len(xy), CELL_FACTOR)
+    crowded = None
+    for _ in range(REFINE_ROUNDS + 1):
+        tree = graded.build_from(
+            xy, size * factor, box, growth, max_h, given, max_nodes, field=field
+        )
+        try:
+            return _select_on(contour, tree, exterior, s)
+        except _Crowded as exc:
+            crowded = exc.points
+            # the points' cells, and the cells along their edges
+            factor[np.isin(edge, np.concatenate([crowded, prv[crowded]]))] /= 2.0
+    raise SelectionError(
+        f"{contour.source}: contour points still share grid nodes after halving their "
+        f"cells {REFINE_ROUNDS} times, near {contour.where(int(crowded[0]))}"
+    )
+
+
+class _Crowded(Exception):
+    """Points that took one node, or nodes out of their ring's order."""
+
+    def __init__(self, points: np.ndarray):
+        super().__init__("crowded")
+        self.points = points
+
+
+def diagonals_along(contour: Contour, tree: graded.Quadtree) -> np.ndarray:
+    """Per leaf, the diagonal closer to the direction of the contour edges that cross
+    it (0: ``/``, 1: ``\\``; their lengths weigh each edge's ``sin 2 theta``), so the
+    loop follows the contour along diagonals rather than in steps; 0 where none does."""
+    side = tree.sizes()
+    x0 = tree.x0 + tree.i * side
+    y0 = tree.y0 + tree.j * (tree.hy * 2.0**tree.level)
+    boxes = shapely.box(x0, y0, x0 + side, y0 + tree.hy * 2.0**tree.level)
+    p = contour.points
+    q = p[next_on_ring(contour.ring)]
+    segs = shapely.linestrings(np.stack([p, q], axis=1))
+    leaf, seg = shapely.STRtree(segs).query(boxes, predicate="intersects")
+    d = q[seg] - p[seg]
+    weight = d[:, 0] * d[:, 1] / np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-300)
+    lean = np.bincount(leaf, weights=weight, minlength=tree.n_leaves)
+    return (lean < 0).astype(np.uint8)
+
+
+def _select_on(contour: Contour, tree: graded.Quadtree, exterior: bool, size) -> GradedSelection:
+    diagonals = diagonals_along(contour, tree)
+    points, tri, _ = tree.triangulate(diagonals)
+    grid = GradedGrid(tree, points)
+    n = len(points)
+    fixed = np.zeros(n, dtype=bool)
+    fixed[grid.boundary_nodes()] = True
+    rings = [contour.points[contour.ring_order(r)] for r in range(contour.n_rings)]
+    polygon = shapely.prepared.prep if False else None  # noqa: F841 (kept simple)
+    from ..triangulate import domain
+
+    dom = domain(rings)
+    cen = points[tri].mean(axis=1)
+    inside = shapely.contains_xy(dom, cen[:, 0], cen[:, 1])
+    in_domain = shapely.contains_xy(dom, points[:, 0], points[:, 1])
+    if exterior:
+        inside, in_domain = ~inside, ~in_domain
+    banned = np.zeros(len(tri), dtype=bool)
+    for _ in range(len(tri)):
+        kept, nxt = region(tri, inside & ~banned, n, fixed, banned, in_domain)
+        try:
+            path = _assign(contour, grid, nxt, exterior, size)
+        except _Stray as exc:
+            # an island of the region leaves it, a hole in it joins it
+            for loop in exc.loops:
+                poly = shapely.Polygon(points[loop])
+                enclosed = shapely.contains_xy(poly, cen[:, 0], cen[:, 1])
+                island = shapely.is_ccw(shapely.LinearRing(points[loop]))
+                if island:
+                    inside &= ~enclosed
+                else:
+                    inside |= enclosed & ~banned
+            continue
+        nodes, targets, ring = path
+        has = np.full(n, False)
+        has[nodes] = True
+        target_of = np.zeros((n, 2))
+        target_of[nodes] = targets
+        full = kept & has[tri].all(axis=1)
+        if full.any():
+            t = np.flatnonzero(full)
+            area = signed_areas(target_of, tri[t])
+            scale = np.hypot(*(target_of[tri[t, 0]] - target_of[tri[t, 1]]).T) ** 2
+            bad = t[area <= 1e-9 * np.maximum(scale, 1e-300)]
+            if len(bad):
+                banned[bad] = True
+                continue
+        sel = GradedSelection(
+            grid,
+            nodes,
+            targets,
+            path.source,
+            ring,
+            diagonals,
+            h=float(tree.hx),
+            exterior=exterior,
+        )
+        sel.h_rule = "graded"
+        sel.path_rule = "graded-loop"
+        sel._kept = kept
+        return sel
+    raise SelectionError(f"{contour.source}: no region left")
+
+
+#: Loop nodes a point may take: the nearest this many.
+CANDIDATES = 8
+
+
+def _monotone(q: np.ndarray, loop: np.ndarray, s: np.ndarray) -> np.ndarray | None:
+    """Loop positions for the ring's points ``q`` (in ring order) on the closed
+    ``loop`` (coordinates, in the same direction): each point one of its
+    :data:`CANDIDATES` nearest loop nodes, the positions strictly increasing once
+    around the loop, the least summed squared distance in units of each point's
+    size ``s``.  Dynamic programming along the ring from the point whose nearest
+    node is nearest (in those units), which keeps it.  Returns the positions, or
+    the indices of the points where no such choice exists (an array shorter than
+    ``q``; None: every point)."""
+    from scipy.spatial import cKDTree
+
+    m, nl = len(q), len(loop)
+    if nl < m:
+        return None
+    k = min(CANDIDATES, nl)
+    dist, cand = cKDTree(loop).query(q, k=k)
+    dist, cand = dist.reshape(m, k), cand.reshape(m, k)
+    cost = (dist / s[:, None]) ** 2
+    t0 = int(np.argmin(cost[:, 0]))
+    order = np.roll(np.arange(m), -t0)
+    cand, cost = cand[order], cost[order]
+    widest = nl - (m - 1)  # (every other step one loop edge)
+    total = np.full(k, np.inf)
+    total[0] = cost[0, 0]
+    back = np.zeros((m, k), dtype=np.int64)
+    failed = []  # (where no choice exists: the programme starts again after it)
+    for t in range(1, m):
+        gap = (cand[t][None, :] - cand[t - 1][:, None]) % nl
+        step = np.where((gap >= 1) & (gap <= widest), total[:, None], np.inf)
+        back[t] = np.argmin(step, axis=0)
+        total = step[back[t], np.arange(k)] + cost[t]
+        if not np.isfinite(total).any():
+            failed += [t - 2, t - 1, t]
+            total = cost[t].copy()
+    if failed:
+        return order[np.clip(failed, 0, m - 1)]
+    gap = (cand[0, 0] - cand[m - 1]) % nl
+    total = np.where((gap >= 1) & (gap <= widest), total, np.inf)
+    if not np.isfinite(total).any():
+        return order[[m - 2, m - 1, 0]] if m > 2 else None
+    pick = np.empty(m, dtype=np.int64)
+    pick[m - 1] = int(np.argmin(total))
+    for t in range(m - 1, 0, -1):
+        pick[t - 1] = back[t, pick[t]]
+    pos = cand[np.arange(m), pick]
+    if (np.diff(np.append(pos, pos[0] + nl)) % nl == 0).any() or int(
+        ((np.roll(pos, -1) - pos) % nl).sum()
+    ) != nl:
+        return order  # (more than once around)
+    out = np.empty(m, dtype=np.int64)
+    out[order] = pos
+    return out
+
+
+def _owners(contour: Contour, p: np.ndarray, loops: list[np.ndarray]) -> np.ndarray:
+    """Per loop, the ring it follows, or -1: each ring's loop is the one that most of
+    its points have the nearest node on."""
+    from scipy.spatial import cKDTree
+
+    loop_of = np.concatenate([np.full(len(lp), i) for i, lp in enumerate(loops)])
+    kd = cKDTree(p[np.concatenate(loops)])
+    _, k = kd.query(contour.points)
+    owner = np.full(len(loops), -1, dtype=np.int64)
+    for r in range(contour.n_rings):
+        votes = np.bincount(loop_of[k[contour.ring == r]], minlength=len(loops))
+        owner[int(np.argmax(votes))] = r
+    return owner
+
+
+class _Stray(Exception):
+    """Loops that follow no ring: the boundaries of islands of the region, or of
+    holes in it, too small for a ring's points to be nearest to them."""
+
+    def __init__(self, loops: list[np.ndarray]):
+        super().__init__("stray loops")
+        self.loops = loops
+
+
+class _Path(tuple):
+    source: np.ndarray
+
+
+def _assign(contour: Contour, grid: GradedGrid, nxt: np.ndarray, exterior: bool, size):
+    """Each ring's loop, its nodes' targets and sources (see the module's step 4)."""
+
+    loops = _loops(nxt)
+    p = grid.points
+    owner = _owners(contour, p, loops)
+    stray = np.flatnonzero(owner < 0)
+    if len(stray):
+        raise _Stray([loops[i] for i in stray])
+    nodes, targets, sources, rings = [], [], [], []
+    crowded = []
+    for r in range(contour.n_rings):
+        mine = np.flatnonzero(owner == r)
+        if len(mine) != 1:
+            q = contour.ring_order(r)
+            raise _Crowded(q)  # (no loop, or several: finer cells along the ring)
+        loop = loops[mine[0]]
+        # path direction: counter-clockwise as the ring is walked
+        domain_left = contour.is_hole(r) == exterior
+        if not domain_left:
+            loop = loop[::-1]
+        order = contour.ring_order(r)
+        q = contour.points[order]
+        nl, m = len(loop), len(order)
+        pos = _monotone(q, p[loop], size[order])
+        if pos is None or len(pos) != m:
+            crowded.append(order if pos is None else order[pos])
+            continue
+        rel = (pos - pos[0]) % nl
+        loop = np.roll(loop, -pos[0])
+        xy = p[loop]
+        seg = np.hypot(*(np.roll(xy, -1, axis=0) - xy).T)
+        cum = np.concatenate([[0.0], np.cumsum(seg)])
+        start = rel  # loop position of each point's node
+        end = np.append(rel[1:], nl)
+        k_of = np.repeat(np.arange(m), end - start)  # the edge each loop node lies on
+        pos_in = np.arange(nl)
+        frac = (cum[pos_in] - cum[start[k_of]]) / (cum[end[k_of]] - cum[start[k_of]])
+        qa, qb = q[k_of], q[(k_of + 1) % m]
+        tgt = qa + frac[:, None] * (qb - qa)
+        src = np.full(nl, -1, dtype=np.int64)
+        src[start] = order
+        tgt[start] = q
+        nodes.append(loop)
+        targets.append(tgt)
+        sources.append(src)
+        rings.append(np.full(nl, r))
+    if crowded:
+        raise _Crowded(np.unique(np.concatenate(crowded)))
+    out = _Path((np.concatenate(nodes), np.concatenate(targets), np.concatenate(rings)))
+    out.source = np.concatenate(sources)
+    return out
+
+
+def check_limits(n_nodes: int, max_nodes: int | None) -> None:
+    if max_nodes is not None and n_nodes > max_nodes:
+        raise LimitError(f"the graded grid would need more than {max_nodes} nodes")
