@@ -41,6 +41,9 @@ from ..geometry import boundary_edges, next_on_ring, signed_areas
 from . import graded
 from .graded_path import GradedGrid, GradedSelection
 
+#: The ``path_rule`` of a constructed selection (stage 3 takes every extra node out).
+CONSTRUCTED = "graded-loop"
+
 #: Cells next to a contour point measure about this times its size (its shorter edge,
 #: or its distance to the nearest edge not incident to it).
 CELL_FACTOR = 1.0
@@ -48,6 +51,9 @@ CELL_FACTOR = 1.0
 #: Cells along an edge measure about this times the clearance there (the distance to
 #: the nearest other part of the contour): the loops of two parts stay apart.
 CLEARANCE_FACTOR = 0.5
+
+#: Rounds of mending pinches (each takes in or gives up every pinch's triangles at once).
+PINCH_ROUNDS = 64
 
 #: Times the cells at points that took one node, or nodes out of order, are halved.
 REFINE_ROUNDS = 8
@@ -74,38 +80,60 @@ def _point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.n
     return np.hypot(*(p - q).T)
 
 
+#: Another part of the contour: a point ``y`` that the contour reaches from ``x`` only
+#: after more than this times ``|x - y|`` along it (it turned back), or on another ring.
+TURN = 2.0
+
+
+def _clearance(x, x_arc, x_ring, own, qi, si, a, b, arc, length, ring, perimeter):
+    """Per candidate pair (query ``qi``, edge ``si``): the distance from ``x[qi]`` to
+    the nearest point of the edge, or inf where that point is not another part of
+    the contour (:data:`TURN`) or the edge is one ``x`` lies on (``own``: (k, 2)
+    edges per query)."""
+    ab = b[si] - a[si]
+    ll = np.einsum("ij,ij->i", ab, ab)
+    t = np.clip(np.einsum("ij,ij->i", x[qi] - a[si], ab) / np.where(ll > 0, ll, 1.0), 0, 1)
+    y = a[si] + t[:, None] * ab
+    d = np.hypot(*(x[qi] - y).T)
+    along = np.abs(x_arc[qi] - (arc[si] + t * length[si]))
+    along = np.minimum(along, perimeter[ring[si]] - along)
+    other = (x_ring[qi] != ring[si]) | (along > TURN * d)
+    other &= (si != own[qi, 0]) & (si != own[qi, 1])
+    return np.where(other, d, np.inf)
+
+
 def feature_samples(contour: Contour) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(points, sizes, point_sizes, edge)``: where the cells must be how small, and
     the contour point (for an edge's sample, the edge's first point) each belongs to.
 
-    ``point_sizes[k]`` is contour point ``k``'s size: the smaller of its two
-    edges and its distance to the nearest edge not incident to it.  ``points``
-    and ``sizes`` are those points and sizes followed by samples along the edges:
-    each edge is bisected while a piece is longer than the clearance at its
-    middle (the distance to the nearest other edge, an adjacent one counting only
-    at an acute angle), except a piece at an end that is no longer than that
+    ``point_sizes[k]`` is contour point ``k``'s size: the smaller of its two edges
+    and its distance to another part of the contour (:data:`TURN`: the two sides of
+    a thin part, a hole near the outline).  ``points`` and ``sizes`` are those
+    points and sizes followed by samples along the edges: each edge is bisected
+    while a piece is longer than the clearance at its middle (its distance to
+    another part of the contour), except a piece at an end no longer than that
     end's point size.  A sample's size is :data:`CLEARANCE_FACTOR` times its
     clearance, at most its piece's length.
     """
     p = contour.points
     m = contour.n
-    nxt = next_on_ring(contour.ring)
+    ring = contour.ring
+    nxt = next_on_ring(ring)
     prv = _prev_on_ring(contour)
     a, b = p, p[nxt]
     length = contour.edge_lengths()
+    starts = np.asarray(contour.starts)
+    run = np.cumsum(length)
+    arc = run - length - np.concatenate([[0.0], run])[starts[:-1]][ring]  # along its ring
+    perimeter = np.add.reduceat(length, starts[:-1])
     segs = shapely.linestrings(np.stack([a, b], axis=1))
     tree = shapely.STRtree(segs)
-    # point sizes: the shorter edge, and the nearest edge not incident (within it)
+    geo = (a, b, arc, length, ring, perimeter)
+    # point sizes: the shorter edge, and another part of the contour within it
     s = np.minimum(length, length[prv])
     qi, si = tree.query(shapely.points(p), predicate="dwithin", distance=s)
-    far = (si != qi) & (si != prv[qi])
-    qi, si = qi[far], si[far]
-    np.minimum.at(s, qi, _point_segment_distance(p[qi], a[si], b[si]))
-    # acute angles: an adjacent edge counts as "another part" only there
-    d_in = a - p[prv]  # the edge into each point
-    cos_at = np.einsum("ij,ij->i", -d_in, b - a)  # > 0: acute angle at the point
-    acute_at_start = cos_at > 0  # edge e's start point (e) is an acute corner
-    acute_at_end = cos_at[nxt] > 0  # edge e's end point (nxt[e])
+    own = np.column_stack([np.arange(m), prv])
+    np.minimum.at(s, qi, _clearance(p, arc, ring, own, qi, si, *geo))
     floor = FLOOR * float(np.ptp(p, axis=0).max())
     seg = np.arange(m)
     t0 = np.zeros(m)
@@ -115,14 +143,13 @@ def feature_samples(contour: Contour) -> tuple[np.ndarray, np.ndarray, np.ndarra
         ell = (t1 - t0) * length[seg]
         tm = (t0 + t1) / 2
         mid = a[seg] + tm[:, None] * (b[seg] - a[seg])
-        qi, si = tree.query(shapely.points(mid), predicate="dwithin", distance=ell)
-        e = seg[qi]
-        other = (
-            (si != e) & ((si != prv[e]) | acute_at_start[e]) & ((si != nxt[e]) | acute_at_end[e])
-        )
-        qi, si = qi[other], si[other]
+        # (twice the piece's length: a piece short enough not to split still learns
+        # the clearance its parent was split for)
+        qi, si = tree.query(shapely.points(mid), predicate="dwithin", distance=2 * ell)
         c = np.full(len(seg), np.inf)
-        np.minimum.at(c, qi, _point_segment_distance(mid[qi], a[si], b[si]))
+        x_arc = arc[seg] + tm * length[seg]
+        own = np.column_stack([seg, seg])
+        np.minimum.at(c, qi, _clearance(mid, x_arc, ring[seg], own, qi, si, *geo))
         end_size = np.minimum(
             np.where(t0 == 0, s[seg], np.inf), np.where(t1 == 1, s[nxt[seg]], np.inf)
         )
@@ -156,7 +183,7 @@ def region(
     inside = inside.copy()
     banned = banned.copy()
     taken = np.zeros(len(tri), dtype=bool)
-    for _ in range(len(tri) + 1):
+    for _ in range(PINCH_ROUNDS):
         e = boundary_edges(tri[inside], n)
         e = e[~(fixed[e[:, 0]] & fixed[e[:, 1]])]  # (the box's sides are not a loop)
         out = np.bincount(e[:, 0], minlength=n)
@@ -282,7 +309,7 @@ def _select_on(contour: Contour, tree: graded.Quadtree, exterior: bool, size) ->
     if exterior:
         inside, in_domain = ~inside, ~in_domain
     banned = np.zeros(len(tri), dtype=bool)
-    for _ in range(len(tri)):
+    for _ in range(PINCH_ROUNDS):
         kept, nxt = region(tri, inside & ~banned, n, fixed, banned, in_domain)
         try:
             path = _assign(contour, grid, nxt, exterior, size)
@@ -322,10 +349,10 @@ def _select_on(contour: Contour, tree: graded.Quadtree, exterior: bool, size) ->
             exterior=exterior,
         )
         sel.h_rule = "graded"
-        sel.path_rule = "graded-loop"
+        sel.path_rule = CONSTRUCTED
         sel._kept = kept
         return sel
-    raise SelectionError(f"{contour.source}: no region left")
+    raise SelectionError(f"{contour.source}: triangles that would flatten still in the region")
 
 
 #: Loop nodes a point may take: the nearest this many.
