@@ -1,0 +1,99 @@
+"""The constructed graded selection (``select/construct.py``) and boundary recovery
+(``recover.py``): what each guarantees so far.  The pipeline does not use them yet."""
+
+import numpy as np
+import pytest
+
+from deformesh_cli import improve, pipeline, triangulate, untangle
+from deformesh_cli.contour import make_contour
+from deformesh_cli.geometry import signed_areas
+from deformesh_cli.mesh import Mesh
+from deformesh_cli.options import MeshOptions
+from deformesh_cli.quality import check_contract
+from deformesh_cli.readers import load_contour
+from deformesh_cli.recover import recover
+from deformesh_cli.select import construct
+
+from .conftest import ROOT, SAMPLES
+
+CORPUS = ROOT / "tests" / "data" / "corpus"
+
+
+def _square_with_extra_nodes(lift: float) -> Mesh:
+    """The unit square, contour points 0-3, extra nodes 4 and 5 at x = 1/3 and 2/3 on
+    the bottom edge, interior nodes 6 and 7 above them at ``lift``."""
+    pts = np.array(
+        [[0, 0], [1, 0], [1, 1], [0, 1], [1 / 3, 0], [2 / 3, 0], [1 / 3, lift], [2 / 3, lift]]
+    )
+    tri = np.array(
+        [[0, 4, 6], [4, 5, 6], [5, 7, 6], [5, 1, 7], [1, 2, 7], [2, 3, 6], [2, 6, 7], [3, 0, 6]]
+    )
+    lines = np.array([[0, 4], [4, 5], [5, 1], [1, 2], [2, 3], [3, 0]])
+    return Mesh(pts, tri, lines, n_contour=4, n_extra=2)
+
+
+@pytest.mark.parametrize("lift", [0.5, 0.01])
+def test_recover_takes_every_extra_node_out(lift):
+    """However close the inner nodes hug the edge, every extra node goes (no angle
+    floor): the boundary is the contour's four edges, every triangle counter-clockwise,
+    the area kept."""
+    before = _square_with_extra_nodes(lift)
+    mesh, taken = recover(before)
+    assert taken == 2 and mesh.n_extra == 0 and len(mesh.points) == 6
+    assert sorted(map(tuple, mesh.lines.tolist())) == [(0, 1), (1, 2), (2, 3), (3, 0)]
+    assert (signed_areas(mesh.points, mesh.triangles) > 0).all()
+    assert signed_areas(mesh.points, mesh.triangles).sum() == pytest.approx(1.0)
+    assert np.array_equal(mesh.points[:4], before.points[:4])
+
+
+def test_clearance_is_measured_across_a_thin_part_only():
+    """A strip 10 x 1 drawn by its corners: samples along the long edges ask for cells
+    of about half the strip's width; a smooth circle's samples ask for nothing below
+    its points' spacing (the next edges are the same part of the contour)."""
+    strip = make_contour(np.array([[0, 0], [10, 0], [10, 1], [0, 1]], float), source="strip")
+    xy, size, s, edge = construct.feature_samples(strip)
+    assert np.allclose(s, 1.0)
+    along = edge[4:]
+    assert (np.isin(along, [0, 2])).sum() >= 16  # the long edges are sampled
+    assert size[4:][np.isin(along, [0, 2])].max() <= 0.5 * 1.0 + 1e-12
+    t = np.linspace(0, 2 * np.pi, 200, endpoint=False)
+    circle = make_contour(np.column_stack([np.cos(t), np.sin(t)]), source="circle")
+    xy, size, s, edge = construct.feature_samples(circle)
+    spacing = 2 * np.sin(np.pi / 200)
+    assert np.allclose(s, spacing) and size.min() >= spacing * (1 - 1e-9)
+
+
+def _construct_and_mesh(c):
+    o = MeshOptions()
+    sel = construct.select_constructed(c)
+    d = pipeline.run_deform(c, sel, o, keep_folds=True)
+    cut = triangulate.cut(c, sel)
+    placed = triangulate.place(c, sel, cut, d.points, folded=True)
+    mended = untangle.untangle(placed, untangle.most_tangled(placed))
+    assert mended is not None
+    mesh, _ = recover(mended)
+    mesh, _ = improve.improve(mesh)
+    check_contract(mesh, c)  # raises unless it holds
+    return sel, mesh
+
+
+@pytest.mark.parametrize(
+    "path",
+    [SAMPLES / "peanut.csv", SAMPLES / "naca0012.csv", CORPUS / "icon_si_python.svg"],
+    ids=lambda p: p.name,
+)
+def test_constructed_meshes_keep_exactly_the_contour_points(path):
+    """Selection, deformation keeping folds for the mend, recovery, quality stage: the
+    boundary nodes are exactly the contour's points (two outer rings with holes
+    included), and the contract holds."""
+    c = load_contour(path)
+    sel, mesh = _construct_and_mesh(c)
+    assert sel.extra_nodes > 0  # (the loop's nodes between points: all taken out)
+    assert mesh.n_extra == 0 and np.array_equal(mesh.points[: c.n], c.points)
+    assert len(np.unique(mesh.lines)) == c.n
+
+
+def test_a_rectangle_by_its_corners_is_constructed():
+    c = make_contour(np.array([[0, 0], [10, 0], [10, 1], [0, 1]], float), source="rect")
+    _, mesh = _construct_and_mesh(c)
+    assert mesh.n_extra == 0 and len(mesh.lines) == 4
