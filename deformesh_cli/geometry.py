@@ -22,6 +22,14 @@ def next_on_ring(ring: np.ndarray) -> np.ndarray:
     return start + (idx - start + 1) % np.repeat(sizes, sizes)
 
 
+def prev_on_ring(ring: np.ndarray) -> np.ndarray:
+    """Index of the previous entry on the same closed ring (each ring's entries
+    contiguous): the inverse of :func:`next_on_ring`."""
+    prev = np.empty(len(ring), dtype=np.int64)
+    prev[next_on_ring(ring)] = np.arange(len(ring))
+    return prev
+
+
 def signed_area(p: np.ndarray) -> float:
     """Shoelace area of a closed polygon given without its closing point."""
     x, y = p[:, 0], p[:, 1]

@@ -37,7 +37,7 @@ import shapely
 
 from ..contour import Contour
 from ..errors import LimitError, SelectionError
-from ..geometry import boundary_edges, next_on_ring, signed_areas
+from ..geometry import boundary_edges, next_on_ring, prev_on_ring, signed_areas
 from . import graded
 from .graded_path import GradedGrid, GradedSelection
 
@@ -60,15 +60,6 @@ REFINE_ROUNDS = 8
 
 #: Edges shorter than this fraction of the contour's extent are not bisected further.
 FLOOR = 1e-9
-
-
-def _prev_on_ring(contour: Contour) -> np.ndarray:
-    idx = np.arange(contour.n)
-    starts = np.asarray(contour.starts)
-    ring = contour.ring
-    first = starts[ring]
-    size = np.diff(starts)[ring]
-    return first + (idx - first - 1) % size
 
 
 def _point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -119,7 +110,7 @@ def feature_samples(contour: Contour) -> tuple[np.ndarray, np.ndarray, np.ndarra
     m = contour.n
     ring = contour.ring
     nxt = next_on_ring(ring)
-    prv = _prev_on_ring(contour)
+    prv = prev_on_ring(contour.ring)
     a, b = p, p[nxt]
     length = contour.edge_lengths()
     starts = np.asarray(contour.starts)
@@ -240,7 +231,7 @@ def select_constructed(
     (the module's steps).  ``field``: a further size field (points -> sizes) the
     cells must not exceed, as a size function asks."""
     xy, size, s, edge = feature_samples(contour)
-    prv = _prev_on_ring(contour)
+    prv = prev_on_ring(contour.ring)
     lo, hi = contour.points.min(axis=0), contour.points.max(axis=0)
     given = box is not None
     if box is None:

@@ -36,6 +36,7 @@ import numpy as np
 
 from ..contour import Contour
 from ..errors import LimitError, OptionError
+from ..geometry import prev_on_ring
 
 #: Default growth: how much larger a cell may be than the contour's local size
 #: per cell width of distance (a size field ``s_q + (growth - 1) |x - q|``).
@@ -67,7 +68,7 @@ def local_sizes(contour: Contour) -> np.ndarray:
     p = contour.points
     m = len(p)
     edge = contour.edge_lengths()
-    prev = edge[_prev_on_ring(contour)]
+    prev = edge[prev_on_ring(contour.ring)]
     s = np.minimum(edge, prev)
     tree = cKDTree(p)
     k = min(m, 2 * APART + 2)
@@ -83,15 +84,6 @@ def local_sizes(contour: Contour) -> np.ndarray:
         far = ~same | (apart >= APART)
         s = np.where(far, np.minimum(s, dist[:, c]), s)
     return s
-
-
-def _prev_on_ring(contour: Contour) -> np.ndarray:
-    idx = np.arange(contour.n)
-    starts = np.asarray(contour.starts)
-    ring = contour.ring
-    first = starts[ring]
-    size = np.diff(starts)[ring]
-    return first + (idx - first - 1) % size
 
 
 def graded_sizes(points: np.ndarray, s: np.ndarray, growth: float) -> np.ndarray:

@@ -31,7 +31,7 @@ import numpy as np
 from .. import deadline
 from ..contour import Contour
 from ..errors import SelectionError
-from ..geometry import next_on_ring
+from ..geometry import next_on_ring, prev_on_ring
 from . import graded
 from .respace import Respaced, arclengths, pieces, slid_copy
 
@@ -118,7 +118,7 @@ def initial_sizes(contour: Contour) -> np.ndarray:
     distance to other parts of the contour (:func:`.graded.local_sizes`)."""
     s = graded.local_sizes(contour)
     edge = contour.edge_lengths()
-    prev = graded._prev_on_ring(contour)
+    prev = prev_on_ring(contour.ring)
     feature = np.where(s < np.minimum(edge, edge[prev]) * (1 - 1e-12), s, np.inf)
     nxt = next_on_ring(contour.ring)
     linf = np.abs(contour.points[nxt] - contour.points).max(axis=1)
