@@ -256,7 +256,7 @@ def select_constructed(
     )
 
 
-class _Crowded(Exception):
+class _Crowded(SelectionError):
     """Points that took one node, or nodes out of their ring's order."""
 
     def __init__(self, points: np.ndarray):
@@ -419,7 +419,7 @@ def _owners(contour: Contour, p: np.ndarray, loops: list[np.ndarray]) -> np.ndar
     return owner
 
 
-class _Stray(Exception):
+class _Stray(SelectionError):
     """Loops that follow no ring: the boundaries of islands of the region, or of
     holes in it, too small for a ring's points to be nearest to them."""
 
