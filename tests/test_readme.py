@@ -123,6 +123,26 @@ def test_no_history_in_the_docs():
         assert "/".join(["..", "shared"]) not in text, page  # the workplace's folder
 
 
+def test_limits_circle_numbers_are_the_benchmark_file():
+    """docs/limits.md's circle times and memory are the rows ``make bench`` last wrote."""
+    results = (ROOT / "benchmarks" / "RESULTS.md").read_text()
+    circles = results.split("<!-- section:circles -->")[1].split("<!-- end:circles -->")[0]
+    rows = [
+        [c.strip() for c in row.strip().strip("|").split("|")]
+        for row in circles.splitlines()
+        if re.match(r"\| [\d,]+ \|", row)
+    ]
+    said = re.search(
+        r"take ([\d.]+), ([\d.]+) and ([\d.]+) s and (\d+), (\d+)\s+and (\d+) MB .*?"
+        r"Triangle `pq30Y`'s ([\d.]+), ([\d.]+) and\s+([\d.]+) s",
+        DOCS["limits.md"],
+        re.S,
+    )
+    assert said is not None and len(rows) == 3
+    ours = [r[1] for r in rows] + [r[2] for r in rows] + [r[5] for r in rows]
+    assert list(said.groups()) == ours
+
+
 def test_readme_speed_numbers_are_the_benchmark_files():
     """The README's "How fast" claims are the numbers ``make bench`` last wrote."""
     results = (ROOT / "benchmarks" / "RESULTS.md").read_text()
