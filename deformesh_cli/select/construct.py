@@ -89,7 +89,7 @@ def _clearance(x, x_arc, x_ring, own, qi, si, a, b, arc, length, ring, perimeter
     along = np.abs(x_arc[qi] - (arc[si] + t * length[si]))
     along = np.minimum(along, perimeter[ring[si]] - along)
     other = (x_ring[qi] != ring[si]) | (along > TURN * d)
-    other &= (si != own[qi, 0]) & (si != own[qi, 1])
+    other &= ~(si[:, None] == own[qi]).any(axis=1)
     return np.where(other, d, np.inf)
 
 
@@ -139,7 +139,7 @@ def feature_samples(contour: Contour) -> tuple[np.ndarray, np.ndarray, np.ndarra
         qi, si = tree.query(shapely.points(mid), predicate="dwithin", distance=2 * ell)
         c = np.full(len(seg), np.inf)
         x_arc = arc[seg] + tm * length[seg]
-        own = np.column_stack([seg, seg])
+        own = np.column_stack([seg, prv[seg], nxt[seg]])  # (a corner: its points' sizes)
         np.minimum.at(c, qi, _clearance(mid, x_arc, ring[seg], own, qi, si, *geo))
         end_size = np.minimum(
             np.where(t0 == 0, s[seg], np.inf), np.where(t1 == 1, s[nxt[seg]], np.inf)
