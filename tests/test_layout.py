@@ -147,5 +147,14 @@ def test_only_deformesh_errors_reach_the_cli_layer():
     ours = {n for n in dir(errors) if isinstance(getattr(errors, n), type)}
     # SelectionError subclasses of select, trace, graded_path and construct; state's
     # InputError
-    local = {"NoFreeNode", "TraceError", "_Clash", "_NoRoute", "_Damaged", "_Crowded", "_Stray"}
+    local = {
+        "NoFreeNode",
+        "TraceError",
+        "_Clash",
+        "_NoRoute",
+        "_Damaged",
+        "_Crowded",
+        "_Stray",
+        "_Pinch",
+    }
     assert raised - ours - local == set(), "the core raises non-deformesh errors"

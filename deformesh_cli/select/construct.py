@@ -189,12 +189,12 @@ def region(
         add = fill[tri].any(axis=1) & ~inside & ~banned & ~fixed[tri].all(axis=1)
         drop = cut[tri].any(axis=1) & inside & ~taken
         if not (add.any() or drop.any()):
-            raise SelectionError("the region's boundary has a pinch that no triangle mends")
+            raise _Pinch(np.flatnonzero(pinch))
         inside |= add
         taken |= add
         inside &= ~drop
         banned |= drop
-    raise SelectionError("the region's boundary has a pinch that no triangle mends")
+    raise _Pinch(np.flatnonzero(pinch))
 
 
 def _loops(nxt: np.ndarray) -> list[np.ndarray]:
@@ -256,6 +256,14 @@ def select_constructed(
     )
 
 
+class _Pinch(SelectionError):
+    """Nodes where the region touches itself and no triangle may mend it."""
+
+    def __init__(self, nodes: np.ndarray):
+        super().__init__("the region's boundary has a pinch that no triangle mends")
+        self.nodes = nodes
+
+
 class _Crowded(SelectionError):
     """Points that took one node, or nodes out of their ring's order."""
 
@@ -301,7 +309,13 @@ def _select_on(contour: Contour, tree: graded.Quadtree, exterior: bool, size) ->
         inside, in_domain = ~inside, ~in_domain
     banned = np.zeros(len(tri), dtype=bool)
     for _ in range(PINCH_ROUNDS):
-        kept, nxt = region(tri, inside & ~banned, n, fixed, banned, in_domain)
+        try:
+            kept, nxt = region(tri, inside & ~banned, n, fixed, banned, in_domain)
+        except _Pinch as exc:  # (cells too coarse there: finer ones at the nearest points)
+            from scipy.spatial import cKDTree
+
+            _, near = cKDTree(contour.points).query(points[exc.nodes])
+            raise _Crowded(np.unique(near)) from None
         try:
             path = _assign(contour, grid, nxt, exterior, size)
         except _Stray as exc:
