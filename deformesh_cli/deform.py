@@ -5,7 +5,7 @@ LSFEM div-curl system (``div U = 0``, ``curl U = 0`` for the uniform size
 function ``f = 1``) is solved with Dirichlet data: at each path node the
 remaining displacement divided by the remaining steps, ``(Q - phi(P)) /
 (n - k)``, and ``U = 0`` on the background boundary.  Every node moves by
-``f * U`` (DESIGN.md section 3, "Arrival").
+``f * U``, so each path node lands exactly on its target at the last step.
 
 After each step every triangle's signed area is checked.  If one would fold,
 the step is halved (the solution is linear in the Dirichlet data, so the

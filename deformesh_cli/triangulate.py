@@ -7,7 +7,7 @@ grid: the even-odd rule applied to the rings' grid paths, by counting, along
 each row of triangle centroids, the path edges crossed (exact: integer
 arithmetic in thirds of a cell).  If no kept triangle folded, the kept cells,
 whose boundary the path nodes carry onto the rings, map one to one onto the
-domain (DESIGN.md section 3).  Every kept triangle the deformation moved is also
+domain.  Every kept triangle the deformation moved is also
 tested by geometry, shapely on its deformed centroid against the rings; one
 outside is a contract violation.  (Triangles it did not move are grid cells in
 place; the contract check that follows, boundary = contour, no fold, area

@@ -116,6 +116,15 @@ def test_blocks_with_scripts_run_in_order(sh, tmp_path, block):
     assert list((tmp_path / "docs").iterdir())  # the picture the page shows
 
 
+def test_nothing_cites_a_design_file_the_repository_does_not_have():
+    """Docs and code cite what a clone has: no DESIGN.md, no planning notes."""
+    assert not (ROOT / "DESIGN.md").exists()
+    sources = [*ROOT.joinpath("deformesh_cli").rglob("*.py"), ROOT / "README.md"]
+    sources += list(ROOT.joinpath("docs").glob("*.md"))
+    cited = [p.name for p in sources if "DESIGN.md" in p.read_text()]
+    assert cited == []
+
+
 def test_no_history_in_the_docs():
     """Docs say what things do; history lives in CHANGELOG.md and the commit log."""
     for page, text in PAGES.items():

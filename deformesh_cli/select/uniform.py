@@ -7,8 +7,8 @@ Data flow::
                             nodes on the contour edge) --validate--> forced
                             cell diagonals --> background triangles
 
-The background triangulation is built *after* selection (DESIGN.md section
-3): a diagonal step of the path forces that cell's diagonal, and at an L-turn
+The background triangulation is built *after* selection (docs/method.md): a
+diagonal step of the path forces that cell's diagonal, and at an L-turn
 the corner cell is split through the corner node, so that no triangle has
 three consecutive path nodes (it would collapse as the contour flattens).
 """
@@ -210,10 +210,9 @@ def _too_many_nodes(contour, est, h, rule, d_c, ka, kb, box_size, margin_cells, 
     Every contour point needs a grid node of its own, so ``h`` cannot be much
     larger than the spacing where points crowd: the largest safe guess is the
     smallest spacing between consecutive points (for evenly spaced contours
-    that is the spacing itself, which gives no extra nodes at all, DESIGN.md
-    section 3).  ``box_size`` is the box without the margin when
-    ``margin_cells`` is set (the default margin of that many cells), else the
-    fixed box.
+    that is the spacing itself, which gives no extra nodes at all).  ``box_size``
+    is the box without the margin when ``margin_cells`` is set (the default
+    margin of that many cells), else the fixed box.
     """
     seg = contour.edge_lengths()
     ratio = float(seg.max() / seg.min())
