@@ -31,6 +31,7 @@ import numpy as np
 
 from .geometry import signed_areas, sorted_lookup
 from .quality import measures
+from .smoothing import _flip_all, _smooth
 
 #: Sizes grow by this much per unit of distance from a polygon vertex.
 GRADE = 0.5
@@ -120,8 +121,6 @@ POLISH = 4
 def _polish(p, new, tri, angle):
     """The quality stage's flips and moves (:mod:`.improve`) on the new points only:
     each move raises the smallest angle of its triangles, so nothing folds."""
-    from .improve import _flip_all, _smooth
-
     if POLISH == 0 or len(new) == 0:
         return new, tri, angle
     pts = np.concatenate([p, new])
@@ -140,8 +139,6 @@ def _delaunay(p, new, edges, poly):
     recovered by flipping the edges that cross it (Sloan's method); None if a side
     cannot be recovered or the triangles inside lack the polygon's area."""
     from scipy.spatial import Delaunay, QhullError
-
-    from .improve import _flip_all
 
     pts = np.concatenate([p, new])
     try:

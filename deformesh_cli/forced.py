@@ -77,7 +77,7 @@ def mesh_domain(points: np.ndarray, lines: np.ndarray):
     :class:`.Mesh` keeps them; even-odd), with the boundary nodes where the mesh has
     them: extra boundary nodes, put on contour edges to the nearest double, are
     vertices of it."""
-    from .triangulate import domain
+    from .geometry import domain
 
     rings, start = [], 0
     first = lines[:, 0].tolist()

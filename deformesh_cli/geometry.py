@@ -147,3 +147,16 @@ def sorted_lookup(sorted_keys: np.ndarray, k: np.ndarray) -> tuple[np.ndarray, n
     pos = np.clip(np.searchsorted(sorted_keys, k), 0, max(len(sorted_keys) - 1, 0))
     found = sorted_keys[pos] == k if len(sorted_keys) else np.zeros(len(k), dtype=bool)
     return found, pos
+
+
+def domain(rings: list[np.ndarray], box: tuple | None = None):
+    """Shapely geometry of the region the rings enclose (even-odd), or ``box`` minus it."""
+    from functools import reduce
+
+    import shapely
+
+    polys = [shapely.Polygon(r) for r in rings]
+    inside = reduce(shapely.symmetric_difference, polys)
+    if box is None:
+        return inside
+    return shapely.box(*box).difference(inside)

@@ -40,6 +40,17 @@ from .forced import corner_angles
 from .geometry import node_stars, touching
 from .merge import clear_sharp_corners
 from .mesh import Mesh
+from .smoothing import (  # noqa: F401 (tan_min_angle, GAIN: the quality stage's measure)
+    GAIN,
+    _edge_pairs,
+    _flip_all,
+    _move,
+    _raised,
+    _smooth,
+    _tan_all,
+    _tan_min,
+    tan_min_angle,
+)
 
 #: Rounds of (flips, smoothing, cavities) at most; a round that changes nothing ends it.
 #: No round reads the clock, so the same mesh always improves the same way.
@@ -47,16 +58,6 @@ ROUNDS = 16
 #: Triangles whose smallest angle is under this (degrees) are worked on, with their
 #: neighbours; the others are left as they are.
 TARGET = 35.0
-#: Pattern-search steps per smoothing sweep (the step halves when nothing improves).
-SEARCH_STEPS = 8
-#: A change counts only if it raises the smallest angle by more than this (degrees).
-GAIN = 0.01
-
-#: Triangles measured at a time (bounds the temporaries on big meshes).
-CHUNK = 1 << 17
-
-_DIRS = np.array([(np.cos(a), np.sin(a)) for a in np.arange(8) * np.pi / 4])
-_SQRT3_2 = np.sqrt(3.0) / 2.0
 
 
 @dataclass
@@ -71,24 +72,6 @@ class ImproveStats:
     min_angle_before: float = 0.0
     corners: int = 0  # inner nodes taken out of sharp corners first
     weak: np.ndarray | None = None  # ids of the triangles under 30 degrees at the end
-
-
-def tan_min_angle(ax, ay, bx, by, cx, cy):
-    """Tangent of the smallest angle of triangles ``abc`` (coordinates as separate
-    arrays that broadcast), ``-inf`` where the triangle is not counter-clockwise.
-
-    The smallest angle (opposite the shortest edge, at most 60 degrees) has
-    ``tan = 2 cross / (S - 2 s_min)`` by the law of cosines (``s`` the squared
-    edge lengths, ``S`` their sum; the denominator is positive), and the
-    tangent orders angles as the angles do: no ``arctan2`` in the search.
-    """
-    e0x, e0y, e1x, e1y, e2x, e2y = cx - bx, cy - by, ax - cx, ay - cy, bx - ax, by - ay
-    cross = e1x * e2y - e1y * e2x
-    s0, s1, s2 = e0x * e0x + e0y * e0y, e1x * e1x + e1y * e1y, e2x * e2x + e2y * e2y
-    shortest = np.minimum(np.minimum(s0, s1), s2)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = 2 * cross / (s0 + s1 + s2 - 2 * shortest)
-    return np.where(cross > 0, t, -np.inf)
 
 
 def improve(
@@ -180,82 +163,11 @@ def improve(
     return out, stats
 
 
-def _tan_all(pts, tri):
-    """:func:`_tan_min` of every triangle, :data:`CHUNK` at a time."""
-    return np.concatenate([_tan_min(pts, tri[k : k + CHUNK]) for k in range(0, len(tri), CHUNK)])
-
-
 def _degrees(tan_angle: float) -> float:
     return float(np.degrees(np.arctan(tan_angle))) if np.isfinite(tan_angle) else -np.inf
 
 
-def _tan_min(pts, tri):
-    return tan_min_angle(
-        pts[tri[:, 0], 0],
-        pts[tri[:, 0], 1],
-        pts[tri[:, 1], 0],
-        pts[tri[:, 1], 1],
-        pts[tri[:, 2], 0],
-        pts[tri[:, 2], 1],
-    )
-
-
 # --- flips
-
-
-def _flip_all(pts: np.ndarray, tri: np.ndarray, target: float, max_passes: int = 50) -> int:
-    """Flip inner edges of ``tri`` (in place) while a flip raises the smallest angle of a
-    pair that is under ``target`` (a tangent)."""
-    total = 0
-    for _ in range(max_passes):
-        t1, k1, t2, k2 = _edge_pairs(tri)
-        if len(t1) == 0:
-            break
-        tan = _tan_min(pts, tri)
-        before = np.minimum(tan[t1], tan[t2])
-        low = before < target  # (only these pairs may flip: the others are not measured)
-        t1, k1, t2, k2, before = t1[low], k1[low], t2[low], k2[low], before[low]
-        u, w, x = tri[t1, k1], tri[t1, (k1 + 1) % 3], tri[t1, (k1 + 2) % 3]
-        y = tri[t2, (k2 + 2) % 3]
-        after = np.minimum(
-            _tan_min(pts, np.column_stack([u, y, x])), _tan_min(pts, np.column_stack([y, w, x]))
-        )
-        ok = after > _raised(before)
-        gain = after - before
-        if not ok.any():
-            break
-        cand = np.flatnonzero(ok)
-        cand = cand[np.argsort(-gain[cand], kind="stable")]
-        # one flip per triangle per pass: the best gains first
-        taken = np.zeros(len(tri), dtype=bool)
-        chosen = []
-        for c in cand.tolist():
-            a, b = t1[c], t2[c]
-            if taken[a] or taken[b]:
-                continue
-            taken[a] = taken[b] = True
-            chosen.append(c)
-        chosen = np.array(chosen)
-        tri[t1[chosen]] = np.column_stack([u[chosen], y[chosen], x[chosen]])
-        tri[t2[chosen]] = np.column_stack([y[chosen], w[chosen], x[chosen]])
-        total += len(chosen)
-    return total
-
-
-def _edge_pairs(tri: np.ndarray):
-    """Inner edges as (t1, k1, t2, k2): edge k1 of t1 (from corner k1 to k1 + 1) is
-    edge k2 of t2, walked the other way."""
-    t = np.repeat(np.arange(len(tri)), 3)
-    k = np.tile(np.arange(3), len(tri))
-    a = tri.ravel()
-    b = tri[:, [1, 2, 0]].ravel()
-    lo, hi = np.minimum(a, b), np.maximum(a, b)
-    key = lo.astype(np.int64) * (int(hi.max(initial=0)) + 1) + hi
-    order = np.argsort(key, kind="stable")  # (by lo, then hi: as a lexsort of the two)
-    key, t, k, fwd = key[order], t[order], k[order], (a < b)[order]
-    same = (key[1:] == key[:-1]) & (fwd[1:] != fwd[:-1])
-    i = np.flatnonzero(same)
-    return t[i], k[i], t[i + 1], k[i + 1]
 
 
 # --- insertions
@@ -430,162 +342,3 @@ def _outline(tri: np.ndarray, nb: np.ndarray, cav: list[int], ear=None):
 
 
 # --- smoothing
-
-
-def _smooth(pts: np.ndarray, tri: np.ndarray, movable: np.ndarray) -> int:
-    """One sweep over the movable nodes of ``tri``, an independent set at a time."""
-    nodes = np.unique(tri[movable[tri]])
-    if len(nodes) == 0:
-        return 0
-    local = np.full(int(tri.max()) + 1, -1, dtype=np.int64)  # node id -> position in nodes
-    local[nodes] = np.arange(len(nodes))
-    inc, slot = _incidence(tri, local, len(nodes))
-    moves = 0
-    for group in _independent_sets(tri, nodes, local):
-        moves += _move(pts, tri, nodes[group], inc[group], slot[group])
-    return moves
-
-
-def _incidence(tri: np.ndarray, local: np.ndarray, count: int):
-    """For each of ``count`` nodes (``local`` maps node ids to 0..count-1, or -1), its
-    triangles (padded with -1) and its corner in each."""
-    t = np.repeat(np.arange(len(tri)), 3)
-    k = np.tile(np.arange(3), len(tri))
-    v = local[tri.ravel()]
-    keep = v >= 0
-    v, t, k = v[keep], t[keep], k[keep]
-    order = np.argsort(v, kind="stable")
-    v, t, k = v[order], t[order], k[order]
-    counts = np.bincount(v, minlength=count)
-    start = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    col = np.arange(len(v)) - start[v]
-    width = int(counts.max())
-    inc = np.full((count, width), -1, dtype=np.int64)
-    slot = np.zeros((count, width), dtype=np.int64)
-    inc[v, col] = t
-    slot[v, col] = k
-    return inc, slot
-
-
-def _independent_sets(tri: np.ndarray, nodes: np.ndarray, local: np.ndarray) -> list[np.ndarray]:
-    """Split ``nodes`` (positions into it) into sets of which no two share a triangle.
-
-    Jones-Plassmann colouring: in each round, every node whose priority beats all
-    its neighbours' still left joins the round's set.  Priorities are a fixed
-    hash of the node id (deterministic, and scattered, so that a round takes
-    many nodes: ids in grid order would let only a few win per row).
-    """
-    e = local[np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])]
-    e = e[(e[:, 0] >= 0) & (e[:, 1] >= 0)]
-    e = np.concatenate([e, e[:, ::-1]])
-    prio = (nodes.astype(np.uint64) * np.uint64(2654435761)) % np.uint64(2**32)
-    prio = prio.astype(np.int64) * len(nodes) + np.arange(len(nodes))  # no ties
-    sets = []
-    left = np.ones(len(nodes), dtype=bool)
-    while left.any():
-        both = left[e[:, 0]] & left[e[:, 1]]
-        pick = left.copy()
-        pick[e[both & (prio[e[:, 1]] > prio[e[:, 0]]), 0]] = False
-        chosen = np.flatnonzero(pick)
-        sets.append(chosen)
-        left[chosen] = False
-    return sets
-
-
-def _move(pts, tri, nodes, inc, slot) -> int:
-    """Move each of ``nodes`` (no two share a triangle) to raise its worst angle."""
-    valid = inc >= 0
-    t = np.where(valid, inc, 0)
-    a = tri[t, (slot + 1) % 3]  # the two other corners, counter-clockwise after the node
-    b = tri[t, (slot + 2) % 3]
-    ax, ay, bx, by = pts[a, 0], pts[a, 1], pts[b, 0], pts[b, 1]  # (n, d)
-    # each node's triangles one after the other, without the padding (a node of high
-    # valence pads every other node's row to its width)
-    row = np.nonzero(valid)[0]
-    first = np.concatenate([[0], np.cumsum(valid.sum(axis=1))[:-1]])
-    quality = _apex_quality(row, first, *(v[valid][:, None] for v in (ax, ay, bx, by)))
-
-    px, py = pts[nodes, 0].copy(), pts[nodes, 1].copy()
-    best = quality(px[:, None], py[:, None])[:, 0]
-    start = best.copy()
-    # the mean of the apexes that make each triangle equilateral (left of a -> b)
-    count = valid.sum(axis=1)
-    ex = np.where(valid, 0.5 * (ax + bx) - _SQRT3_2 * (by - ay), 0.0).sum(axis=1) / count
-    ey = np.where(valid, 0.5 * (ay + by) + _SQRT3_2 * (bx - ax), 0.0).sum(axis=1) / count
-    q = quality(ex[:, None], ey[:, None])[:, 0]
-    take = q > _raised(best)
-    px[take], py[take], best[take] = ex[take], ey[take], q[take]
-    length = np.where(valid, np.hypot(ax - px[:, None], ay - py[:, None]), 0.0)
-    step = 0.2 * length.sum(axis=1) / count
-    rows = np.arange(len(nodes))
-    bar = _raised(best)  # what a candidate must beat, kept as ``best`` changes
-    for _ in range(SEARCH_STEPS):
-        cx = px[:, None] + step[:, None] * _DIRS[None, :, 0]
-        cy = py[:, None] + step[:, None] * _DIRS[None, :, 1]
-        q = quality(cx, cy)
-        k = np.argmax(q, axis=1)
-        qk = q[rows, k]
-        take = qk > bar
-        px[take], py[take], best[take] = cx[take, k[take]], cy[take, k[take]], qk[take]
-        bar[take] = _raised(best[take])
-        step = np.where(take, step, 0.5 * step)
-    moved = best > _raised(start)
-    pts[nodes[moved], 0] = px[moved]
-    pts[nodes[moved], 1] = py[moved]
-    return int(moved.sum())
-
-
-def _apex_quality(row, first, ax, ay, bx, by):
-    """``quality(px, py)``: for (n, c) candidate positions of n nodes, the tangent of
-    the smallest angle of each node's worst triangle ``(p, a, b)`` (``row``: each
-    triangle's node; ``first``: each node's first triangle; ``a``, ``b``: (t, 1)).
-
-    :func:`tan_min_angle`'s arithmetic operation for operation, so the same bits,
-    but with the side ``a -> b``, which no candidate moves, squared once, and in
-    place: the quality stage spends most of its time here."""
-    s0 = bx - ax
-    s0 *= s0
-    e0y = by - ay
-    e0y *= e0y
-    s0 += e0y
-
-    def quality(px, py):
-        x, y = px[row], py[row]
-        e1x, e1y = x - bx, y - by
-        x = np.subtract(ax, x, out=x)  # e2
-        y = np.subtract(ay, y, out=y)
-        cross = e1x * y
-        cross -= e1y * x
-        e1x *= e1x  # s1
-        e1y *= e1y
-        e1x += e1y
-        x *= x  # s2
-        y *= y
-        x += y
-        shortest = np.minimum(s0, e1x)
-        np.minimum(shortest, x, out=shortest)
-        den = np.add(s0, e1x, out=e1x)
-        den += x
-        shortest *= 2
-        den -= shortest
-        ccw = cross > 0
-        cross *= 2
-        with np.errstate(divide="ignore", invalid="ignore"):
-            cross /= den
-        cross[~ccw] = -np.inf
-        return np.minimum.reduceat(cross, first, axis=0)
-
-    return quality
-
-
-_GAIN_RADIANS = np.radians(GAIN)
-_BELOW_RIGHT = np.pi / 2 - 1e-12
-
-
-def _raised(tan_angle: np.ndarray) -> np.ndarray:
-    """The tangent of an angle :data:`GAIN` degrees larger (a move must beat it); NaN
-    stays NaN, -inf (a folded triangle) the tangent of GAIN over -90 degrees."""
-    a = np.arctan(tan_angle)
-    a += _GAIN_RADIANS
-    np.minimum(a, _BELOW_RIGHT, out=a)
-    return np.tan(a, out=a)

@@ -274,8 +274,8 @@ def _outline(cavity: np.ndarray, a: int, b: int, run: set[int]) -> list[int] | N
 
 #: Cavity outlines whose best triangulation is kept for the next time it is asked
 #: for: each merge pass, and each of stage 3's merge ways, asks again for the runs
-#: it could not merge (coast_norway: 3,375 asks for 1,175 outlines,
-#: ``benchmarks/MEASURED.md``).
+#: it could not merge (the largest coastline of the corpus: 3,375 asks for 1,175
+#: outlines, ``benchmarks/MEASURED.md``).
 KEEP_TRIANGULATIONS = 8192
 
 

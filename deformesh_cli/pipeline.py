@@ -96,7 +96,7 @@ GRADED_ATTEMPTS = (
 #: (:func:`_tries_every_way`) of at most :data:`LARGE_ORDER_POINTS` points: the
 #: fitted grid, which costs most to lay, after the points as given with extra
 #: nodes.  On the corpus it never had a path without extra nodes on such a
-#: contour, and coast_norway spent 0.3-0.5 s laying it (``benchmarks/MEASURED.md``).
+#: contour, and the largest coastline spent 0.3-0.5 s laying it (``benchmarks/MEASURED.md``).
 GRADED_ATTEMPTS_FIRST = (
     {},
     {"slide": True},
@@ -112,7 +112,7 @@ GRADED_ATTEMPTS_FIRST = (
 #: without.  Such a contour stops at the first mesh with no extra node left that keeps
 #: the bound, and on the corpus's large coastlines the slid and fitted grids never had
 #: a path without extra nodes where that one meshed; laying them cost a third of the
-#: run (coast_india: 1.2 s of 3.6 s, ``benchmarks/MEASURED.md``).
+#: run (1.2 s of 3.6 s on one, ``benchmarks/MEASURED.md``).
 GRADED_ATTEMPTS_LARGE = (
     {},
     {"extra": True},
@@ -126,7 +126,7 @@ GRADED_ATTEMPTS_LARGE = (
 #: ``all`` keeps a graded mesh whose extra boundary nodes did not all merge, without
 #: trying the fallback grid, when they are at most this share of the contour's points
 #: (the fallback grids split more edges on every corpus contour measured, and their
-#: first rung alone took 6.6 s on coast_australia: ``benchmarks/MEASURED.md``).
+#: first rung alone took 6.6 s on a coastline: ``benchmarks/MEASURED.md``).
 EXTRA_ENOUGH = 0.02
 
 
@@ -142,9 +142,9 @@ MAX_FALLBACK_EXTRA = 100
 #: and keeps the best mesh, even after one with none left; a larger one stops there,
 #: and mends a way that folded at once.  The other ways cost about as much as the
 #: first again and, on the corpus, gained something only below 400 points
-#: (icon_si_rust, 374: 13.2 -> 13.8 degrees); coast_iceland (452) spent 1 s on two
-#: that gave no mesh, coast_norway (993) 2.5 s on two that folded before mending
-#: the first, the mesh it kept (``benchmarks/MEASURED.md``).
+#: (an icon of 374: 13.2 -> 13.8 degrees); coastlines of 452 and 993 points spent
+#: 1 s and 2.5 s on ways that gave no mesh or folded before the first was mended,
+#: the mesh kept.  A threshold tuned on the corpus (``benchmarks/MEASURED.md``).
 EXTRA_WAYS_POINTS = 400
 
 
@@ -574,7 +574,7 @@ def run_triangulate(
 #: graded path's extra nodes (True) and on the other grids' (False).  Of the ways
 #: tried, the mesh with the fewest triangles under the bound is kept, then the one
 #: with the fewest extra nodes left.  On the other grids the thin way without new
-#: points comes second: a thin bar with a few far-apart points (icon_si_x) has no
+#: points comes second: a thin bar with a few far-apart points (an X of 20) has no
 #: fill of new points that keeps the bound, and no 20-degree triangulation of its
 #: cavities, but one down to 1 degree that keeps it.  On a graded path a 20-degree
 #: fill second never left fewer triangles under the bound than the first way, on
@@ -627,8 +627,8 @@ def _paper_form(o: MeshOptions) -> bool:
 
 
 #: An adapted-grid mesh whose smallest angle is below this (degrees) gives way to the
-#: next rung of the ladder, and is kept only if no later rung meshes (measured:
-#: icon_si_spotify slid at h had a triangle of 3e-10 degrees).
+#: next rung of the ladder, and is kept only if no later rung meshes (measured: an
+#: icon slid at h had a triangle of 3e-10 degrees).
 MIN_ADAPTED_ANGLE = 1.0
 
 
@@ -759,8 +759,8 @@ def _fill_lost(ways: list[dict]) -> bool:
     points left fewer triangles under the bound than every one with them.
 
     Then the contour's later meshes skip the ways with new points: where the points
-    are few along thin parts, filled cavities there are slivers on any grid.  On
-    icon_si_nodedotjs (long edges down bars one cell wide) the graded grid's fill
+    are few along thin parts, filled cavities there are slivers on any grid.  On an
+    icon with long edges down bars one cell wide the graded grid's fill
     left 88 triangles under the bound, the way without new points 2, and the adapted
     grid's fill 165, a second of a 3 s run; it changes no mesh of the corpus, the
     samples or 640 random polygons (``benchmarks/MEASURED.md``)."""

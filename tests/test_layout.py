@@ -158,3 +158,59 @@ def test_only_deformesh_errors_reach_the_cli_layer():
         "_Pinch",
     }
     assert raised - ours - local == set(), "the core raises non-deformesh errors"
+
+
+def test_no_rule_of_the_package_names_a_corpus_contour():
+    """A rule is one of geometry: no constant, comment or docstring of the package names
+    a contour of tests/data/corpus (measurements on them live in benchmarks/)."""
+    names = [
+        p.stem for p in (ROOT / "tests" / "data" / "corpus").iterdir() if p.suffix != ".md"
+    ]
+    assert len(names) >= 40
+    named = [
+        f"{path.relative_to(ROOT)}: {name}"
+        for path in sorted((ROOT / "deformesh_cli").rglob("*.py"))
+        for name in names
+        if name in path.read_text()
+    ]
+    assert named == []
+
+
+def test_the_package_imports_one_way():
+    """No import cycle among the package's modules, counting imports inside functions."""
+    modules = {}
+    for path in sorted((ROOT / "deformesh_cli").rglob("*.py")):
+        rel = path.relative_to(ROOT).with_suffix("")
+        name = ".".join(rel.parts[:-1] if rel.name == "__init__" else rel.parts)
+        modules[name] = path
+    edges = {m: set() for m in modules}
+    for name, path in modules.items():
+        package = name if path.name == "__init__.py" else name.rsplit(".", 1)[0]
+        for node in ast.walk(ast.parse(path.read_text())):
+            if not isinstance(node, ast.ImportFrom) or not node.level:
+                continue
+            base = package.split(".")
+            base = base[: len(base) - node.level + 1]
+            target = ".".join(base + ([node.module] if node.module else []))
+            for alias in node.names:
+                full = f"{target}.{alias.name}"
+                hit = full if full in modules else target if target in modules else None
+                if hit and hit != name:
+                    edges[name].add(hit)
+    seen, stack, cycle = set(), [], []
+
+    def visit(m):
+        if m in stack:
+            cycle.append(stack[stack.index(m) :] + [m])
+            return
+        if m in seen:
+            return
+        seen.add(m)
+        stack.append(m)
+        for n in sorted(edges[m]):
+            visit(n)
+        stack.pop()
+
+    for m in sorted(modules):
+        visit(m)
+    assert cycle == [], cycle[:3]

@@ -299,7 +299,7 @@ def _select_on(contour: Contour, tree: graded.Quadtree, exterior: bool, size) ->
     fixed[grid.boundary_nodes()] = True
     rings = [contour.points[contour.ring_order(r)] for r in range(contour.n_rings)]
     polygon = shapely.prepared.prep if False else None  # noqa: F841 (kept simple)
-    from ..triangulate import domain
+    from ..geometry import domain
 
     dom = domain(rings)
     cen = points[tri].mean(axis=1)

@@ -452,13 +452,14 @@ def _adjacent(edges: np.ndarray, n: int, a: np.ndarray, b: np.ndarray) -> np.nda
 
 #: The most grid edges one contour edge may take (so at most this less one extra
 #: boundary nodes on it): a long edge beside short ones crosses several of the cells
-#: its short neighbours need (house-fill: 4.5 cells; 8 lets coast_cuba, icon_si_rust
-#: and four more through, whose extra nodes then all merge: ``benchmarks/MEASURED.md``).
+#: its short neighbours need (4.5 cells on an icon of the corpus); a bound tuned on
+#: the corpus, where 8 let six more contours through, their extra nodes then all
+#: merged (``benchmarks/MEASURED.md``).
 MAX_HOPS = 8
 
 
 #: ... or, between two points with no pair of candidates within :data:`MAX_HOPS`,
-#: this many (icon_si_android: a 10-cell edge at a level change).
+#: this many (a corpus icon has a 10-cell edge at a level change).
 FAR_HOPS = 16
 
 
@@ -1007,8 +1008,8 @@ def _fair_ears(sel: GradedSelection, ears: np.ndarray) -> np.ndarray:
 
 
 #: An ear left by a U-turn is accepted when its contour points' triangle has no angle
-#: under this (degrees; 5 lets coast_australia's spikes through, which 10 refused:
-#: ``benchmarks/MEASURED.md``).
+#: under this (degrees; tuned on the corpus: 5 lets a coastline's spikes through,
+#: which 10 refused, ``benchmarks/MEASURED.md``).
 EAR_ANGLE = 5.0
 
 

@@ -221,9 +221,9 @@ class Slide:
 LADDER = ((True, 1), (False, 2), (False, 4), (True, 2), (False, 8))
 
 #: A ring with at least this fraction of corners is jagged: the copy is nearly the
-#: real contour, and sliding only costs time (coast_india's first slid rung took
+#: real contour, and sliding only costs time (a coastline's first slid rung took
 #: a minute to fail); jagged contours skip the slid rungs.  Corpus: coastlines
-#: 0.20-0.39, airfoils 0.00-0.12, icons 0.00-0.80 (rust 0.55, x 0.80).
+#: 0.20-0.39, airfoils 0.00-0.12, icons 0.00-0.80.
 JAGGED = 0.2
 
 

@@ -59,9 +59,9 @@ MAX_REACH = 2.0
 #: (hugs the contour, keeps narrow notches open); then every cell the contour
 #: crosses (never loses a thin part); then the first rule with the mid-lines
 #: of thin peninsulas added and of thin inlets cut out (:func:`thin_features`).
-#: Measured: coast_india (1,355 points) has both an inlet (Mumbai harbour, 16
-#: degree tip) and a peninsula under a cell wide at the median spacing / 4;
-#: only the third rule traces it.
+#: A coastline with both an inlet of 16 degrees and a peninsula under a cell
+#: wide at a quarter of the median spacing is traced by the third rule only
+#: (``benchmarks/MEASURED.md``).
 REGION_RULES = ("centres", "crossed", "thin")
 
 #: A feature (peninsula or inlet) narrower than this many cells gets its mid-line

@@ -309,8 +309,6 @@ class Selection:
 
     def inside_triangles(self) -> np.ndarray:
         """Per triangle of :meth:`triangles`: inside the rings' paths (even-odd)."""
-        from ..triangulate import topology_inside
-
         n_rings = int(self.path_ring.max()) + 1 if len(self.path_ring) else 0
         return topology_inside(self.grid, self.diagonals, self.path_nodes, self.path_ring, n_rings)
 
@@ -1028,3 +1026,50 @@ def _coarser_steps(contour: Contour, box, margin, max_nodes: int, exterior: bool
         tried += 1
         if tried >= MAX_COARSER_TRIES:
             return
+
+
+def topology_inside(
+    grid: Grid, diagonals: np.ndarray, path_nodes: np.ndarray, path_ring: np.ndarray, n_rings: int
+) -> np.ndarray:
+    """Whether each grid triangle (in :func:`~.select.grid_triangles` order) lies inside
+    the rings' grid paths by the even-odd rule.
+
+    In units of a third of a cell, triangle centroids sit at ``(3i + a, 3j + b)``
+    with ``a, b`` in {1, 2}: two rows of centroids per row of cells, and no
+    centroid on a grid line.  A path step (8-neighbour, between grid nodes)
+    crosses each centroid row it spans at an integer abscissa; the parity of
+    the crossings left of a centroid says inside.  A crossing can only land on
+    a centroid if a diagonal step crosses a cell split the other way, which
+    the selection never builds (checked: ``ValueError``).
+    """
+    nx, ny = grid.nx, grid.ny
+    width = 3 * nx + 1
+    toggles = np.zeros((2 * ny, width), dtype=np.uint8)
+    for r in range(n_rings):
+        i, j = grid.node_ij(path_nodes[path_ring == r])
+        i1, j1 = np.roll(i, -1), np.roll(j, -1)
+        di, dj = i1 - i, j1 - j
+        if (np.maximum(np.abs(di), np.abs(dj)) != 1).any():
+            raise SelectionError("a ring's grid path has a step that is not to an 8-neighbour")
+        cross = dj != 0
+        i, j, di, dj = i[cross], j[cross], di[cross], dj[cross]
+        jmin = np.minimum(j, j + dj)
+        for b in (1, 2):  # the lower and the upper centroid row of cell row jmin
+            x = 3 * i + (3 * jmin + b - 3 * j) * di * dj
+            row = 2 * jmin + b - 1
+            slash = diagonals[jmin * nx + np.minimum(x // 3, nx - 1)] == DIAG_SLASH
+            # the centroid of row b in cell x // 3 sits at a = 2 (b = 1) or 1 (b = 2) when
+            # the cell is split '/', else at a = b
+            a = np.where(slash, 3 - b, b)
+            if ((x % 3 != 0) & (x % 3 == a)).any():
+                raise SelectionError("a diagonal path step crosses its cell's split")
+            np.bitwise_xor.at(toggles, (row, x), 1)
+    parity = np.bitwise_xor.accumulate(toggles, axis=1)
+    cells = np.arange(nx * ny)
+    ci, cj = cells % nx, cells // nx
+    slash = diagonals == DIAG_SLASH
+    out = np.empty(2 * len(cells), dtype=bool)
+    # first triangle of a cell: centroid row b = 1, at a = 2 ('/') or 1; second: b = 2
+    out[0::2] = parity[2 * cj, 3 * ci + np.where(slash, 2, 1)]
+    out[1::2] = parity[2 * cj + 1, 3 * ci + np.where(slash, 1, 2)]
+    return out
