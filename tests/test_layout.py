@@ -163,9 +163,7 @@ def test_only_deformesh_errors_reach_the_cli_layer():
 def test_no_rule_of_the_package_names_a_corpus_contour():
     """A rule is one of geometry: no constant, comment or docstring of the package names
     a contour of tests/data/corpus (measurements on them live in benchmarks/)."""
-    names = [
-        p.stem for p in (ROOT / "tests" / "data" / "corpus").iterdir() if p.suffix != ".md"
-    ]
+    names = [p.stem for p in (ROOT / "tests" / "data" / "corpus").iterdir() if p.suffix != ".md"]
     assert len(names) >= 40
     named = [
         f"{path.relative_to(ROOT)}: {name}"

@@ -36,7 +36,7 @@ import numpy as np
 import shapely
 
 from ..contour import Contour
-from ..errors import LimitError, SelectionError
+from ..errors import SelectionError
 from ..geometry import boundary_edges, next_on_ring, prev_on_ring, signed_areas
 from . import graded
 from .graded_path import GradedGrid, GradedSelection
@@ -298,7 +298,6 @@ def _select_on(contour: Contour, tree: graded.Quadtree, exterior: bool, size) ->
     fixed = np.zeros(n, dtype=bool)
     fixed[grid.boundary_nodes()] = True
     rings = [contour.points[contour.ring_order(r)] for r in range(contour.n_rings)]
-    polygon = shapely.prepared.prep if False else None  # noqa: F841 (kept simple)
     from ..geometry import domain
 
     dom = domain(rings)
@@ -329,7 +328,7 @@ def _select_on(contour: Contour, tree: graded.Quadtree, exterior: bool, size) ->
                 else:
                     inside |= enclosed & ~banned
             continue
-        nodes, targets, ring = path
+        nodes, targets, ring, source = path
         has = np.full(n, False)
         has[nodes] = True
         target_of = np.zeros((n, 2))
@@ -347,7 +346,7 @@ def _select_on(contour: Contour, tree: graded.Quadtree, exterior: bool, size) ->
             grid,
             nodes,
             targets,
-            path.source,
+            source,
             ring,
             diagonals,
             h=float(tree.hx),
@@ -442,12 +441,9 @@ class _Stray(SelectionError):
         self.loops = loops
 
 
-class _Path(tuple):
-    source: np.ndarray
-
-
 def _assign(contour: Contour, grid: GradedGrid, nxt: np.ndarray, exterior: bool, size):
-    """Each ring's loop, its nodes' targets and sources (see the module's step 4)."""
+    """``(path nodes, targets, ring, source)``: each ring's loop from :func:`_monotone`'s fit
+    (see the module's step 4); raises :class:`_Stray` or :class:`_Crowded`."""
 
     loops = _loops(nxt)
     p = grid.points
@@ -495,11 +491,4 @@ def _assign(contour: Contour, grid: GradedGrid, nxt: np.ndarray, exterior: bool,
         rings.append(np.full(nl, r))
     if crowded:
         raise _Crowded(np.unique(np.concatenate(crowded)))
-    out = _Path((np.concatenate(nodes), np.concatenate(targets), np.concatenate(rings)))
-    out.source = np.concatenate(sources)
-    return out
-
-
-def check_limits(n_nodes: int, max_nodes: int | None) -> None:
-    if max_nodes is not None and n_nodes > max_nodes:
-        raise LimitError(f"the graded grid would need more than {max_nodes} nodes")
+    return tuple(np.concatenate(a) for a in (nodes, targets, rings, sources))
