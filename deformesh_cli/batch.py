@@ -80,13 +80,21 @@ def expand_inputs(args: list[str]) -> list[str]:
     return out
 
 
-def prepare(inputs: list[str], out_dir: str, options: MeshOptions) -> list[Task]:
+def prepare(
+    inputs: list[str], out_dir: str, options: MeshOptions, force: bool = False
+) -> list[Task]:
     """Everything before the work: the inputs expanded and read, the output format and
-    size function checked (usage errors before any work, not once per input), then the
-    output folder created."""
+    size function checked (usage errors before any work, not once per input), the
+    outputs checked (none is an input, a link, or a sidecar deformesh did not write,
+    unless ``force``), then the output folder created."""
     fmt = formats.format_for(f"x.{options.fmt or 'msh'}", None)
     _size.check_options(options.size, options.size_field)
     tasks = make_tasks(expand_inputs(inputs), out_dir, options.replace(fmt=fmt))
+    outputs = [t.output for t in tasks]
+    implied = outputs + [s for out in outputs for s in formats.sidecars(out, fmt)]
+    files.check_outputs([], [t.source for t in tasks] + [options.size_field], implied)
+    for out in outputs:
+        formats.check_sidecars(out, fmt, force)
     files.make_folder(out_dir)
     return tasks
 

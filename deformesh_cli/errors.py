@@ -7,6 +7,8 @@ one line naming the file, the problem and where.  The command-line layer
 processing failure (exit 1).  Nothing else is meant to reach it.
 """
 
+import re
+
 #: What a run that ran out of memory is told.
 OUT_OF_MEMORY = "out of memory; lower --max-nodes or give a larger --h"
 
@@ -65,3 +67,26 @@ class TimeUp(DeformeshError):
 
 class ContractError(DeformeshError):
     """A mesh does not meet the mesh contract (see docs/contract.md)."""
+
+
+_CONTROL = re.compile("[\x00-\x1f\x7f-\x9f\u2028\u2029]")
+
+
+def one_line(text: str) -> str:
+    """``text`` with every control character (newlines, terminal escapes) written as an
+    escape (``\\n``, ``\\x1b``): what a message prints stays one line, and text from
+    a file cannot drive the terminal or fake another message."""
+
+    def escape(m: re.Match) -> str:
+        c = m.group(0)
+        return {"\n": "\\n", "\r": "\\r", "\t": "\\t"}.get(c) or (
+            f"\\x{ord(c):02x}" if ord(c) < 256 else f"\\u{ord(c):04x}"
+        )
+
+    return _CONTROL.sub(escape, text)
+
+
+def printable(text: str, limit: int = 60) -> str:
+    """A value from a file, quoted, control characters escaped, cut at ``limit``."""
+    text = one_line(text)
+    return "'" + (text if len(text) <= limit else text[: limit - 3] + "...") + "'"

@@ -14,7 +14,7 @@ import os
 import stat
 import sys
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from .errors import OptionError, ReadError, WriteError
@@ -57,6 +57,50 @@ def output_target(path: str) -> Path:
     return p
 
 
+def _identity(path: str) -> tuple:
+    """What names one file: its device and inode if it exists, else the absolute path it
+    would be created at (links in its folders resolved)."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return ("new", os.path.realpath(path))
+    return ("file", st.st_dev, st.st_ino)
+
+
+def check_outputs(
+    named: Sequence[str],
+    inputs: Sequence[str | None] = (),
+    implied: Sequence[str] = (),
+) -> None:
+    """Refuse, before any work, a run that would lose a file: an output (``named`` by the
+    user, or ``implied`` by them, as a sidecar or a batch's ``NAME.FORMAT``) that is an
+    input of the run or the same file as another output; an implied output that is a
+    symbolic link (it is created new, never written through a link).  ``-`` is stdin or
+    stdout, never a file.  :class:`OptionError` naming both paths."""
+    seen: dict[tuple, str] = {}
+    for path in inputs:
+        if path is not None and path != "-":
+            seen.setdefault(_identity(path), path)
+    n_inputs = len(seen)
+    for path in implied:
+        if os.path.islink(path):
+            raise OptionError(
+                f"{path}: is a symbolic link; this run writes that file new, never "
+                "through a link (remove the link)"
+            )
+    for path in [*named, *implied]:
+        if path == "-":
+            continue
+        key = _identity(path)
+        other = seen.get(key)
+        if other is not None:
+            is_input = list(seen).index(key) < n_inputs
+            what = "an input of this run" if is_input else "another output of this run"
+            same = "" if other == path else f" (the same file as {other})"
+            raise OptionError(f"{path}: is {what}{same}; refusing to overwrite it")
+        seen[key] = path
+
+
 def check_folder(path: str) -> Path:
     """The folder ``path`` would be written in; :class:`WriteError` if it does not exist."""
     folder = Path(path).parent
@@ -94,15 +138,33 @@ def write_bytes(data: bytes, path: str, name: str | None = None) -> None:
     name the file (``path`` being a staged temporary file of :func:`atomic_path`),
     which is then written directly."""
     if path == "-":
-        out = sys.stdout.buffer
-        out.write(data)
-        out.flush()
+        write_stdout(data)
         return
     if name is not None:
         _write(data, path, name)
         return
     with atomic_path(path) as tmp:
         _write(data, tmp, path)
+
+
+def write_stdout(data: bytes | str) -> None:
+    """Bytes (or text, with a newline) on stdout, flushed.  A stdout that is closed or
+    cannot take them (a full disk) is a :class:`WriteError`; a closed pipe is left to
+    the caller (``| head`` ends a run quietly)."""
+    if sys.stdout is None:
+        raise WriteError("stdout: is closed; nothing can be written there")
+    try:
+        if isinstance(data, str):
+            sys.stdout.write(data + "\n")
+            sys.stdout.flush()
+        else:
+            sys.stdout.flush()
+            sys.stdout.buffer.write(data)
+            sys.stdout.buffer.flush()
+    except BrokenPipeError:
+        raise
+    except OSError as exc:
+        raise WriteError(f"stdout: cannot write: {exc.strerror or exc}") from None
 
 
 def _write(data: bytes, path: str, name: str) -> None:

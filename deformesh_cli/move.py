@@ -376,6 +376,7 @@ def move_frames(
     options: MoveOptions | None = None,
     *,
     name: str | None = None,
+    force: bool = False,
     on_frame: Callable[[int, int, Contour, dict], None] | None = None,
 ) -> dict:
     """What ``deformesh move`` does: carry the mesh in ``mesh_path`` along the frames.
@@ -384,10 +385,11 @@ def move_frames(
     to ``out_dir/NAME_000k.FORMAT`` (``NAME`` is ``name`` or the mesh file's stem;
     frame 0 is the mesh itself), with ``velocity`` point data where the format has
     point data, and for ``.vtu`` the time series ``NAME.pvd`` of the frames written
-    so far, even when a later frame fails.  ``on_frame(k, count, contour, record)``
-    is called after each frame.  Returns the summary (``per_frame``: one record a
-    frame).  Raises :class:`.errors.FoldError` naming the frame that cannot be
-    reached, and the frames already written.
+    so far, even when a later frame fails.  No output may be an input, a symbolic link,
+    or (unless ``force``) a sidecar deformesh did not write.
+    ``on_frame(k, count, contour, record)`` is called after each frame.  Returns the
+    summary (``per_frame``: one record a frame).  Raises :class:`.errors.FoldError`
+    naming the frame that cannot be reached, and the frames already written.
     """
     o = MoveOptions() if options is None else options
     t0 = time.perf_counter()
@@ -398,8 +400,19 @@ def move_frames(
     motion = prepare(points, tri, contours[0], mesh_path)
     for c in contours[1:]:  # a bad frame fails before any work
         check_frame(motion, c)
-    files.make_folder(out_dir)
     width = max(4, len(str(len(frame_paths))))
+    outputs = [
+        os.path.join(out_dir, f"{stem}_{k:0{width}d}.{fmt}") for k in range(len(contours) + 1)
+    ]
+    if fmt == "vtu":
+        outputs.append(os.path.join(out_dir, f"{stem}.pvd"))
+    implied = outputs + [
+        s for out in outputs[: len(contours) + 1] for s in formats.sidecars(out, fmt)
+    ]
+    files.check_outputs([], [mesh_path, *frame_paths], implied)
+    for out in outputs:
+        formats.check_sidecars(out, fmt, force)
+    files.make_folder(out_dir)
     written: list[tuple[float, str]] = []
     records: list[dict] = []
 

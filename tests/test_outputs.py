@@ -445,18 +445,18 @@ def test_a_full_disk_leaves_neither_the_mesh_nor_the_picture(run, tmp_path, monk
 
 
 def test_xdmf_onto_a_full_disk_is_one_line_and_no_crash(run, tmp_path, monkeypatch):
-    """The .xdmf and its .h5 are written in the system's temporary folder first, then
-    copied next to the target: a copy that does not fit is one line, nothing left (h5py
-    writing onto a full disk itself crashed the process after its message)."""
+    """The .xdmf and its .h5 are made in memory, then written next to the target: a
+    write that does not fit is one line, nothing left (h5py writing onto a full disk
+    itself crashes the process after its message)."""
     import errno
-    import shutil
+    import pathlib
 
     import h5py  # noqa: F401  (the test extra installs it; .xdmf needs it)
 
-    def full(src, dst, *a, **kw):
+    def full(self, data):
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr(shutil, "copyfile", full)
+    monkeypatch.setattr(pathlib.Path, "write_bytes", full)
     out = tmp_path / "out"
     out.mkdir()
     r = run("all", SAMPLES / "circle.csv", "-o", out / "m.xdmf")
@@ -490,5 +490,10 @@ def test_a_real_full_disk_on_a_small_tmpfs(tmp_path, sh):
             assert r.returncode == 1, (cmd, r.returncode, err)
             assert err.count("\n") == 1 and "No space left on device" in err, err
             assert list(disk.iterdir()) == [], cmd
+        # the system's temporary folder full: .xdmf does not use it
+        out = tmp_path / "m.xdmf"
+        r = sh(f"TMPDIR={disk} deformesh all {big} -o {out} -q", check=False)
+        assert r.returncode == 0 and r.stderr == b"", r.stderr
+        assert out.is_file() and out.with_suffix(".h5").is_file()
     finally:
         subprocess.run(["umount", str(disk)], capture_output=True)

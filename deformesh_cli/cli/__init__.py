@@ -34,10 +34,27 @@ for _module in (select, deform, triangulate, all_command, move, quality, plot):
 
 
 def main() -> None:
-    """Entry point: run the CLI; a closed downstream pipe ends quietly."""
+    """Entry point: run the CLI; a closed downstream pipe ends quietly.
+
+    A stdout closed at start (``>&-``) is held on ``/dev/null``, so no file the run
+    opens takes its descriptor; writing data there is still refused (``sys.stdout``
+    stays None).  Bytes a failed stdout kept are dropped at exit, where flushing them
+    again would print a second message."""
+    if sys.stdout is None:
+        os.open(os.devnull, os.O_WRONLY)  # (the lowest free descriptor: 1)
     try:
         cli.main(prog_name="deformesh", standalone_mode=True)
     except BrokenPipeError:
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())
+        _drop_stdout()
         sys.exit(1)
+    finally:
+        try:
+            if sys.stdout is not None:
+                sys.stdout.flush()
+        except OSError:
+            _drop_stdout()
+
+
+def _drop_stdout() -> None:
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())

@@ -9,11 +9,13 @@ import time
 
 import click
 
-from .. import batch, pipeline
+from .. import batch, files, pipeline
+from ..errors import one_line
 from ..options import MeshOptions
 from ..readers import load_contour
 from .errors import handle_errors
 from .options import (
+    force_option,
     json_option,
     output_option,
     png_option,
@@ -23,7 +25,7 @@ from .options import (
     steps_bar,
     take,
 )
-from .report import check_mesh_output, finish
+from .report import check_mesh_output, check_outputs, finish
 
 
 @click.command("all")
@@ -56,10 +58,13 @@ from .report import check_mesh_output, finish
 @click.option("--fail-fast", is_flag=True, help="Batch: stop at the first failure.")
 @stages("select", "read", "deform", "triangulate", "write")
 @png_option
+@force_option
 @json_option("Print the summary as JSON on stdout (a batch: one record per contour).")
 @quiet_option
 @handle_errors
-def command(contours, output, out_dir, jobs, scheduler, fail_fast, png, as_json, quiet, **kw):
+def command(
+    contours, output, out_dir, jobs, scheduler, fail_fast, png, force, as_json, quiet, **kw
+):
     """Run select, deform and triangulate in one process, for one contour or a batch."""
     t0 = time.perf_counter()
     o = take(MeshOptions, kw)
@@ -70,7 +75,7 @@ def command(contours, output, out_dir, jobs, scheduler, fail_fast, png, as_json,
             )
         if png is not None:
             raise click.UsageError("--png names one file; it does not apply to a batch")
-        tasks = batch.prepare(list(contours), out_dir, o)
+        tasks = batch.prepare(list(contours), out_dir, o, force)
         _batch(tasks, out_dir, jobs, scheduler, fail_fast, as_json, quiet, t0)
         return
     if output is None:
@@ -80,6 +85,7 @@ def command(contours, output, out_dir, jobs, scheduler, fail_fast, png, as_json,
     if jobs is not None or scheduler is not None or fail_fast:
         raise click.UsageError("--jobs, --scheduler and --fail-fast apply to batches (--out-dir)")
     fmt = check_mesh_output(output, o.fmt, as_json)
+    check_outputs(output, fmt, png, [contours[0], o.size_field], force)
     c = load_contour(contours[0], None, o.decimal, o.tolerance, o.element_id, o.resample, o.stroke)
     with steps_bar(quiet) as progress:
         res = pipeline.mesh_contour(c, o, callback=progress)
@@ -111,11 +117,11 @@ def _batch(tasks, out_dir, jobs, scheduler, fail_fast, as_json, quiet, t0) -> No
         for task, rec in batch.run_and_write(tasks, out_dir, jobs, scheduler, fail_fast):
             if rec["status"] == "failed":  # over the progress bar's line, if one is drawn
                 clear = "\r\033[K" if bar is not None else ""
-                click.echo(f"{clear}deformesh: error: {rec['error']}", err=True)
+                click.echo(f"{clear}deformesh: error: {one_line(rec['error'])}", err=True)
             records[task.index] = rec
             while printed < len(records) and records[printed] is not None:
                 if as_json:
-                    click.echo(json.dumps(records[printed]))
+                    files.write_stdout(json.dumps(records[printed]))
                 printed += 1
             if bar is not None:
                 bar.update(1)
@@ -151,4 +157,4 @@ def batch_table(records: list[dict], seconds: float) -> str:
                 f"  {r['status']:8} {'-':>8} {'-':>9} {'-':>9} {r['seconds']:>8.2f}  "
                 f"{r['input']}: {why}"
             )
-    return "\n".join(rows)
+    return "\n".join(map(one_line, rows))

@@ -27,6 +27,7 @@ from .options import (
 def command(state_in: str, output: str, quiet: bool, **kwargs) -> None:
     """Move the selected nodes onto the contour without folding (stage 2)."""
     check_binary_stdout(output)
+    files.check_outputs([output], [state_in, kwargs.get("size_field")])
     name = "<stdin>" if state_in == "-" else state_in
     st = state.loads(files.read_bytes(state_in), name, want="selected")
     given = take(MeshOptions, kwargs).stage("deform")

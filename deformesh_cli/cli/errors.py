@@ -14,12 +14,13 @@ from collections.abc import Callable
 
 import click
 
-from ..errors import OUT_OF_MEMORY, DeformeshError, OptionError
+from ..errors import OUT_OF_MEMORY, DeformeshError, OptionError, one_line
 
 
 def fail(message: str) -> None:
-    """Print ``deformesh: error: message`` on stderr and exit 1."""
-    click.echo(f"deformesh: error: {message}", err=True)
+    """Print ``deformesh: error: message`` on stderr (one line: control characters
+    escaped) and exit 1."""
+    click.echo(f"deformesh: error: {one_line(message)}", err=True)
     sys.exit(1)
 
 
@@ -31,7 +32,7 @@ def handle_errors(fn: Callable) -> Callable:
         try:
             return fn(*args, **kwargs)
         except OptionError as exc:
-            raise click.UsageError(str(exc)) from None
+            raise click.UsageError(one_line(str(exc))) from None
         except DeformeshError as exc:
             fail(str(exc))
         except MemoryError:

@@ -6,11 +6,11 @@ import json
 
 import click
 
-from .. import formats
+from .. import files, formats
 from ..move import move_frames
 from ..options import MoveOptions
 from .errors import handle_errors
-from .options import fields, json_option, quiet_option, say, take
+from .options import fields, force_option, json_option, quiet_option, say, take
 
 
 @click.command("move")
@@ -27,10 +27,11 @@ from .options import fields, json_option, quiet_option, say, take
 )
 @click.option("--name", default=None, help="File name stem.  Default: MESH's.")
 @fields(MoveOptions, "dt", "steps", "solver", "solve", "fmt", "decimal")
+@force_option
 @json_option()
 @quiet_option
 @handle_errors
-def command(mesh_path, frames, out_dir, name, as_json, quiet, **kwargs) -> None:
+def command(mesh_path, frames, out_dir, name, force, as_json, quiet, **kwargs) -> None:
     """Carry a mesh along as its contour moves: one file per FRAME, same triangles.
 
     MESH is a mesh deformesh wrote (its nodes 0..m-1 are the contour points in
@@ -48,9 +49,9 @@ def command(mesh_path, frames, out_dir, name, as_json, quiet, **kwargs) -> None:
             f"{r['solves']} solves, {r['halvings']} step halvings",
         )
 
-    s = move_frames(mesh_path, list(frames), out_dir, o, name=name, on_frame=progress)
+    s = move_frames(mesh_path, list(frames), out_dir, o, name=name, force=force, on_frame=progress)
     if as_json:
-        click.echo(json.dumps(s))
+        files.write_stdout(json.dumps(s))
     if s["format"] not in formats.POINT_DATA_FORMATS:
         say(quiet, f"note: .{s['format']} has no point data: the velocity is not written")
     say(

@@ -16,7 +16,7 @@ from typing import Any
 import click
 
 from .. import files
-from ..errors import OptionError, WriteError
+from ..errors import OptionError, WriteError, one_line
 from ..options import STAGES, MeshOptions, flag
 from ..options import fields as option_fields
 
@@ -142,14 +142,21 @@ png_option = click.option(
 )
 
 
+force_option = click.option(
+    "--force",
+    is_flag=True,
+    help="Replace a sidecar file (.xdmf's NAME.h5) that deformesh did not write.",
+)
+
+
 def say(quiet: bool, msg: str) -> None:
     """A message on stderr, unless ``--quiet``."""
     if not quiet:
-        click.echo(f"deformesh: {msg}", err=True)
+        click.echo(f"deformesh: {one_line(msg)}", err=True)
 
 
 def check_binary_stdout(out: str) -> None:
-    if out == "-" and sys.stdout.isatty():
+    if out == "-" and sys.stdout is not None and sys.stdout.isatty():
         raise click.UsageError("refusing to write binary data to a terminal; use -o FILE or a pipe")
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from .. import formats
+from .. import files, formats
 from ..options import MeshOptions
 from ..readers import load_contour
 from .errors import handle_errors
@@ -30,6 +30,7 @@ def command(mesh_path: str, output: str, contour_path: str | None, quiet: bool, 
 
     o = take(MeshOptions, kwargs)
     check_binary_stdout(output)
+    files.check_outputs([output], [mesh_path, contour_path])
     points, tri = formats.read_mesh(mesh_path)
     cpts = None
     if contour_path is not None:

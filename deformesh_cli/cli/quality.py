@@ -6,7 +6,7 @@ import json
 
 import click
 
-from .. import formats, quality
+from .. import files, formats, quality
 from ..options import MeshOptions
 from ..readers import load_contour
 from .errors import fail, handle_errors
@@ -42,7 +42,7 @@ def command(mesh_path: str, contour_path: str | None, as_json: bool, quiet: bool
     rep, problem = quality.assess(points, tri, c)
     rep = {"mesh": mesh_path, **rep}
     if not quiet:
-        click.echo(json.dumps(rep) if as_json else quality_text(rep))
+        files.write_stdout(json.dumps(rep) if as_json else quality_text(rep))
     if problem:
         fail(f"{mesh_path}: {problem}")
 

@@ -20,6 +20,17 @@ def check_mesh_output(output: str, fmt: str | None, as_json: bool) -> str:
     return formats.format_for(output, fmt)  # an OptionError is a usage error
 
 
+def check_outputs(
+    output: str, fmt: str, png: str | None, inputs: list, force: bool = False
+) -> None:
+    """Before any work: the mesh, its sidecar and the picture are not an input of the run
+    nor one another, the sidecar is not a link, nor a file deformesh did not write
+    (unless ``force``)."""
+    named = [output] if png is None else [output, png]
+    files.check_outputs(named, inputs, formats.sidecars(output, fmt))
+    formats.check_sidecars(output, fmt, force)
+
+
 def finish(
     contour: Contour,
     mesh: Mesh,
@@ -62,7 +73,7 @@ def finish(
     }
     report["notes"] = list(contour.notes) + list(report.get("notes", []))
     if as_json:
-        click.echo(json.dumps(report, sort_keys=False))
+        files.write_stdout(json.dumps(report, sort_keys=False))
     for note in report["notes"]:
         say(quiet, f"note: {contour.source}: {note}")
     say(quiet, summary_line(report))

@@ -28,6 +28,7 @@ def command(contour: str, output: str, quiet: bool, **kwargs) -> None:
     check_binary_stdout(output)
     o = take(MeshOptions, kwargs)
     _size.check_options(o.size, o.size_field)
+    files.check_outputs([output], [contour, o.size_field])
     c = load_contour(contour, None, o.decimal, o.tolerance, o.element_id, o.resample, o.stroke)
     sel = pipeline.run_select(c, o)
     options = {**o.stage("read"), **o.stage("select")}

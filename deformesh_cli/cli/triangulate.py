@@ -9,8 +9,16 @@ import click
 from .. import files, pipeline, state
 from ..options import MeshOptions, from_record
 from .errors import handle_errors
-from .options import json_option, output_option, png_option, quiet_option, stages, take
-from .report import check_mesh_output, finish
+from .options import (
+    force_option,
+    json_option,
+    output_option,
+    png_option,
+    quiet_option,
+    stages,
+    take,
+)
+from .report import check_mesh_output, check_outputs, finish
 
 
 @click.command("triangulate")
@@ -18,14 +26,18 @@ from .report import check_mesh_output, finish
 @output_option("Mesh file to write; the format follows the extension.")
 @stages("triangulate", "write")
 @png_option
+@force_option
 @json_option()
 @quiet_option
 @handle_errors
-def command(state_in: str, output: str, png, as_json: bool, quiet: bool, **kwargs) -> None:
+def command(
+    state_in: str, output: str, png, force: bool, as_json: bool, quiet: bool, **kwargs
+) -> None:
     """Keep the triangles inside the contour and write the mesh (stage 3)."""
     t0 = time.perf_counter()
     given = take(MeshOptions, kwargs)
     fmt = check_mesh_output(output, given.fmt, as_json)
+    check_outputs(output, fmt, png, [state_in], force)
     name = "<stdin>" if state_in == "-" else state_in
     st = state.loads(files.read_bytes(state_in), name, want="deformed")
     # the size function the deformation used, from the state file: its report

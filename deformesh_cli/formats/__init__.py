@@ -13,7 +13,6 @@ from __future__ import annotations
 import contextlib
 import io
 import os
-import shutil
 import tempfile
 from pathlib import Path
 
@@ -44,7 +43,9 @@ __all__ = [
     "format_for",
     "mesh_files",
     "pvd_bytes",
+    "check_sidecars",
     "read_mesh",
+    "sidecars",
     "write_mesh",
 ]
 
@@ -82,7 +83,7 @@ def write_mesh(mesh: Mesh, path: str, fmt: str | None = None, msh_version: str =
             write_bytes(Path(tmp).read_bytes(), "-")
         return fmt
     if form.sidecar is not None:
-        _write_with_sidecar(form, mesh, path, version)
+        _write_with_sidecar(form, mesh, path)
         return fmt
     with atomic_path(path) as tmp:
         _run(form, mesh, tmp, version, path)
@@ -95,6 +96,10 @@ def mesh_files(
     """The files ``write_mesh(mesh, name)`` would write, as ``[(file name, bytes)]`` in the
     order to write them (a sidecar before the file that refers to it)."""
     fmt = format_for(name, fmt)
+    form = FORMATS[fmt]
+    if form.render is not None:
+        main, second = _render(form, mesh, name, name)
+        return [(str(Path(name).with_suffix(form.sidecar)), second), (name, main)]
     with tempfile.TemporaryDirectory() as d:
         write_mesh(mesh, os.path.join(d, name), fmt, msh_version)
         main = Path(d) / name
@@ -102,28 +107,61 @@ def mesh_files(
         return [(p.name, p.read_bytes()) for p in [*others, main]]
 
 
-def _write_with_sidecar(form: Format, mesh: Mesh, path: str, version) -> None:
-    """Write both files in the system's temporary folder, copy them into a temporary
-    folder next to ``path``, then move them into place.  Written elsewhere first
-    because h5py, writing the sidecar onto a full disk, reports the error and then
-    crashes the process (SIGSEGV at exit); a copy that does not fit is one line."""
+def sidecars(path: str, fmt: str) -> list[str]:
+    """The files besides ``path`` that writing it in ``fmt`` writes (next to the file a
+    symbolic link ``path`` points to)."""
+    form = FORMATS[format_for(path, fmt)]
+    if path == "-" or form.sidecar is None:
+        return []
+    return [str(output_target(path).with_suffix(form.sidecar))]
+
+
+def check_sidecars(path: str, fmt: str, force: bool = False) -> None:
+    """Refuse (:class:`OptionError`) to replace an existing sidecar deformesh did not
+    write, unless ``force``: it has the output's name but may be a user's file."""
+    for side in sidecars(path, fmt):
+        if force or not os.path.lexists(side):
+            continue
+        try:
+            with open(side, "rb") as f:
+                head = f.read(len(xdmf.MARK))
+        except OSError as exc:
+            raise WriteError(f"{side}: cannot read: {exc.strerror}") from None
+        if not xdmf.is_ours(head):
+            raise OptionError(
+                f"{side}: exists and was not written by deformesh; writing {path} would "
+                "replace it (--force replaces it)"
+            )
+
+
+def _write_with_sidecar(form: Format, mesh: Mesh, path: str) -> None:
+    """Make both files in memory, write them into a temporary folder next to ``path``,
+    then move them into place: the sidecar first, created new (a symbolic link in its
+    place is replaced by the file, never written through)."""
     target = output_target(path)
     folder = check_folder(str(target))
-    side = output_target(str(target.with_suffix(form.sidecar)))
-    with tempfile.TemporaryDirectory() as first:
-        made = Path(first) / target.name
-        _run(form, mesh, str(made), version, path)
-        try:
-            with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=folder) as d:
-                tmp = Path(d) / target.name
-                for src, dst in ((made.with_suffix(form.sidecar), tmp.with_suffix(form.sidecar)),
-                                 (made, tmp)):  # fmt: skip
-                    shutil.copyfile(src, dst)
-                    os.chmod(dst, 0o644)
-                os.replace(tmp.with_suffix(form.sidecar), side)
-                os.replace(tmp, target)
-        except OSError as exc:
-            raise WriteError(f"{path}: cannot write: {exc.strerror or exc}") from None
+    side = target.with_suffix(form.sidecar)
+    main, second = _render(form, mesh, target.name, path)
+    try:
+        with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=folder) as d:
+            tmp = Path(d) / target.name
+            for data, dst in ((second, tmp.with_suffix(form.sidecar)), (main, tmp)):
+                dst.write_bytes(data)
+                os.chmod(dst, 0o644)
+            os.replace(tmp.with_suffix(form.sidecar), side)
+            os.replace(tmp, target)
+    except OSError as exc:
+        raise WriteError(f"{path}: cannot write: {exc.strerror or exc}") from None
+
+
+def _render(form: Format, mesh: Mesh, name: str, path: str) -> tuple[bytes, bytes]:
+    """``form.render`` with its errors as :func:`_run` reports them."""
+    try:
+        return form.render(mesh, name)
+    except DeformeshError:
+        raise
+    except Exception as exc:  # a writer's own error (meshio, h5py): one line
+        raise WriteError(f"{path}: cannot write {form.name}: {exc}") from None
 
 
 def _run(form: Format, mesh: Mesh, tmp: str, version, path: str) -> None:

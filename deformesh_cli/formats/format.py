@@ -26,6 +26,8 @@ class Format:
     point_data : per-node arrays (``contour_point``, a moving mesh's ``velocity``) are
         written.
     sidecar : extension of a second file written beside the first (``.h5``), or None.
+    render : for a format with a sidecar, ``render(mesh, file name) -> (file bytes,
+        sidecar bytes)``, both made in memory.
     meshio_format : the name meshio reads the file back by, or None if it cannot.
     versions : the file versions ``--msh-version`` offers, the default first.
     """
@@ -36,6 +38,7 @@ class Format:
     boundary_groups: bool = False
     point_data: bool = False
     sidecar: str | None = None
+    render: Callable[[Mesh, str], tuple[bytes, bytes]] | None = None
     meshio_format: str | None = None
     versions: tuple[str, ...] = field(default=())
 

@@ -1,29 +1,87 @@
-"""XDMF 3 with an HDF5 sidecar (meshio; needs h5py): triangles and boundary lines with
-``group`` tags, point data.
+"""XDMF 3 with an HDF5 sidecar (meshio's layout; needs h5py): triangles and boundary lines
+with ``group`` tags, point data.
 
 The tags are those of the .msh physical groups (boundaries 1.., domain
 last).  The sidecar is named after the file (``mesh.xdmf`` -> ``mesh.h5``).
+Both files are made in memory (:func:`render`), never in a temporary folder:
+h5py, closing a file on a full disk, reports the error and then crashes the
+process.  The sidecar's HDF5 user block (the 512 bytes HDF5 leaves to the
+application) starts with :data:`MARK`, so a later run can tell a sidecar it
+wrote from a user's file of the same name (:func:`is_ours`).
 """
 
 from __future__ import annotations
 
+import io
+import os
+from pathlib import Path
+
+from .. import __version__
 from ..errors import DependencyError
 from ..mesh import Mesh
 from ._common import GROUP_DATA, cell_groups, meshio_mesh
 from .format import Format
 
+#: The first bytes of every sidecar deformesh writes (in the HDF5 user block).
+MARK = b"deformesh xdmf sidecar\n"
+_USERBLOCK = 512
 
-def write(mesh: Mesh, path: str, version: str | None = None) -> None:
+
+def _h5py(path: str):
     try:
-        import h5py  # noqa: F401
+        import h5py
     except ImportError:
         raise DependencyError(
             f"{path}: writing .xdmf needs h5py: pip install 'deformesh[all]'"
         ) from None
-    import meshio
+    return h5py
+
+
+def render(mesh: Mesh, name: str) -> tuple[bytes, bytes]:
+    """The bytes of ``name`` (an ``.xdmf`` file name) and of its sidecar."""
+    h5py = _h5py(name)
+    from xml.etree import ElementTree as ET
+
+    from meshio.xdmf.main import XdmfWriter
+
+    class _InMemory(XdmfWriter):
+        """meshio's writer, its HDF5 file in a buffer and its XML returned, not written."""
+
+        def __init__(self, name, m, buf):
+            self.filename = Path(name)
+            self.data_format, self.data_counter = "HDF", 0
+            self.compression, self.compression_opts = "gzip", 4
+            self.h5_filename = self.filename.with_suffix(".h5")
+            with h5py.File(buf, "w", userblock_size=_USERBLOCK, track_order=True) as f:
+                self.h5_file = f
+                root = ET.Element("Xdmf", Version="3.0")
+                grid = ET.SubElement(ET.SubElement(root, "Domain"), "Grid", Name="Grid")
+                self.write_points(grid, m.points)
+                self.write_cells(m.cells, grid)
+                self.write_point_data(m.point_data, grid)
+                self.write_cell_data(m.cell_data, grid)
+            out = io.BytesIO()
+            ET.ElementTree(root).write(out)
+            self.xml = out.getvalue()
 
     m = meshio_mesh(mesh, dim3=True, cell_data={GROUP_DATA: cell_groups(mesh)})
-    meshio.write(path, m, file_format="xdmf")
+    buf = io.BytesIO()
+    w = _InMemory(os.path.basename(name), m, buf)
+    side = bytearray(buf.getvalue())
+    mark = MARK + f"written by deformesh {__version__}\n".encode()
+    side[: len(mark)] = mark
+    return w.xml, bytes(side)
+
+
+def is_ours(head: bytes) -> bool:
+    """A sidecar's first bytes are those deformesh writes."""
+    return head.startswith(MARK)
+
+
+def write(mesh: Mesh, path: str, version: str | None = None) -> None:
+    xml, side = render(mesh, path)
+    Path(path).with_suffix(".h5").write_bytes(side)
+    Path(path).write_bytes(xml)
 
 
 FORMAT = Format(
@@ -33,5 +91,6 @@ FORMAT = Format(
     boundary_groups=True,
     point_data=True,
     sidecar=".h5",
+    render=render,
     meshio_format="xdmf",
 )

@@ -27,7 +27,7 @@ import shapely
 import svgelements as se
 
 from ..contour import Contour, check_scale, make_contour
-from ..errors import InputError, OptionError
+from ..errors import InputError, OptionError, printable
 from ..geometry import signed_area
 
 #: Default chord tolerance, as a fraction of the drawing's bounding-box diagonal.
@@ -93,6 +93,7 @@ def parse_svg(
     (:func:`_stroke_rings`).
     """
     tol_spec = parse_tolerance(tolerance)
+    _check_encoding(data, source)
     _check_references(data, source)
     try:
         with warnings.catch_warnings():
@@ -207,6 +208,25 @@ def _collect_rings(shapes, tol: float, height: float, eps: float, source: str):
             element.append(k)
             evenodd.append(rule == "evenodd")
     return rings, labels, element, evenodd, notes
+
+
+#: The encodings an SVG may declare (those XML parsers must read, and Latin-1).
+ENCODINGS = ("utf-8", "utf8", "utf-16", "utf-16le", "utf-16be", "us-ascii", "ascii",
+             "iso-8859-1", "iso8859-1", "latin-1", "latin1")  # fmt: skip
+_DECLARED = re.compile(r"\A\s*<\?xml\b[^>]*?\bencoding\s*=\s*([\"'])(.*?)\1", re.DOTALL)
+
+
+def _check_encoding(data: bytes, source: str) -> None:
+    """Refuse an XML declaration naming an encoding outside :data:`ENCODINGS` (before any
+    parser looks the name up among the codecs Python happens to have)."""
+    utf16 = data[:2] in (b"\xff\xfe", b"\xfe\xff")
+    head = data[:1024].decode("utf-16" if utf16 else "latin-1", errors="ignore").lstrip("\ufeff")
+    m = _DECLARED.match(head)
+    if m is not None and m.group(2).strip().lower().replace("_", "-") not in ENCODINGS:
+        raise InputError(
+            f"{source}: the SVG declares the encoding {printable(m.group(2))}; deformesh "
+            "reads SVG in UTF-8, UTF-16, ASCII or Latin-1 (ISO-8859-1)"
+        )
 
 
 def _check_references(data: bytes, source: str) -> None:
