@@ -188,6 +188,7 @@ def make_contour(
             rp, rl = rp[:-1], rl[:-1]
             notes.append(f"{name}dropped the closing point (equal to the first)")
         ring = _check_ring(rp, rl, source, name, starts[-1])
+        _check_resolution(rp, float(np.abs(p).max()), source, name, starts[-1])
         if ring < 0:
             notes.append(f"{name}re-oriented clockwise input to counter-clockwise")
         pts.append(rp)
@@ -219,6 +220,11 @@ MAX_COORDINATE = 1e150
 #: meshes with the contract: ``tests/test_bad_input.py``).
 MIN_RELATIVE_SPAN = 1e-13
 
+#: An edge shorter than this share of the contour's largest coordinate is refused: it
+#: is under 50 units in the last place, and the cells by it would be a few (a circle of
+#: 1e-6 at 1e6, edges 7e-14 of the offset, meshes with the contract).
+MIN_RELATIVE_EDGE = 1e-14
+
 
 def check_scale(p: np.ndarray, source: str) -> None:
     """What double precision cannot mesh, refused with the place: coordinates whose
@@ -245,6 +251,19 @@ def check_scale(p: np.ndarray, source: str) -> None:
         raise InputError(
             f"{source}: the contour spans {span:.3g}: its areas would underflow in double "
             "precision; scale it up"
+        )
+
+
+def _check_resolution(p: np.ndarray, big: float, source: str, name: str, offset: int) -> None:
+    """Refuse an edge shorter than :data:`MIN_RELATIVE_EDGE` of the contour's largest
+    coordinate: the grid there would step below the coordinates' resolution."""
+    length = np.hypot(*(np.roll(p, -1, axis=0) - p).T)
+    k = int(np.argmin(length))
+    if length[k] < MIN_RELATIVE_EDGE * big:
+        raise InputError(
+            f"{source}: {name}point {k + offset} at ({p[k, 0]:.6g}, {p[k, 1]:.6g}): its edge "
+            f"to the next point is {length[k]:.3g} long, with coordinates up to {big:.3g}: "
+            "the grid there would step below the coordinates' resolution"
         )
 
 

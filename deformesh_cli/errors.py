@@ -33,6 +33,10 @@ class OptionError(DeformeshError):
     """An option value is inconsistent with the input (for example a box that misses it)."""
 
 
+class SizeError(OptionError):
+    """A size function fails to evaluate, or is not finite and > 0 over the box."""
+
+
 class DependencyError(DeformeshError):
     """An optional dependency the request needs is not installed (the message names the extra)."""
 

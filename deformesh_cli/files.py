@@ -10,6 +10,8 @@ through (next to its target) only when it points to a regular file.
 from __future__ import annotations
 
 import contextlib
+import json
+import math
 import os
 import stat
 import sys
@@ -147,6 +149,22 @@ def write_bytes(data: bytes, path: str, name: str | None = None) -> None:
         _write(data, tmp, path)
 
 
+def to_json(obj) -> str:
+    """``obj`` as strict JSON: a number that is not finite is written ``null`` (JSON
+    has no NaN or Infinity)."""
+
+    def clean(v):
+        if isinstance(v, float):
+            return v if math.isfinite(v) else None
+        if isinstance(v, dict):
+            return {k: clean(x) for k, x in v.items()}
+        if isinstance(v, list | tuple):
+            return [clean(x) for x in v]
+        return v
+
+    return json.dumps(clean(obj), allow_nan=False)
+
+
 def write_stdout(data: bytes | str) -> None:
     """Bytes (or text, with a newline) on stdout, flushed.  A stdout that is closed or
     cannot take them (a full disk) is a :class:`WriteError`; a closed pipe is left to
@@ -212,6 +230,21 @@ def existing_file(path: str) -> Path:
         if test(mode) and test is not stat.S_ISFIFO:
             raise ReadError(f"{path}: is {what}, not a file")
     return p
+
+
+#: Whole numbers in JSON longer than this are read as floats (beyond 1e308: infinite,
+#: and refused as any non-finite number is), never converted digit by digit.
+MAX_INT_DIGITS = 300
+
+
+def _json_int(text: str) -> int | float:
+    return int(text) if len(text) <= MAX_INT_DIGITS else float(text)
+
+
+def parse_json(text: str | bytes):
+    """``json.loads`` with every number a double can hold, and none longer converted
+    (Python refuses whole numbers over 4,300 digits with a ValueError)."""
+    return json.loads(text, parse_int=_json_int)
 
 
 def read_bytes(path: str) -> bytes:

@@ -488,9 +488,9 @@ def run_triangulate(
         mended = untangle.untangle(placed, untangle.most_tangled(placed))
         if mended is None:
             raise FoldError(
-                d.stats.fold
-                or f"{contour.source}: the deformation left triangles flat that could not "
-                "be meshed again"
+                (d.stats.fold if d.stats is not None else None)
+                or f"{contour.source}: the deformed grid has folded or flat triangles that "
+                "could not be meshed again"
             )
         if mended is not placed:
             sel.notes.append("folded or flat triangles of the deformed grid were meshed again")

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from .contour import Contour
-from .errors import InputError, OptionError
+from .errors import InputError, OptionError, SizeError
 from .expression import Expression
 from .geometry import next_on_ring, signed_areas
 
@@ -86,6 +86,7 @@ class SizeFunction:
     scale: float = 1.0  # f_normalised = scale * raw
     notes: list = field(default_factory=list)
     source: str = ""  # the contour it is made for, named in its errors
+    rows: np.ndarray | None = None  # a size field's rows x, y, f (a state file keeps them)
 
     def values(self, q: np.ndarray) -> np.ndarray:
         """``f`` (as given) at points, checked finite and positive."""
@@ -93,14 +94,12 @@ class SizeFunction:
         if f.shape == ():
             f = np.full(len(q), float(f))
         if f.shape != (len(q),):
-            raise OptionError(
-                f"size function {self.label}: gave shape {f.shape} for {len(q)} points"
-            )
+            raise SizeError(f"size function {self.label}: gave shape {f.shape} for {len(q)} points")
         bad = ~(np.isfinite(f) & (f > 0))
         if bad.any():
             k = int(np.argmax(bad))
             where = f"{self.source}: " if self.source else ""
-            raise OptionError(
+            raise SizeError(
                 f"{where}size function {self.label} is {f[k]:.3g} at "
                 f"({q[k, 0]:.6g}, {q[k, 1]:.6g}); it must be finite and > 0 "
                 "over the whole background box"
@@ -133,7 +132,7 @@ def from_expression(expr: str, contour: Contour, label: str = "--size") -> SizeF
         try:
             return code(**env)
         except (ArithmeticError, ValueError, TypeError) as exc:
-            raise OptionError(
+            raise SizeError(
                 f"{contour.source}: {label} {expr!r} fails: {type(exc).__name__}: {exc}"
             ) from None
 
@@ -143,14 +142,22 @@ def from_expression(expr: str, contour: Contour, label: str = "--size") -> SizeF
 def from_field(path: str) -> SizeFunction:
     """``--size-field FILE``: rows ``x, y, f`` on a regular grid (CSV with or without a
     header, or a (k, 3) .npy array), interpolated bilinearly, held constant outside."""
-    from scipy.interpolate import RegularGridInterpolator
+    return from_rows(read_field(path), path)
 
+
+def read_field(path: str) -> np.ndarray:
+    """The rows ``x, y, f`` of a size field file (CSV, or a .npy array of plain
+    numbers), as floats; checked by :func:`from_rows`."""
     p = Path(path)
     if not p.is_file():
         raise InputError(f"{path}: {'not a regular file' if p.exists() else 'no such file'}")
     try:
         if p.suffix.lower() == ".npy":
             rows = np.load(p)  # numpy refuses object arrays by default
+            if rows.dtype.kind not in "iuf" or rows.dtype.fields is not None:
+                raise InputError(
+                    f"{path}: a size field holds real numbers, not {rows.dtype.str!r} values"
+                )
         else:
             rows = np.genfromtxt(
                 p,
@@ -158,11 +165,28 @@ def from_field(path: str) -> SizeFunction:
                 comments="#",
                 skip_header=_header_lines(p),
             )
-    except (ValueError, OSError) as exc:
+    except (ValueError, OSError, EOFError) as exc:
         raise InputError(f"{path}: cannot read the size field: {exc}") from None
-    rows = np.atleast_2d(np.asarray(rows, dtype=np.float64))
-    if rows.ndim != 2 or rows.shape[1] != 3 or len(rows) < 4:
-        raise InputError(f"{path}: a size field is rows of x, y, f (got shape {rows.shape})")
+    return np.atleast_2d(np.asarray(rows, dtype=np.float64))
+
+
+#: The most rows a size field may have (a 2,000 x 2,000 grid: 96 MB of floats).
+MAX_FIELD_ROWS = 4_000_000
+
+
+def from_rows(rows: np.ndarray, label: str) -> SizeFunction:
+    """A size function from rows ``x, y, f`` on a regular grid (``label`` names them in
+    errors): bilinear inside the grid, constant outside."""
+    from scipy.interpolate import RegularGridInterpolator
+
+    path = label
+    if rows.ndim != 2 or rows.shape[1] != 3 or not 4 <= len(rows) <= MAX_FIELD_ROWS:
+        raise InputError(
+            f"{path}: a size field is 4 to {MAX_FIELD_ROWS:,} rows of x, y, f "
+            f"(got shape {rows.shape})"
+        )
+    if not np.isfinite(rows[:, :2]).all():
+        raise InputError(f"{path}: a size field's x and y must be finite numbers")
     xs, ys = np.unique(rows[:, 0]), np.unique(rows[:, 1])
     if len(xs) * len(ys) != len(rows) or len(xs) < 2 or len(ys) < 2:
         raise InputError(
@@ -185,7 +209,7 @@ def from_field(path: str) -> SizeFunction:
         c = np.column_stack([np.clip(q[:, 0], xs[0], xs[-1]), np.clip(q[:, 1], ys[0], ys[-1])])
         return interp(c)
 
-    return SizeFunction(raw, path)
+    return SizeFunction(raw, path, rows=rows)
 
 
 def _header_lines(p: Path) -> int:

@@ -11,25 +11,28 @@ from __future__ import annotations
 
 import io
 import json
+import lzma
 import math
 import zipfile
+import zlib
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from . import __version__
 from .contour import MAX_COORDINATE, Contour, make_contour
-from .errors import InputError, OptionError, WriteError
+from .errors import InputError, OptionError, WriteError, printable
 from .expression import Expression
+from .files import parse_json
 from .options import MeshOptions
 from .options import fields as option_fields
 from .select import DEFAULT_MAX_NODES, Grid, Selection
-from .select.graded import Quadtree
+from .select.graded import MAX_CELLS_ACROSS, Quadtree
 from .select.graded_path import GradedGrid, GradedSelection
+from .size import MAX_FIELD_ROWS, from_rows
 
 FORMAT = "deformesh-state"
-VERSION = 3
+VERSION = 4
 STAGES = ("selected", "deformed")
 
 _ARRAYS = {
@@ -52,8 +55,11 @@ class State:
     contour: Contour
     selection: Selection
     points: np.ndarray | None = None  # deformed coordinates, stage "deformed"
-    #: the :class:`~.options.MeshOptions` fields of the stages run so far (their values)
+    #: the :class:`~.options.MeshOptions` fields of the stages run so far (their values;
+    #: never ``size_field``, a path: the field's rows are :attr:`size_field`)
     options: dict = field(default_factory=dict)
+    #: the rows ``x, y, f`` of the size field given to ``select`` or ``deform``, or None
+    size_field: np.ndarray | None = None
 
 
 def dumps(state: State) -> bytes:
@@ -99,6 +105,8 @@ def dumps(state: State) -> bytes:
         arrays.update(leaf_level=g.tree.level, leaf_i=g.tree.i, leaf_j=g.tree.j)
     if state.stage == "deformed":
         arrays["points"] = state.points
+    if state.size_field is not None:
+        arrays["size_field"] = np.asarray(state.size_field, dtype=np.float64)
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w", zipfile.ZIP_STORED) as zf:
         zf.writestr(
@@ -135,8 +143,8 @@ def loads(data: bytes, name: str = "<state>", want: str | None = None) -> State:
         raise InputError(f"{name}: empty input, expected a deformesh state file")
     try:
         zf = zipfile.ZipFile(io.BytesIO(data))
-        meta = json.loads(_member(zf, "meta.json", MAX_META_BYTES, name))
-    except (zipfile.BadZipFile, KeyError, ValueError, EOFError, RecursionError):
+        meta = parse_json(_member(zf, "meta.json", MAX_META_BYTES, name))
+    except (zipfile.BadZipFile, KeyError, ValueError, EOFError, RecursionError, *_CORRUPT):
         hint = " (truncated?)" if data[:2] == b"PK" else ""
         raise InputError(f"{name}: not a deformesh state file{hint}") from None
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
@@ -159,8 +167,12 @@ def loads(data: bytes, name: str = "<state>", want: str | None = None) -> State:
         raise InputError(f"{name}: damaged state file ({exc})") from None
     except InputError as exc:  # the contour's own checks name the contour's source
         raise InputError(f"{name}: damaged state file (its contour: {exc})") from None
-    except (zipfile.BadZipFile, EOFError, OSError, ValueError) as exc:
+    except (zipfile.BadZipFile, EOFError, OSError, ValueError, *_CORRUPT) as exc:
         raise InputError(f"{name}: damaged state file ({exc.__class__.__name__}: {exc})") from None
+
+
+#: What a member's corrupt compressed data raises (bzip2's is an OSError).
+_CORRUPT = (zlib.error, lzma.LZMAError)
 
 
 #: The largest ``meta.json`` read: it holds a few numbers, short notes and ring labels.
@@ -173,9 +185,43 @@ class _Damaged(InputError):
     """What is wrong with a state file (the message ``loads`` puts in parentheses)."""
 
 
+#: How a member may be stored: as deformesh writes it, or compressed by a zip tool
+#: with a method Python reads; never encrypted.
+_METHODS = (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED, zipfile.ZIP_BZIP2, zipfile.ZIP_LZMA)
+
+
+def _info(zf: zipfile.ZipFile, member: str) -> zipfile.ZipInfo:
+    """A member's entry, refused if encrypted or stored with a method deformesh does not
+    read (before any of its data is)."""
+    info = zf.getinfo(member)
+    if info.flag_bits & 0x1:
+        raise _Damaged(f"{member} is encrypted")
+    if info.compress_type not in _METHODS:
+        raise _Damaged(f"{member} is compressed with zip method {info.compress_type}")
+    if info.compress_type != zipfile.ZIP_STORED and info.file_size > max(
+        MIN_BOMB_BYTES, MAX_INFLATION * info.compress_size
+    ):
+        raise _Damaged(
+            f"{member} inflates {info.file_size / max(info.compress_size, 1):.0f} times: "
+            f"a state's numbers compress less than {MAX_INFLATION} times"
+        )
+    return info
+
+
+#: A compressed member may inflate at most this many times (past :data:`MIN_BOMB_BYTES`):
+#: the floats and node numbers of a state compress far less; a run of zeros (a zip bomb:
+#: gigabytes from a few megabytes) far more.  A bound of the tool, whatever the state's
+#: own ``--max-nodes`` says.
+MAX_INFLATION = 100
+MIN_BOMB_BYTES = 2**20
+
+
 def _member(zf: zipfile.ZipFile, member: str, limit: int, name: str) -> bytes:
     """A member's bytes, refused (without reading further) past ``limit``."""
-    info = zf.getinfo(member)
+    try:
+        info = _info(zf, member)
+    except _Damaged as exc:
+        raise InputError(f"{name}: damaged state file ({exc})") from None
     if info.file_size > limit:
         raise InputError(f"{name}: damaged state file ({member} is larger than it can be)")
     with zf.open(info) as fh:
@@ -229,7 +275,7 @@ _GRID = {
     "ny": (lambda v: _is_count(v, 1), "a whole number >= 1"),
 }
 #: The deepest graded grid a state file may describe (cells 2**60 times the finest).
-MAX_LEVELS = 60
+MAX_LEVELS = int(math.log2(MAX_CELLS_ACROSS))
 _GRADED = {
     "kind": (lambda v: v == "graded", "'graded'"),
     "top": (lambda v: _is_count(v) and v <= MAX_LEVELS, f"a whole number from 0 to {MAX_LEVELS}"),
@@ -245,6 +291,13 @@ def _check_schema(meta: dict) -> None:
                 raise _Damaged(f"{where}{key} is missing")
             if not ok(d[key]):
                 raise _Damaged(f"{where}{key} is {_short(d[key])}, it must be {what}")
+        extra = sorted(set(d) - set(table) - (_HEADER if table is _META else set()))
+        if extra:
+            raise _Damaged(f"{printable(where + extra[0])} is not a field of this state file")
+
+
+#: The fields ``loads`` reads before the schema.
+_HEADER = {"format", "version", "stage"}
 
 
 def _short(v) -> str:
@@ -263,6 +316,8 @@ def _parse(zf: zipfile.ZipFile, meta: dict, stage: str) -> State:
     nodes = (g["nx"] + 1) * (g["ny"] + 1)
     if nodes > max_nodes:
         raise _Damaged(f"a {g['nx']} x {g['ny']} grid is over its --max-nodes {max_nodes}")
+    if graded and max(g["nx"], g["ny"]) * 2 ** g["top"] > MAX_CELLS_ACROSS:
+        raise _Damaged(f"the graded grid is over {MAX_CELLS_ACROSS} finest cells across")
     x1, y1 = (g["x0"] + g["nx"] * g["hx"] * 2 ** g.get("top", 0),
               g["y0"] + g["ny"] * g["hy"] * 2 ** g.get("top", 0))  # fmt: skip
     if not (_is_coordinate(x1) and _is_coordinate(y1)):
@@ -275,6 +330,8 @@ def _parse(zf: zipfile.ZipFile, meta: dict, stage: str) -> State:
         spec["points"] = ("f", 2, (2,))
     if "path_slide.npy" in zf.namelist():  # optional: an adapted grid's slide
         spec["path_slide"] = ("f", 2, (2,))
+    if "size_field.npy" in zf.namelist():  # optional: a size field's rows x, y, f
+        spec["size_field"] = ("f", 2, (3,))
     if graded:  # the graded grid's leaves
         spec.update(leaf_level=("i", 1, ()), leaf_i=("i", 1, ()), leaf_j=("i", 1, ()))
     heads = {key: _header(zf, key, *spec[key]) for key in spec}
@@ -300,6 +357,10 @@ def _parse(zf: zipfile.ZipFile, meta: dict, stage: str) -> State:
         raise _Damaged("the ring starts do not match the contour")
     if graded and stage == "deformed" and rows["points"] > max_nodes:
         raise _Damaged("points has more rows than the grid can have nodes")
+    if "size_field" in spec and not 4 <= rows["size_field"] <= MAX_FIELD_ROWS:
+        raise _Damaged(f"size_field has {rows['size_field']} rows, not 4 to {MAX_FIELD_ROWS:,}")
+    if "size_field" in spec and options.get("size") is not None:
+        raise _Damaged("options.size and size_field.npy are both given")
     a = {key: _data(zf, key, *heads[key]) for key in spec}
     if graded:
         grid = _graded_grid(g, a)
@@ -338,13 +399,35 @@ def _parse(zf: zipfile.ZipFile, meta: dict, stage: str) -> State:
     sel = (GradedSelection if graded else Selection)(**fields)
     _check_path(contour, sel, a)
     points = a.get("points")
-    return State(stage, contour, sel, None if points is None else points.astype(float), options)
+    if points is not None and not graded:
+        _check_unfolded(sel, points)
+    field_rows = a.get("size_field")
+    if field_rows is not None:
+        try:
+            from_rows(field_rows.astype(np.float64), "size_field.npy")
+        except InputError as exc:
+            raise _Damaged(str(exc)) from None
+    return State(
+        stage, contour, sel, None if points is None else points.astype(float), options,
+        None if field_rows is None else field_rows.astype(np.float64),
+    )  # fmt: skip
+
+
+def _check_unfolded(sel, points: np.ndarray) -> None:
+    """A deformed uniform grid's triangles keep their orientation (the deformation
+    folds none of them; moved or shuffled points do)."""
+    tri = sel.triangles()
+    a, b, c = points[tri[:, 0]], points[tri[:, 1]], points[tri[:, 2]]
+    with np.errstate(all="ignore"):
+        area = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    if not (area > 0).all():
+        raise _Damaged(f"points: {int((area <= 0).sum())} of the grid's triangles are folded")
 
 
 def _header(zf: zipfile.ZipFile, key: str, kind: str, ndim: int, tail: tuple):
     """An array member's (shape, dtype), read from its .npy header alone."""
     try:
-        info = zf.getinfo(f"{key}.npy")
+        info = _info(zf, f"{key}.npy")
     except KeyError:
         raise _Damaged(f"{key}.npy is missing") from None
     with zf.open(info) as fh:
@@ -441,9 +524,8 @@ def _options(meta: dict) -> dict:
             raise _Damaged(f"options.{key} is not an option")
         if not _option_ok(f, value):
             raise _Damaged(f"options.{key} is {_short(value)}, not {_option_kind(f)}")
-    field_path = options.get("size_field")
-    if field_path is not None and not Path(field_path).is_file():
-        raise _Damaged(f"options.size_field: {field_path!r} is not a regular file")
+    if options.get("size_field") is not None:  # (never a path to another file)
+        raise _Damaged("options.size_field is set: a state keeps a size field's rows")
     if options.get("size") is not None:
         try:
             Expression(options["size"], "size")
@@ -469,7 +551,9 @@ def _option_kind(f) -> str:
 
 
 def _option_ok(f, v) -> bool:
-    if v is None or v == f.default and type(v) is type(f.default):
+    if v is None:  # (not set: only for an option whose default is not set either)
+        return f.default is None
+    if v == f.default and type(v) is type(f.default):
         return True
     kind = f.metadata["kind"]
     if kind in ("text", "path"):
@@ -507,4 +591,14 @@ def _graded_grid(g: dict, a: dict) -> GradedGrid:
         float(g["x0"]), float(g["y0"]), float(g["hx"]), float(g["hy"]), top, nx, ny,
         level.astype(np.int64), i.astype(np.int64), j.astype(np.int64),
     )  # fmt: skip
+    # leaves that cover the box's area and are disjoint tile it: no cell twice, and no
+    # leaf inside another (its ancestors are not leaves)
+    keys = np.sort(tree._keys(tree.level, tree.i, tree.j))
+    if (np.diff(keys) == 0).any():
+        raise _Damaged("the graded grid's leaves do not tile its box (a leaf twice)")
+    for up in range(1, top + 1):
+        has = tree.level + up <= top
+        anc = tree._keys(tree.level[has] + up, tree.i[has] >> up, tree.j[has] >> up)
+        if np.isin(anc, keys).any():
+            raise _Damaged("the graded grid's leaves do not tile its box (nested leaves)")
     return GradedGrid(tree, tree.triangulate()[0])

@@ -70,6 +70,36 @@ CASES = {
         SVG.format("<g>" * 5000 + '<path d="M 1 1 L 5 1 L 5 5 Z"/>' + "</g>" * 5000).encode(),
         "nest too deep",
     ),
+    # coordinates whose scales no grid holds, numbers too long to convert
+    "scales-1e9-1e-9.csv": (
+        b"0,0\n1e9,0\n1e9,1e-9\n1e9,2e-9\n0,1e9\n",
+        "point 1 at \\(1e\\+09, 0\\): its edge to the next point is 1e-09 long.*resolution",
+    ),
+    "scales-offset-1e-9.csv": (
+        b"0,0\n1e9,0\n1e9,1e9\n1e-9,1e9\n1e-9,1e-9\n",
+        "point 4 .* below the coordinates' resolution",
+    ),
+    "int-5000-digits.geojson": (
+        b'{"type": "Polygon", "coordinates": [[[0, 0], [1, 0], [1, 1], ['
+        + b"1" * 5000
+        + b", 0], [0, 0]]]}",
+        "position 3 is not finite",
+    ),
+    # SVG in encodings deformesh does not read; text that would break the line
+    "encoding-klingon.svg": (
+        b'<?xml version="1.0" encoding="x-klingon"?>\n' + SVG.format("").encode(),
+        "declares the encoding 'x-klingon'; deformesh reads SVG in UTF-8",
+    ),
+    "encoding-utf32.svg": (
+        b"<?xml version='1.0' encoding='UTF-32'?>" + SVG.format("").encode(),
+        "declares the encoding 'UTF-32'",
+    ),
+    "id-newline.svg": (
+        SVG.format(
+            '<path id="a&#10;deformesh: error: fake&#155;2J" d="M 1 1 L 5 5 L 5 1 L 1 5 Z"/>'
+        ).encode(),
+        r"a\\ndeformesh: error: fake\\x9b2J",
+    ),
     # other programs' files given as contours
     "mesh.vtu": (b'<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid">', "a VTK mesh"),
     "lines.geojson": (b'{"type": "LineString", "coordinates": [[0, 0], [1, 1]]}', "LineString"),

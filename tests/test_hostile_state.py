@@ -97,6 +97,93 @@ def _bomb(name: str):
     return mutate
 
 
+def _member_method(name: str, method: int, flags: int = 0, corrupt: bool = False):
+    """A mutation storing member ``name`` with zip ``method`` (a number zipfile may not
+    know: patched into both headers), ``flags`` set, or its compressed data corrupted."""
+
+    def after(data: bytes) -> bytes:
+        zf = zipfile.ZipFile(io.BytesIO(data))
+        buf = io.BytesIO()
+        with zipfile.ZipFile(buf, "w") as out:
+            for info in zf.infolist():
+                body = zf.read(info)
+                known = method in (zipfile.ZIP_DEFLATED, zipfile.ZIP_BZIP2, zipfile.ZIP_LZMA)
+                kind = method if info.filename == name and known else zipfile.ZIP_STORED
+                out.writestr(zipfile.ZipInfo(info.filename, info.date_time), body, kind)
+        b = bytearray(buf.getvalue())
+        info = zipfile.ZipFile(io.BytesIO(bytes(b))).getinfo(name)
+        local = info.header_offset
+        central = bytes(b).index(b"PK\x01\x02")
+        while bytes(b[central + 46 : central + 46 + len(name)]) != name.encode():
+            central = bytes(b).index(b"PK\x01\x02", central + 1)
+        if method not in (zipfile.ZIP_DEFLATED, zipfile.ZIP_BZIP2, zipfile.ZIP_LZMA, 0):
+            b[local + 8 : local + 10] = method.to_bytes(2, "little")
+            b[central + 10 : central + 12] = method.to_bytes(2, "little")
+        b[local + 6] |= flags
+        b[central + 8] |= flags
+        if corrupt:
+            start = local + 30 + len(name) + int.from_bytes(b[local + 28 : local + 30], "little")
+            for k in range(start + 8, start + info.compress_size - 4, 3):
+                b[k] ^= 0x5A
+        return bytes(b)
+
+    return lambda meta, arrays: {"zip": after}
+
+
+def _shuffle_points(collapse: bool = False):
+    """A deformed state's grid nodes off the path shuffled (or all moved to one place)."""
+
+    def mutate(meta, arrays):
+        p = arrays["points"].copy()
+        off = np.ones(len(p), dtype=bool)
+        off[arrays["path_nodes"]] = False
+        k = np.flatnonzero(off)
+        p[k] = p[k].mean(axis=0) if collapse else p[np.random.default_rng(2).permutation(k)]
+        arrays["points"] = p
+
+    return mutate
+
+
+def _field(rows):
+    def mutate(meta, arrays):
+        arrays["size_field"] = rows
+
+    return mutate
+
+
+_ROWS = np.array([[x, y, 1.0 + x * x] for x in (-100.0, 0.0, 100.0) for y in (-100.0, 100.0)])
+
+
+def _zeros_bomb(meta, arrays):
+    """A 16,000 x 16,000 uniform grid whose diagonals.npy holds its 256 million cells as
+    zeros deflated to a quarter of a MB, in a state whose own --max-nodes allows 10**12
+    nodes: every size agrees, so only a bound of the tool's own stops the reading."""
+    meta["options"]["max_nodes"] = 10**12
+    meta["grid"]["nx"] = meta["grid"]["ny"] = 16_000
+    n = 16_000 * 16_000
+    arrays.pop("diagonals")
+    head = io.BytesIO()
+    np.lib.format.write_array_header_1_0(
+        head, {"descr": "|u1", "fortran_order": False, "shape": (n,)}
+    )
+    return {"stream": ("diagonals.npy", head.getvalue(), n)}
+
+
+def _with_stream(data: bytes, member: str, head: bytes, size: int) -> bytes:
+    """The archive with ``member`` added: ``head`` then ``size`` zero bytes, deflated as
+    they are written (never all in memory)."""
+    buf = io.BytesIO(data)
+    with zipfile.ZipFile(buf, "a") as zf:
+        info = zipfile.ZipInfo(member)
+        info.compress_type = zipfile.ZIP_DEFLATED
+        with zf.open(info, "w", force_zip64=True) as w:
+            w.write(head)
+            chunk = bytes(2**24)
+            for start in range(0, size, len(chunk)):
+                w.write(chunk[: min(len(chunk), size - start)])
+    return buf.getvalue()
+
+
 # (stage, grid, mutation); stage "selected" goes to deform, "deformed" to triangulate
 CASES = {
     # arrays of the wrong dtype, shape or kind
@@ -188,7 +275,84 @@ CASES = {
     "bomb-diagonals": ("selected", "graded", _bomb("diagonals")),
     "bomb-meta": ("selected", "uniform", lambda m, a: {"meta": " " * 100_000_000 + "{}"}),
     "bomb-points": ("deformed", "graded", _bomb("points")),
+    "bomb-own-max-nodes": ("selected", "uniform", _zeros_bomb),
+    # recorded options that are not set, fields a grid does not have, numbers too long
+    "option-max-nodes-null": ("selected", "uniform", _set("options.max_nodes", None)),
+    "option-growth-null": ("selected", "graded", _set("options.growth", None)),
+    "uniform-top-string": ("selected", "uniform", _set("grid.top", "3")),
+    "uniform-top-null": ("selected", "uniform", _set("grid.top", None)),
+    "uniform-top-list": ("selected", "uniform", _set("grid.top", [1])),
+    "uniform-top-1e308": ("selected", "uniform", _set("grid.top", 1e308)),
+    "uniform-top-1e9": ("deformed", "uniform", _set("grid.top", 10**9)),
+    "graded-top-61": ("selected", "graded", _set("grid.top", 61)),
+    "grid-hx-400-digits": ("selected", "uniform", _set("grid.hx", 10**400)),
+    "h-400-digits": ("deformed", "graded", _set("h", 10**400)),
+    "meta-unknown-field": ("selected", "graded", _set("colour", "red")),
+    # members encrypted, compressed with methods deformesh does not read, or corrupt
+    "member-encrypted": ("selected", "graded", _member_method("diagonals.npy", 0, flags=1)),
+    "member-method-99": ("selected", "uniform", _member_method("path_nodes.npy", 99)),
+    "member-method-shrink": ("deformed", "graded", _member_method("points.npy", 1)),
+    "member-deflate-corrupt": (
+        "selected",
+        "uniform",
+        _member_method("path_targets.npy", zipfile.ZIP_DEFLATED, corrupt=True),
+    ),
+    "member-bzip2-corrupt": (
+        "deformed",
+        "graded",
+        _member_method("points.npy", zipfile.ZIP_BZIP2, corrupt=True),
+    ),
+    "member-lzma-corrupt": (
+        "selected",
+        "graded",
+        _member_method("contour_points.npy", zipfile.ZIP_LZMA, corrupt=True),
+    ),
+    "meta-deflate-corrupt": (
+        "selected",
+        "uniform",
+        _member_method("meta.json", zipfile.ZIP_DEFLATED, corrupt=True),
+    ),
+    # deformed points that fold the grid
+    "graded-points-shuffled": ("deformed", "graded", _shuffle_points()),
+    "graded-points-collapsed": ("deformed", "graded", _shuffle_points(collapse=True)),
+    "uniform-points-shuffled": ("deformed", "uniform", _shuffle_points()),
+    "uniform-points-collapsed": ("deformed", "uniform", _shuffle_points(collapse=True)),
+    # a size function that is a path, not numbers, or not positive
+    "size-field-path": ("selected", "graded", _set("options.size_field", "/etc/passwd")),
+    "size-field-string": ("deformed", "uniform", _set("options.size_field", "f.csv")),
+    "size-field-structured": (
+        "selected",
+        "graded",
+        _field(_ROWS.copy().view([("x", "f8"), ("y", "f8"), ("f", "f8")]).ravel()),
+    ),
+    "size-field-complex": ("selected", "uniform", _field(_ROWS.astype(complex))),
+    "size-field-negative": ("selected", "graded", _field(_ROWS * [1, 1, -1])),
+    "size-field-not-a-grid": ("deformed", "graded", _field(_ROWS[:-1])),
+    "size-and-size-field": (
+        "selected",
+        "graded",
+        lambda m, a: [_set("options.size", "1 + d")(m, a), _field(_ROWS)(m, a)][0],
+    ),
+    "size-negative": ("selected", "uniform", _set("options.size", "-1")),
+    "size-zero-somewhere": ("selected", "graded", _set("options.size", "x - x")),
+    "size-negative-deformed": ("deformed", "graded", _set("options.size", "0 - 2")),
+    # a graded grid's leaves that do not tile its box
+    "leaf-duplicated": ("selected", "graded", _arr("leaf_level", lambda a: a)),
 }
+
+
+def _duplicate_leaf(meta, arrays):
+    """One leaf replaced by a copy of another of the same level: the leaves still add
+    up to the box's area, but one cell is covered twice and another not at all."""
+    lv = arrays["leaf_level"]
+    same = np.flatnonzero(lv == lv[0])
+    k = same[1]
+    for name in ("leaf_i", "leaf_j"):
+        arrays[name] = arrays[name].copy()
+        arrays[name][k] = arrays[name][same[0]]
+
+
+CASES["leaf-duplicated"] = ("selected", "graded", _duplicate_leaf)
 
 
 @pytest.fixture(scope="module")
@@ -219,7 +383,12 @@ def test_a_hostile_state_is_one_line_and_leaves_nothing(run, states, tmp_path, n
     change = mutate(meta, arrays) or {}
     f = tmp_path / f"{name}.state"
     raw = {k: v for k, v in change.items() if k.endswith(".npy")}
-    f.write_bytes(_write(change.get("meta", meta), arrays, raw))
+    data = _write(change.get("meta", meta), arrays, raw)
+    if "zip" in change:
+        data = change["zip"](data)
+    if "stream" in change:
+        data = _with_stream(data, *change["stream"])
+    f.write_bytes(data)
     out = tmp_path / "out"
     out.mkdir()
     t = time.perf_counter()
@@ -245,3 +414,25 @@ def test_the_states_it_writes_pass_its_checks(run, states, tmp_path):
         else:
             r = run("triangulate", f, "-o", tmp_path / "m.msh", "-q")
         assert r.exit_code == 0, r.stderr
+
+
+@pytest.mark.parametrize(
+    "leaves",
+    [
+        # one root of two levels: four level-0 cells, one of them twice (one missing)
+        [(0, 0, 0), (0, 1, 0), (0, 0, 1), (0, 0, 1)],
+        # three level-1 cells and the four level-0 cells inside the first of them
+        [(1, 0, 0), (1, 1, 0), (1, 0, 1), (0, 0, 0), (0, 1, 0), (0, 0, 1), (0, 1, 1)],
+    ],
+    ids=["a-leaf-twice", "nested-leaves"],
+)
+def test_leaves_that_cover_the_area_but_do_not_tile_are_refused(leaves):
+    """Leaves whose areas add up to the box's, but that overlap: not a quadtree."""
+    from deformesh_cli import state
+    from deformesh_cli.errors import InputError
+
+    top = 1 if len(leaves) == 4 else 2
+    lv, i, j = (np.array(c, dtype=np.int64) for c in zip(*leaves, strict=True))
+    grid = {"x0": 0.0, "y0": 0.0, "hx": 1.0, "hy": 1.0, "nx": 1, "ny": 1, "top": top}
+    with pytest.raises(InputError, match="do not tile its box"):
+        state._graded_grid(grid, {"leaf_level": lv, "leaf_i": i, "leaf_j": j})

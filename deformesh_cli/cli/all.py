@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import os
 import sys
 import time
@@ -121,7 +120,7 @@ def _batch(tasks, out_dir, jobs, scheduler, fail_fast, as_json, quiet, t0) -> No
             records[task.index] = rec
             while printed < len(records) and records[printed] is not None:
                 if as_json:
-                    files.write_stdout(json.dumps(records[printed]))
+                    files.write_stdout(files.to_json(records[printed]))
                 printed += 1
             if bar is not None:
                 bar.update(1)

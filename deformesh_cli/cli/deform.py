@@ -5,12 +5,15 @@ from __future__ import annotations
 import click
 
 from .. import files, pipeline, state
+from .. import size as _size
+from ..errors import InputError, SizeError
 from ..options import MeshOptions, from_record
 from .errors import handle_errors
 from .options import (
     check_binary_stdout,
     output_option,
     quiet_option,
+    recorded_size,
     say,
     stages,
     steps_bar,
@@ -31,13 +34,28 @@ def command(state_in: str, output: str, quiet: bool, **kwargs) -> None:
     name = "<stdin>" if state_in == "-" else state_in
     st = state.loads(files.read_bytes(state_in), name, want="selected")
     given = take(MeshOptions, kwargs).stage("deform")
-    if given["size"] is None and given["size_field"] is None:  # select's, if it had one
+    _size.check_options(given["size"], given["size_field"])
+    own = given["size"] is None and given["size_field"] is None  # select's, if it had one
+    if own:
         del given["size"], given["size_field"]
     o = from_record(MeshOptions, st.options).replace(**given)
-    with steps_bar(quiet) as progress:
-        d = pipeline.run_deform(st.contour, st.selection, o, callback=progress)
-    options = {**st.options, **o.stage("deform")}
-    out = state.State("deformed", st.contour, st.selection, d.points, options)
+    size = recorded_size(st, name) if own else _size.make(o.size, o.size_field, st.contour)
+    try:
+        with steps_bar(quiet) as progress:
+            d = pipeline.run_deform(
+                st.contour,
+                st.selection,
+                o.replace(size_field=None),
+                callback=progress,
+                size_function=size,
+            )
+    except SizeError as exc:
+        if not own:
+            raise
+        raise InputError(f"{name}: its recorded size function: {exc}") from None
+    options = {**st.options, **o.stage("deform"), "size_field": None}
+    rows = None if size is None else size.rows
+    out = state.State("deformed", st.contour, st.selection, d.points, options, rows)
     files.write_bytes(state.dumps(out), output)
     say(
         quiet,

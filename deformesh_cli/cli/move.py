@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import json
-
 import click
 
 from .. import files, formats
@@ -51,7 +49,7 @@ def command(mesh_path, frames, out_dir, name, force, as_json, quiet, **kwargs) -
 
     s = move_frames(mesh_path, list(frames), out_dir, o, name=name, force=force, on_frame=progress)
     if as_json:
-        files.write_stdout(json.dumps(s))
+        files.write_stdout(files.to_json(s))
     if s["format"] not in formats.POINT_DATA_FORMATS:
         say(quiet, f"note: .{s['format']} has no point data: the velocity is not written")
     say(

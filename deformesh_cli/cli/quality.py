@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import json
-
 import click
 
 from .. import files, formats, quality
@@ -42,7 +40,7 @@ def command(mesh_path: str, contour_path: str | None, as_json: bool, quiet: bool
     rep, problem = quality.assess(points, tri, c)
     rep = {"mesh": mesh_path, **rep}
     if not quiet:
-        files.write_stdout(json.dumps(rep) if as_json else quality_text(rep))
+        files.write_stdout(files.to_json(rep) if as_json else quality_text(rep))
     if problem:
         fail(f"{mesh_path}: {problem}")
 

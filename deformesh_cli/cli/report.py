@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import time
 
 import click
@@ -73,7 +72,7 @@ def finish(
     }
     report["notes"] = list(contour.notes) + list(report.get("notes", []))
     if as_json:
-        files.write_stdout(json.dumps(report, sort_keys=False))
+        files.write_stdout(files.to_json(report))
     for note in report["notes"]:
         say(quiet, f"note: {contour.source}: {note}")
     say(quiet, summary_line(report))

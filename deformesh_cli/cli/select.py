@@ -30,10 +30,14 @@ def command(contour: str, output: str, quiet: bool, **kwargs) -> None:
     _size.check_options(o.size, o.size_field)
     files.check_outputs([output], [contour, o.size_field])
     c = load_contour(contour, None, o.decimal, o.tolerance, o.element_id, o.resample, o.stroke)
-    sel = pipeline.run_select(c, o)
+    size = _size.make(o.size, o.size_field, c)
+    sel = pipeline.run_select(c, o, size_function=size)
     options = {**o.stage("read"), **o.stage("select")}
-    options.update({k: v for k, v in (("size", o.size), ("size_field", o.size_field)) if v})
-    files.write_bytes(state.dumps(state.State("selected", c, sel, options=options)), output)
+    if o.size is not None:
+        options["size"] = o.size
+    rows = None if size is None else size.rows  # (a field's rows, never its path)
+    st = state.State("selected", c, sel, options=options, size_field=rows)
+    files.write_bytes(state.dumps(st), output)
     g = sel.grid
     say(
         quiet,

@@ -7,6 +7,7 @@ import time
 import click
 
 from .. import files, pipeline, state
+from ..errors import FoldError, InputError, SizeError
 from ..options import MeshOptions, from_record
 from .errors import handle_errors
 from .options import (
@@ -15,6 +16,7 @@ from .options import (
     output_option,
     png_option,
     quiet_option,
+    recorded_size,
     stages,
     take,
 )
@@ -45,7 +47,13 @@ def command(
         **given.stage("triangulate"), **given.stage("write")
     )
     deformed = pipeline.Deformed(st.selection, st.points)
-    mesh, report = pipeline.run_triangulate(st.contour, deformed, o)
+    try:
+        size = recorded_size(st, name)
+        mesh, report = pipeline.run_triangulate(st.contour, deformed, o, size_function=size)
+    except FoldError as exc:  # (the state's deformed points are what folds)
+        raise FoldError(f"{name}: {exc}") from None
+    except SizeError as exc:
+        raise InputError(f"{name}: its recorded size function: {exc}") from None
     report.update(pipeline.selection_report(st.selection))
     finish(
         st.contour,

@@ -7,6 +7,7 @@ import io
 
 import numpy as np
 
+from ..contour import MAX_COORDINATE
 from ..errors import InputError, ReadError
 from ..files import existing_file
 
@@ -14,7 +15,8 @@ from ..files import existing_file
 def read_mesh(path: str, fmt: str | None = None) -> tuple[np.ndarray, np.ndarray]:
     """A mesh file's 2D points and triangles.
 
-    z must be 0 (the meshes are planar).  meshio prints and exits on some bad
+    z must be 0 (the meshes are planar), and every coordinate finite and within
+    :data:`~deformesh_cli.contour.MAX_COORDINATE`.  meshio prints and exits on some bad
     files; both become one-line :class:`~deformesh_cli.errors.ReadError` messages.
     """
     import meshio
@@ -41,6 +43,13 @@ def read_mesh(path: str, fmt: str | None = None) -> tuple[np.ndarray, np.ndarray
                 f"{path}: node {k} has z = {pts[k, 2]:g}; only planar meshes (z = 0) are supported"
             )
         pts = pts[:, :2]
+    bad = ~(np.abs(pts) <= MAX_COORDINATE).all(axis=1)  # (NaN fails the test too)
+    if bad.any():
+        k = int(np.argmax(bad))
+        raise InputError(
+            f"{path}: node {k} is at ({float(pts[k, 0]):g}, {float(pts[k, 1]):g}): "
+            f"coordinates must be finite and within {MAX_COORDINATE:g}"
+        )
     tri = np.concatenate(tri).astype(np.int64)
     if tri.min() < 0 or tri.max() >= len(pts):
         raise InputError(f"{path}: a triangle refers to a node that does not exist")

@@ -16,7 +16,6 @@ import io
 import os
 from pathlib import Path
 
-from .. import __version__
 from ..errors import DependencyError
 from ..mesh import Mesh
 from ._common import GROUP_DATA, cell_groups, meshio_mesh
@@ -68,8 +67,7 @@ def render(mesh: Mesh, name: str) -> tuple[bytes, bytes]:
     buf = io.BytesIO()
     w = _InMemory(os.path.basename(name), m, buf)
     side = bytearray(buf.getvalue())
-    mark = MARK + f"written by deformesh {__version__}\n".encode()
-    side[: len(mark)] = mark
+    side[: len(MARK)] = MARK
     return w.xml, bytes(side)
 
 

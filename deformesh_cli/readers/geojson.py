@@ -18,6 +18,7 @@ import numpy as np
 
 from ..contour import Contour, make_contour
 from ..errors import InputError
+from ..files import parse_json
 
 #: GeoJSON nests geometries at most this deep (a GeometryCollection in a Feature ...).
 MAX_DEPTH = 32
@@ -32,7 +33,7 @@ _MEMBERS = {
 def read_geojson(data: bytes, source: str) -> Contour:
     """A GeoJSON file's bytes as a :class:`Contour` (see the module docstring)."""
     try:
-        doc = json.loads(data.decode("utf-8-sig"))
+        doc = parse_json(data.decode("utf-8-sig"))
     except UnicodeDecodeError as exc:
         raise InputError(f"{source}: not UTF-8 text (byte {exc.start}); expected GeoJSON") from None
     except json.JSONDecodeError as exc:

@@ -367,6 +367,12 @@ def _lay(points, s, box, growth, max_h, box_given, max_nodes, roots, field) -> Q
     xmin, ymin, xmax, ymax = box
     w, h = xmax - xmin, ymax - ymin
     nx, ny, top, h0 = root_cells(w, h, float(s.min()), max_h, exact=box_given, roots=roots)
+    if max(nx, ny) * 2**top > MAX_CELLS_ACROSS:
+        raise LimitError(
+            f"its finest cells ({float(s.min()):.3g}) are over {MAX_CELLS_ACROSS:.3g} times "
+            f"smaller than the box ({max(w, h):.3g}): a grid cannot hold both scales in "
+            "double precision; mesh its small part and its large one apart"
+        )
     if box_given:
         hx, hy = w / (nx * 2**top), h / (ny * 2**top)
         x0, y0 = xmin, ymin
@@ -382,6 +388,10 @@ def _lay(points, s, box, growth, max_h, box_given, max_nodes, roots, field) -> Q
     tree = refine(tree, points, s, growth, max_nodes, field)
     return balance(tree)
 
+
+#: The most finest cells across the box: cell and lattice keys (``Quadtree._keys``,
+#: ``Layout.key``) are whole numbers below 2**63 for at most 28 levels of 2**28 cells.
+MAX_CELLS_ACROSS = 2**28
 
 #: Root cells along the box's shorter side: at least this many, so that the finest
 #: cell can be sized to within ``1 / (2 * ROOTS)`` of the smallest local size.
