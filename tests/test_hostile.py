@@ -41,6 +41,10 @@ CASES = {
         SVG.format('<path transform="scale(1e300)" d="M 1 1 L 5 1 L 5 5 Z"/>').encode(),
         "beyond 1e\\+150",
     ),
+    "curve-1e308.svg": (
+        SVG.format('<path d="M 1 1 C 1e308 1 5 5 5 1 Q 3 -1e308 1 1 Z"/>').encode(),
+        "beyond 1e\\+150",
+    ),
     "html.svg": (b"<html><body><p>a page</p></body></html>", "root element is <html>"),
     "truncated.svgz": (
         gzip.compress(SVG.format('<path d="M 1 1 L 5 1 L 5 5 Z"/>').encode())[:30],

@@ -26,7 +26,7 @@ import numpy as np
 import shapely
 import svgelements as se
 
-from ..contour import Contour, check_scale, make_contour
+from ..contour import MAX_COORDINATE, Contour, check_scale, make_contour
 from ..errors import InputError, OptionError, printable
 from ..geometry import signed_area
 
@@ -106,7 +106,14 @@ def parse_svg(
         what = f"<{root.group(1).decode('ascii', 'replace')}>" if root else "not <svg>"
         raise InputError(f"{source}: not an SVG document: its root element is {what}")
     shapes = _pick_shapes(svg, source, element_id, _stroked if stroke else _filled)
-    boxes = np.array([s.bbox() for s in shapes if s.bbox() is not None], dtype=float)
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        boxes = np.array([s.bbox() for s in shapes if s.bbox() is not None], dtype=float)
+    if not (np.abs(boxes) <= MAX_COORDINATE).all():  # (NaN fails the test too)
+        raise InputError(
+            f"{source}: a shape reaches beyond {MAX_COORDINATE:g}: areas and grid sizes "
+            "would overflow in double precision; scale the drawing down"
+        )
     if len(boxes) == 0:
         raise InputError(f"{source}: the SVG's shapes are empty")
     diag = math.hypot(boxes[:, 2].max() - boxes[:, 0].min(), boxes[:, 3].max() - boxes[:, 1].min())
@@ -433,12 +440,28 @@ def _subpaths(path, tol: float, where: str = "") -> list[tuple[np.ndarray, bool]
             closed[-1] = True
             cur = None
             continue
+        _check_points(seg, where)
         n = _pieces(seg, tol)
         if n > 1:
             t = np.arange(1, n) / n
             cur.extend(map(tuple, np.asarray(seg.npoint(t), dtype=float)))
         cur.append((seg.end.x, seg.end.y))
     return [(np.array(p, dtype=float), c) for p, c in zip(out, closed)]
+
+
+def _check_points(seg, where: str) -> None:
+    """Refuse a segment whose points (ends, control points, radii) reach beyond
+    :data:`MAX_COORDINATE`: flattening it would overflow."""
+    names = ("start", "end", "control", "control1", "control2")
+    qs = [q for q in (getattr(seg, k, None) for k in names) if q is not None]
+    values = [v for q in qs for v in (q.x, q.y)]
+    if isinstance(seg, se.Arc):
+        values += [float(seg.rx), float(seg.ry)]
+    if not all(abs(float(v)) <= MAX_COORDINATE for v in values):
+        raise InputError(
+            f"{where}: a point of its path data is beyond {MAX_COORDINATE:g}: flattening "
+            "would overflow in double precision; scale the drawing down"
+        )
 
 
 def _pieces(seg, tol: float) -> int:
@@ -461,6 +484,8 @@ def _pieces(seg, tol: float) -> int:
     else:  # straight line
         return 1
     n = span * math.sqrt(second / (8 * tol)) if second > 0 else 1
+    if not math.isfinite(n):  # (coordinates near overflow: refused once flattened)
+        return 1
     return int(min(MAX_PIECES, max(1, math.ceil(n))))
 
 
