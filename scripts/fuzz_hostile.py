@@ -145,11 +145,11 @@ def _mutate_state(data: bytes, rng: random.Random) -> bytes:
                 a = a.copy()
                 k = rng.randrange(a.size)
                 flat = a.reshape(-1)
-                flat[k] = (
-                    rng.choice([0, -1, 1, 2**31, 255])
-                    if a.dtype.kind in "iu"
-                    else (rng.choice([np.nan, np.inf, 1e300, -1e300, 0.0, 1e-300]))
-                )
+                if a.dtype.kind in "iu":  # (wrapped to the array's integer type)
+                    value = np.array(rng.choice([0, -1, 1, 2**31, 255])).astype(a.dtype)
+                else:
+                    value = rng.choice([np.nan, np.inf, 1e300, -1e300, 0.0, 1e-300])
+                flat[k] = value
             elif kind == "dtype":
                 a = a.astype(rng.choice([np.float32, np.int8, np.complex128, bool, np.uint64]))
             else:
