@@ -8,8 +8,11 @@ import time
 
 import pytest
 
+from .conftest import SAMPLES
+
 pytestmark = pytest.mark.filterwarnings("error")  # (no numpy warning may leak either)
 
+CIRCLE = SAMPLES / "circle.csv"
 SVG = '<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">{}</svg>'
 
 
@@ -143,4 +146,25 @@ def test_a_device_is_refused_not_read_forever(run, tmp_path, args):
     assert time.perf_counter() - t < 30
     assert r.exit_code == 1, r.stderr
     assert r.stderr == f"deformesh: error: {args[1]}: is a character device, not a file\n"
+    assert list(out.iterdir()) == []
+
+
+@pytest.mark.parametrize("kind", ["structured", "complex", "object-free bytes"])
+def test_a_size_field_of_anything_but_real_numbers_is_one_line(run, tmp_path, kind):
+    import numpy as np
+
+    rows = np.array([[x, y, 1.0] for x in (-2.0, 2.0) for y in (-2.0, 2.0)])
+    f = tmp_path / "f.npy"
+    if kind == "structured":
+        np.save(f, rows.view([("x", "f8"), ("y", "f8"), ("f", "f8")]).ravel())
+    elif kind == "complex":
+        np.save(f, rows.astype(complex))
+    else:
+        np.save(f, np.array([b"1,2,3"] * 4))
+    out = tmp_path / "out"
+    out.mkdir()
+    r = run("all", CIRCLE, "-o", out / "m.vtk", "--size-field", f)
+    assert r.exit_code == 1, r.stderr
+    assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert r.stderr.startswith(f"deformesh: error: {f}: a size field holds real numbers")
     assert list(out.iterdir()) == []
