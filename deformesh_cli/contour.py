@@ -20,7 +20,7 @@ import numpy as np
 import shapely
 from numpy.typing import ArrayLike
 
-from .errors import InputError, OptionError
+from .errors import InputError, LimitError, OptionError
 from .geometry import next_on_ring, signed_area
 
 
@@ -429,3 +429,41 @@ def resample(contour: Contour, spacing: float) -> Contour:
         depth=c.depth,
         ring_labels=c.ring_labels,
     )
+
+
+def split_edges(c: Contour, h: float, max_points: int | None = None) -> tuple[Contour, np.ndarray]:
+    """``c`` with every edge longer than ``h`` split into equal pieces (``ceil(L / h)``
+    of them), and where each given point is in it: ``(fine, given)``, point ``k`` of
+    ``c`` being point ``given[k]`` of ``fine``.  The given points keep their exact
+    coordinates and order; the added ones lie on their edge (rounded to the nearest
+    double) and carry its first point's source line.  Raises :class:`LimitError` past
+    ``max_points``."""
+    p = c.points
+    nxt = np.arange(len(p)) + 1
+    ends = np.asarray(c.starts[1:]) - 1
+    nxt[ends] = np.asarray(c.starts[:-1])  # (each ring's last point goes to its first)
+    length = np.hypot(*(p[nxt] - p).T)
+    pieces = np.maximum(1, np.ceil(length / h)).astype(np.int64)
+    total = int(pieces.sum())
+    if max_points is not None and total > max_points:
+        raise LimitError(
+            f"{c.source}: --max-h {h:g} splits the contour into {total:,} boundary nodes, "
+            f"over --max-nodes {max_points:,}"
+        )
+    given = np.cumsum(pieces) - pieces
+    edge = np.repeat(np.arange(len(p)), pieces)
+    t = (np.arange(total) - given[edge]) / pieces[edge]
+    fine = p[edge] + t[:, None] * (p[nxt] - p)[edge]
+    fine[given] = p  # (bit for bit)
+    starts = [int(given[s]) for s in c.starts[:-1]] + [total]
+    out = Contour(
+        fine,
+        c.lines[edge],
+        c.source,
+        notes=c.notes,
+        starts=tuple(starts),
+        ring_clockwise=c.ring_clockwise,
+        depth=c.depth,
+        ring_labels=c.ring_labels,
+    )
+    return out, given

@@ -142,7 +142,9 @@ class MeshOptions:
     )
     max_h: float | None = _opt(
         None,
-        "Graded grid: the largest cell. Default: as large as the box allows.",
+        "Largest mesh size: contour edges longer than H are split into equal pieces "
+        "(new boundary nodes after the given points) and no grid cell is larger. "
+        "Default: the given points are the boundary; cells as large as the box allows.",
         "positive",
         metavar="H",
     )

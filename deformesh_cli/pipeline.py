@@ -17,7 +17,7 @@ from . import deform as _deform
 from . import improve as _improve
 from . import merge as _merge
 from . import size as _size
-from .contour import Contour
+from .contour import Contour, split_edges
 from .deform import SOLVES, DeformStats
 from .errors import (
     ContractError,
@@ -645,7 +645,79 @@ def mesh_contour(
     ``options`` (default: :class:`~.options.MeshOptions`' defaults) with
     ``changes`` (its field names: ``mesh_contour(c, exterior=True)``);
     ``callback(done, stats)`` follows the deformation; ``size_function`` replaces
-    the options' ``size`` and ``size_field``.
+    the options' ``size`` and ``size_field``.  With ``max_h``, the contour's edges
+    longer than it are split first (:func:`split`), and the mesh numbers the given
+    points first (:func:`given_first`).
+    """
+    o = _options(options, changes)
+    fine, given = split(contour, o)
+    res = _mesh_contour(fine, o, callback=callback, size_function=size_function)
+    if given is None:
+        return res
+    sel = res.selection
+    box = sel.grid.box if sel.exterior else None
+    mesh, report = given_first(res.mesh, res.report, contour, fine, given, box)
+    return MeshResult(mesh, sel, res.deform_stats, report)
+
+
+def split(contour: Contour, o: MeshOptions) -> tuple[Contour, np.ndarray | None]:
+    """The contour the grid is laid for: ``contour`` itself, or with ``--max-h`` its
+    edges longer than ``max_h`` split into equal pieces (:func:`.contour.split_edges`),
+    and where its given points are in that one (None without a split)."""
+    if o.max_h is None:
+        return contour, None
+    fine, given = split_edges(contour, o.max_h, o.max_nodes)
+    return (contour, None) if fine.n == contour.n else (fine, given)
+
+
+def given_first(
+    mesh: Mesh, report: dict, contour: Contour, fine: Contour, given: np.ndarray, box
+) -> tuple[Mesh, dict]:
+    """A mesh of ``fine`` (``contour`` with edges split) renumbered as the contract wants
+    for ``contour``: its given points are nodes ``0 .. m-1``, then every other boundary
+    node on the rings (the split points and any extra node) in boundary order, then the
+    rest as they were; checked against ``contour``.  The report counts the split
+    points as extra boundary nodes (``split_nodes`` of them)."""
+    m, big = contour.n, fine.n + mesh.n_extra
+    first = np.full(mesh.n_nodes, -1, dtype=np.int64)
+    first[given] = np.arange(m)
+    walk = mesh.lines[:, 0]
+    on_ring = walk[(walk < big) & (first[walk] < 0)]
+    _, at = np.unique(on_ring, return_index=True)
+    extra = on_ring[np.sort(at)]  # (in boundary order)
+    perm = np.concatenate([given, extra, np.arange(big, mesh.n_nodes)])
+    inv = np.empty_like(perm)
+    inv[perm] = np.arange(len(perm))
+    out = Mesh(
+        mesh.points[perm],
+        inv[mesh.triangles],
+        inv[mesh.lines],
+        n_contour=m,
+        n_extra=len(extra),
+        line_group=mesh.line_group,
+        groups=mesh.groups,
+        n_box=mesh.n_box,
+        point_data={k: v[perm] for k, v in mesh.point_data.items()},
+    )
+    quality.check_contract(out, contour, box)
+    added = fine.n - m
+    report = {**report, "extra_boundary_nodes": len(extra), "split_nodes": added}
+    report["notes"] = [
+        *report.get("notes", []),
+        f"--max-h split the contour's edges longer than it: {added} boundary nodes added "
+        f"(nodes {m} to {m + added - 1}, after the given points)",
+    ]
+    return out, report
+
+
+def _mesh_contour(
+    contour: Contour,
+    o: MeshOptions,
+    *,
+    callback: Callback | None = None,
+    size_function: SizeFunction | None = None,
+) -> MeshResult:
+    """:func:`mesh_contour` on the contour as the grid is laid for it.
 
     On an adapted grid, a rung whose deformation folds, or whose mesh has an
     angle under :data:`MIN_ADAPTED_ANGLE`, gives way to the next one (the
@@ -656,7 +728,6 @@ def mesh_contour(
     (:func:`_fill_lost`), the later meshes skip them.  The result meets the
     contract or this raises.
     """
-    o = _options(options, changes)
     size = size_function
     if size is None:
         size = _size.make(o.size, o.size_field, contour)

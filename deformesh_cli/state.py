@@ -20,8 +20,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import __version__
-from .contour import MAX_COORDINATE, Contour, make_contour
-from .errors import InputError, OptionError, WriteError, printable
+from .contour import MAX_COORDINATE, Contour, make_contour, split_edges
+from .errors import InputError, LimitError, OptionError, WriteError, printable
 from .expression import Expression
 from .files import parse_json
 from .options import MeshOptions
@@ -60,6 +60,15 @@ class State:
     options: dict = field(default_factory=dict)
     #: the rows ``x, y, f`` of the size field given to ``select`` or ``deform``, or None
     size_field: np.ndarray | None = None
+    #: with ``--max-h``: the contour with its long edges split, which the grid is laid
+    #: for, and where the given points are in it (:func:`.contour.split_edges`); else None
+    fine: Contour | None = None
+    given: np.ndarray | None = None
+
+    @property
+    def grid_contour(self) -> Contour:
+        """The contour the selection's path carries: :attr:`fine`, or the contour."""
+        return self.contour if self.fine is None else self.fine
 
 
 def dumps(state: State) -> bytes:
@@ -397,7 +406,17 @@ def _parse(zf: zipfile.ZipFile, meta: dict, stage: str) -> State:
         "path_slide": a.get("path_slide"),
     }
     sel = (GradedSelection if graded else Selection)(**fields)
-    _check_path(contour, sel, a)
+    fine, given = contour, None
+    if options.get("max_h") is not None:  # the grid was laid for the split contour
+        try:
+            fine, given = split_edges(contour, options["max_h"], len(fields["path_nodes"]))
+        except LimitError:
+            raise _Damaged(
+                "options.max_h splits the contour into more points than the path has"
+            ) from None
+        if fine.n == contour.n:
+            fine, given = contour, None
+    _check_path(fine, sel, a)
     points = a.get("points")
     if points is not None and not graded:
         _check_unfolded(sel, points)
@@ -410,6 +429,7 @@ def _parse(zf: zipfile.ZipFile, meta: dict, stage: str) -> State:
     return State(
         stage, contour, sel, None if points is None else points.astype(float), options,
         None if field_rows is None else field_rows.astype(np.float64),
+        None if given is None else fine, given,
     )  # fmt: skip
 
 

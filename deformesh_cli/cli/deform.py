@@ -43,7 +43,7 @@ def command(state_in: str, output: str, quiet: bool, **kwargs) -> None:
     try:
         with steps_bar(quiet) as progress:
             d = pipeline.run_deform(
-                st.contour,
+                st.grid_contour,
                 st.selection,
                 o.replace(size_field=None),
                 callback=progress,
@@ -56,6 +56,7 @@ def command(state_in: str, output: str, quiet: bool, **kwargs) -> None:
     options = {**st.options, **o.stage("deform"), "size_field": None}
     rows = None if size is None else size.rows
     out = state.State("deformed", st.contour, st.selection, d.points, options, rows)
+    out.fine, out.given = st.fine, st.given
     files.write_bytes(state.dumps(out), output)
     say(
         quiet,
