@@ -653,11 +653,44 @@ def mesh_contour(
     fine, given = split(contour, o)
     res = _mesh_contour(fine, o, callback=callback, size_function=size_function)
     if given is None:
+        note = forced_note(res.mesh, res.report) if o.max_h is None else None
+        if note is not None:
+            res.report["notes"] = [*res.report.get("notes", []), note]
         return res
     sel = res.selection
     box = sel.grid.box if sel.exterior else None
     mesh, report = given_first(res.mesh, res.report, contour, fine, given, box)
     return MeshResult(mesh, sel, res.deform_stats, report)
+
+
+#: A mesh whose smallest angle is under this (degrees) gets a note: what its boundary
+#: nodes force, and the ``--max-h`` that lifts it where long edges force it.
+NOTE_BELOW = 10.0
+
+
+def forced_note(mesh: Mesh, report: dict) -> str | None:
+    """Where the smallest angle is under :data:`NOTE_BELOW`: the note naming what the
+    given points force (the report's ``forced_angle``) and, where an edge forces an
+    angle under 30 degrees for want of room beside it (not a corner: its forced angle
+    is under its corners'), the ``--max-h`` that lifts it: the room beside the
+    tightest such edge, ``(L / 2) tan F``, so that its pieces have an isosceles of
+    45 degrees in the domain."""
+    if report["min_angle"] >= NOTE_BELOW:
+        return None
+    pts, lines = mesh.points, mesh.lines
+    f = forced.edge_angles(pts, lines, forced.mesh_domain(pts, lines))
+    _, corner = forced.corner_angles(pts, lines)
+    at_corner = np.minimum(corner[lines[:, 0]], corner[lines[:, 1]])
+    length = np.hypot(*(pts[lines[:, 1]] - pts[lines[:, 0]]).T)
+    roomy = (f < 30) & (f < np.minimum(at_corner, 60) - 1e-6)
+    bound = report.get("forced_angle")
+    what = f"the smallest angle is {report['min_angle']:.1f} deg"
+    if bound is not None:
+        what += f"; no mesh on exactly these boundary nodes has more than {bound:.1f} there"
+    if not roomy.any():
+        return f"{what} (a sharp corner of the contour forces it)"
+    h = float((0.5 * length[roomy] * np.tan(np.radians(f[roomy]))).min())
+    return f"{what}: long edges with little room beside them; --max-h {h:.3g} splits them"
 
 
 def split(contour: Contour, o: MeshOptions) -> tuple[Contour, np.ndarray | None]:

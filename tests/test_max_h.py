@@ -111,3 +111,24 @@ def test_halving_max_h_converges_at_second_order():
         errors.append(np.sqrt(l2.assemble(basis, uh=basis.interpolate(u))))
     rates = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
     assert np.all(np.abs(rates - 2) <= 0.1), rates
+
+
+@pytest.mark.parametrize("shape", [RECTANGLE, L_SHAPE], ids=["10x1", "L"])
+def test_without_max_h_a_note_names_the_forced_angle_and_the_max_h_that_lifts_it(
+    run, tmp_path, shape
+):
+    import re
+
+    given, m, rep = _mesh(run, tmp_path, shape)
+    assert rep["min_angle"] < 10 and rep["contract"] == "ok"
+    assert rep["extra_boundary_nodes"] == 0  # (the given points are the boundary)
+    note = next(n for n in rep["notes"] if "--max-h" in n)
+    assert f"{rep['forced_angle']:.1f} there" in note
+    h = re.search(r"--max-h (\S+) splits them", note).group(1)
+    _, _, lifted = _mesh(run, tmp_path, shape, "--max-h", h)
+    assert lifted["min_angle"] >= 30
+
+
+def test_a_mesh_over_10_degrees_has_no_such_note(run, tmp_path):
+    _, _, rep = _mesh(run, tmp_path, [(0, 0), (1, 0), (1, 1), (0, 1)])
+    assert rep["min_angle"] >= 10 and not any("--max-h" in n for n in rep["notes"])
