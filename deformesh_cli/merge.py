@@ -39,12 +39,12 @@ one triangle there with the corner's whole angle.
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .geometry import node_stars, signed_areas
+from .cavity import best_triangulation, grow, inner_nodes, loop, renumber
+from .geometry import node_stars
 from .mesh import Mesh
 from .quality import measures
 
@@ -141,7 +141,7 @@ def merge_extra_nodes(
     for a, run, b in runs:
         first = cavity = sorted({t for x in run for t in star[x]})
         # inner nodes the cavity holds (all of whose triangles it takes), more as it grows
-        inner = _inner(tri, stars, cavity, on_boundary)
+        inner = inner_nodes(tri, stars, cavity, on_boundary)
         new = None
         for _ in range(GROW + 1):
             if dead[cavity].any():  # shares a triangle with a run merged before: later
@@ -151,7 +151,7 @@ def merge_extra_nodes(
                 break
             # with the cavity's inner neighbours taken out too, the triangle on A-B can
             # reach further from it
-            cavity, inner = _grow(tri, stars, cavity, on_boundary)
+            cavity, inner = grow(tri, stars, cavity, on_boundary, MAX_CAVITY)
             if cavity is None:
                 break
         if new is None and fill:
@@ -175,7 +175,7 @@ def merge_extra_nodes(
         grown = np.concatenate([pts, *new_points])
         mesh = replace(mesh, points=grown)
         gone = np.concatenate([gone, np.zeros(len(grown) - n, dtype=bool)])
-    out = _renumber(mesh, triangles, gone)
+    out = renumber(mesh, triangles, gone)
     if merged < e and passes > 1:  # (runs next to merged ones)
         out, more = merge_extra_nodes(out, passes - 1, thin, fill)
         merged += more.merged
@@ -191,7 +191,7 @@ def _filled(pts, tri, stars, boundary, dead, cavity, a, b, run, base):
     the new points numbered from ``base``; or None."""
     from . import cavity as _cavity
 
-    inner = _inner(tri, stars, cavity, boundary)
+    inner = inner_nodes(tri, stars, cavity, boundary)
     for _ in range(FILL_GROW + 1):
         if cavity is None or dead[cavity].any():
             return None
@@ -202,27 +202,8 @@ def _filled(pts, tri, stars, boundary, dead, cavity, a, b, run, base):
                 inside, local, _ = got
                 index = np.concatenate([np.asarray(ring), base + np.arange(len(inside))])
                 return cavity, inner, index[local], inside
-        cavity, inner = _grow(tri, stars, cavity, boundary, MAX_FILL)
+        cavity, inner = grow(tri, stars, cavity, boundary, MAX_FILL)
     return None
-
-
-def _grow(tri: np.ndarray, stars, cavity: list[int], boundary: np.ndarray, limit=None):
-    """``cavity`` with every triangle touching it, and the inner nodes (not on the
-    ``boundary`` mask) it then holds inside: ``(cavity, inner nodes)``, or ``(None,
-    None)`` past ``limit`` (default :data:`MAX_CAVITY`) triangles."""
-    verts = np.unique(tri[cavity])
-    grown = sorted({t for v in verts.tolist() for t in stars(v)})
-    if len(grown) > (MAX_CAVITY if limit is None else limit):
-        return None, None
-    return grown, _inner(tri, stars, grown, boundary)
-
-
-def _inner(tri: np.ndarray, stars, cavity: list[int], boundary: np.ndarray) -> list[int]:
-    """The nodes of the triangles ``cavity`` that are not on the ``boundary`` mask and
-    have all their triangles in it: re-meshing the cavity takes them out (left in,
-    they would be corners of no triangle)."""
-    held = set(cavity)
-    return [v for v in np.unique(tri[cavity]).tolist() if not boundary[v] and set(stars(v)) <= held]
 
 
 def _retriangulate(pts, cavity: np.ndarray, a: int, b: int, run: set[int], least=MIN_ANGLE):
@@ -231,7 +212,7 @@ def _retriangulate(pts, cavity: np.ndarray, a: int, b: int, run: set[int], least
     ring = _outline(cavity, a, b, run)
     if ring is None or len(ring) > MAX_CAVITY:
         return None
-    best = _best_triangulation(pts[ring])
+    best = best_triangulation(pts[ring])
     if best is None:
         return None
     local, smallest = best
@@ -272,115 +253,6 @@ def _outline(cavity: np.ndarray, a: int, b: int, run: set[int]) -> list[int] | N
     return ring
 
 
-#: Cavity outlines whose best triangulation is kept for the next time it is asked
-#: for: each merge pass, and each of stage 3's merge ways, asks again for the runs
-#: it could not merge (the largest coastline of the corpus: 3,375 asks for 1,175
-#: outlines, ``benchmarks/MEASURED.md``).
-KEEP_TRIANGULATIONS = 8192
-
-
-def _best_triangulation(p: np.ndarray) -> tuple[np.ndarray, float] | None:
-    """The triangulation of the simple counter-clockwise polygon ``p`` (k, 2) whose
-    smallest angle is largest (dynamic programming over its chords), as ``(triangles
-    in local indices (read-only), smallest angle)``; None if none has positive
-    areas.  A function of ``p``'s coordinates only, so the answers are kept
-    (:data:`KEEP_TRIANGULATIONS`)."""
-    return _best_triangulation_of(np.ascontiguousarray(p, dtype=np.float64).tobytes())
-
-
-@functools.lru_cache(maxsize=KEEP_TRIANGULATIONS)
-def _best_triangulation_of(key: bytes) -> tuple[np.ndarray, float] | None:
-    p = np.frombuffer(key, dtype=np.float64).reshape(-1, 2)
-    k = len(p)
-    if k < 3:
-        return None
-    chord = _chords(p)
-    r = np.arange(k)
-    i, mid, j = np.nonzero((r[:, None, None] < r[None, :, None]) & (r[None, :, None] < r))
-    angle = np.full((k, k, k), -1.0)
-    tri = np.column_stack([i, mid, j])
-    ok = (signed_areas(p, tri) > 0) & chord[i, mid] & chord[mid, j] & chord[i, j]
-    # to 1e-9 degrees: angles equal but for round-off (a grid's right angles, carried
-    # alike) tie exactly, and the first chord wins, wherever the polygon lies
-    angle[i[ok], mid[ok], j[ok]] = np.round(measures(p, tri[ok])[0], 9)
-    best = np.full((k, k), -1.0)
-    pick = np.full((k, k), -1, dtype=np.int64)
-    best[r[:-1], r[1:]] = 180.0
-    for span in range(2, k):  # every (i, i + span) at once: each reads shorter spans only
-        i = r[: k - span, None]
-        j = i + span
-        ms = i + 1 + r[None, : span - 1]
-        val = np.minimum(np.minimum(angle[i, ms, j], best[i, ms]), best[ms, j])
-        at = np.argmax(val, axis=1)
-        row = r[: k - span]
-        top = val[row, at]
-        good = top > 0
-        best[row[good], row[good] + span] = top[good]
-        pick[row[good], row[good] + span] = ms[row, at][good]
-    if best[0, k - 1] <= 0:
-        return None
-    out, todo = [], [(0, k - 1)]
-    while todo:
-        i, j = todo.pop()
-        if j - i < 2:
-            continue
-        m = int(pick[i, j])
-        out.append((i, m, j))
-        todo += [(i, m), (m, j)]
-    local = np.array(out, dtype=np.int64)
-    local.flags.writeable = False  # (kept, and handed out again)
-    return local, float(best[0, k - 1])
-
-
-def _chords(p: np.ndarray) -> np.ndarray:
-    """``chord[i, j]``: the segment ``p[i] - p[j]`` lies inside the polygon ``p`` (its
-    sides count)."""
-    import shapely
-
-    k = len(p)
-    poly = shapely.Polygon(p)
-    ok = np.zeros((k, k), dtype=bool)
-    idx = np.arange(k)
-    ok[idx, (idx + 1) % k] = ok[(idx + 1) % k, idx] = True
-    pairs = [(i, j) for i in range(k) for j in range(i + 2, k) if not (i == 0 and j == k - 1)]
-    if pairs:
-        ij = np.array(pairs)
-        lines = shapely.linestrings(np.stack([p[ij[:, 0]], p[ij[:, 1]]], axis=1))
-        inside = shapely.covers(poly, lines)
-        # and not along the boundary: a chord through another vertex is not a chord (its
-        # interior meets the boundary; a DE-9IM test, without building the intersection)
-        clean = shapely.relate_pattern(lines, shapely.boundary(poly), "F********")
-        good = inside & clean & shapely.contains_xy(poly, *(0.5 * (p[ij[:, 0]] + p[ij[:, 1]])).T)
-        ok[ij[good, 0], ij[good, 1]] = ok[ij[good, 1], ij[good, 0]] = True
-    return ok
-
-
-def _renumber(mesh: Mesh, tri: np.ndarray, gone: np.ndarray) -> Mesh:
-    """The mesh without the ``gone`` nodes: later nodes move down, boundary edges
-    through a gone node join its neighbours (keeping the first edge's group)."""
-    keep = ~gone
-    new_id = np.cumsum(keep) - 1
-    lines, groups = mesh.lines, mesh.line_group
-    after = np.full(len(gone), -1, dtype=np.int64)
-    after[lines[:, 0]] = lines[:, 1]
-    start = ~gone[lines[:, 0]]
-    ends = lines[start, 1].copy()
-    while gone[ends].any():  # follow the boundary past removed nodes
-        g = gone[ends]
-        ends[g] = after[ends[g]]
-    return Mesh(
-        points=mesh.points[keep],
-        triangles=new_id[tri],
-        lines=np.column_stack([new_id[lines[start, 0]], new_id[ends]]),
-        n_contour=mesh.n_contour,
-        n_extra=mesh.n_extra - int(gone[mesh.n_contour : mesh.n_contour + mesh.n_extra].sum()),
-        line_group=groups[start],
-        groups=mesh.groups,
-        n_box=mesh.n_box,
-        point_data={k: v[keep] for k, v in mesh.point_data.items()},
-    )
-
-
 def clear_sharp_corners(mesh: Mesh) -> tuple[Mesh, int]:
     """``mesh`` with inner nodes taken out of sharp corners where that raises the
     smallest angle there (see the module docstring), renumbered; and how many."""
@@ -406,10 +278,10 @@ def clear_sharp_corners(mesh: Mesh) -> tuple[Mesh, int]:
             cav = sorted(set(around) | set(star(x)))
             if dead[cav].any():
                 continue
-            ring = _loop(tri[cav], {x})
+            ring = loop(tri[cav], {x})
             if ring is None or len(ring) > MAX_CAVITY:
                 continue
-            got = _best_triangulation(pts[ring])
+            got = best_triangulation(pts[ring])
             if got is None or got[1] <= measures(pts, tri[cav])[0].min() + GAIN:
                 continue
             if best is None or got[1] > best[0]:
@@ -421,29 +293,4 @@ def clear_sharp_corners(mesh: Mesh) -> tuple[Mesh, int]:
             added.append(new)
     if not added:
         return mesh, 0
-    return _renumber(mesh, np.concatenate([tri[~dead], *added]), gone), len(added)
-
-
-def _loop(cavity: np.ndarray, inner: set[int]) -> list[int] | None:
-    """The outline of the triangles ``cavity`` counter-clockwise, if it is one simple
-    loop through every node of them but the ``inner`` ones; else None."""
-    edges = [(int(t[k]), int(t[(k + 1) % 3])) for t in cavity for k in range(3)]
-    both = set(edges)
-    after: dict[int, int] = {}
-    for u, v in edges:
-        if (v, u) in both:
-            continue
-        if u in after:
-            return None
-        after[u] = v
-    if not after:  # (every edge paired: triangles folded onto each other)
-        return None
-    start = next(iter(after))
-    ring = [start]
-    while after.get(ring[-1], start) != start:
-        ring.append(after[ring[-1]])
-        if len(ring) > len(after):
-            return None
-    if len(ring) != len(after) or set(cavity.ravel().tolist()) - set(ring) != inner:
-        return None
-    return ring
+    return renumber(mesh, np.concatenate([tri[~dead], *added]), gone), len(added)

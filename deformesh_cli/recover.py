@@ -7,7 +7,7 @@ straight side; without ``c`` the same polygon has the vertices ``a, b`` and the
 chain of ``c``'s other neighbours.  A simple polygon always has a triangulation
 of its own vertices with every triangle counter-clockwise, so the node can
 always be taken out: its triangles are replaced by the triangulation of that
-polygon with the largest smallest angle (:func:`.merge._best_triangulation`),
+polygon with the largest smallest angle (:func:`.cavity.best_triangulation`),
 and the boundary edges ``a c``, ``c b`` by ``a b``.  Nodes are taken out in
 boundary order; once all are out, the mesh's boundary nodes are exactly the
 contour's points.  The cost is one small polygon per extra node.
@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .merge import _best_triangulation, _renumber
+from .cavity import best_triangulation, renumber
 from .mesh import Mesh
 
 
@@ -62,7 +62,7 @@ def recover(mesh: Mesh) -> tuple[Mesh, int]:
             x = link.get(x, -1)
         if x != a or len(ring) < 3:
             continue
-        best = _best_triangulation(pts[ring])
+        best = best_triangulation(pts[ring])
         if best is None:
             continue
         for t in star[c]:
@@ -83,4 +83,4 @@ def recover(mesh: Mesh) -> tuple[Mesh, int]:
     if taken == 0:
         return mesh, 0
     kept = np.array(tri, dtype=np.int64)[np.array(alive)]
-    return _renumber(mesh, kept, gone), taken
+    return renumber(mesh, kept, gone), taken

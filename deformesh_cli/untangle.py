@@ -14,7 +14,7 @@ Each is mended as :mod:`.merge` re-meshes the cavity of an extra node:
    nodes, and a simple polygon where they now are.  Its signed area is the sum
    of the cavity's signed areas, so the mesh's area does not change;
 3. the outline is triangulated again, by the triangulation of its own vertices
-   with the largest smallest angle (:func:`.merge._best_triangulation`), if that
+   with the largest smallest angle (:func:`.cavity.best_triangulation`), if that
    is at least :data:`.merge.THIN_ANGLE` (no new points);
 4. otherwise the cavity grows by the triangles around it, up to :data:`GROW`
    times and :data:`MAX_TRIANGLES` triangles, its outline up to
@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import merge
+from . import cavity, merge
 from .deform import flat_margin
 from .geometry import node_stars, signed_area, signed_areas
 from .mesh import Mesh
@@ -90,9 +90,9 @@ def _mend(mesh: Mesh, t: int) -> Mesh | None:
     boundary[mesh.lines.ravel()] = True
     stars = node_stars(tri)
     cav = sorted({t, *(s for v in tri[t].tolist() if not boundary[v] for s in stars(v))})
-    inner = merge._inner(tri, stars, cav, boundary)
+    inner = cavity.inner_nodes(tri, stars, cav, boundary)
     for _ in range(GROW + 1):
-        ring = merge._loop(tri[cav], set(inner))
+        ring = cavity.loop(tri[cav], set(inner))
         if ring is not None and len(ring) > merge.MAX_CAVITY:
             return None
         local = None if ring is None else _remesh(pts[ring])
@@ -102,8 +102,8 @@ def _mend(mesh: Mesh, t: int) -> Mesh | None:
             gone = np.zeros(len(pts), dtype=bool)
             gone[inner] = True
             new = np.asarray(ring, dtype=np.int64)[local]
-            return merge._renumber(mesh, np.concatenate([tri[~dead], new]), gone)
-        cav, inner = merge._grow(tri, stars, cav, boundary, MAX_TRIANGLES)
+            return cavity.renumber(mesh, np.concatenate([tri[~dead], new]), gone)
+        cav, inner = cavity.grow(tri, stars, cav, boundary, MAX_TRIANGLES)
         if cav is None:
             return None
     return None
@@ -119,7 +119,7 @@ def _remesh(p: np.ndarray) -> np.ndarray | None:
         return None
     if not shapely.Polygon(p).is_valid:
         return None
-    got = merge._best_triangulation(p)
+    got = cavity.best_triangulation(p)
     if got is None or got[1] < merge.THIN_ANGLE:
         return None
     return got[0]

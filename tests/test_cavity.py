@@ -51,12 +51,12 @@ def test_a_long_edge_over_a_shallow_cavity_gets_inner_points_and_a_fair_angle():
     the best triangulation of its own vertices fans the short sides out to the far
     ones (8.1 degrees).  Inner points graded from the short sides more than double
     the smallest angle."""
-    from deformesh_cli.merge import _best_triangulation
+    from deformesh_cli.cavity import best_triangulation
 
     p = long_edge_cavity(8.0, 4.0, 8)
     new, tri, angle = check_fill(p)
     assert len(new) > 0
-    assert angle > 2 * _best_triangulation(p)[1]
+    assert angle > 2 * best_triangulation(p)[1]
 
 
 @settings(max_examples=200)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 
-from deformesh_cli import deadline, mesh_contour
+from deformesh_cli import cavity, deadline, mesh_contour
 from deformesh_cli.contour import make_contour
 from deformesh_cli.errors import FoldError, LimitError, SelectionError
 from deformesh_cli.geometry import signed_area, signed_areas
@@ -99,13 +99,12 @@ def test_a_cavity_grows_to_take_out_the_inner_node_hugging_the_edge():
 
 
 def test_chords_go_through_the_inside_and_touch_no_other_vertex():
-    import deformesh_cli.merge as merge
 
     # a 4 x 2 rectangle with a vertex in the middle of its bottom side, and a notch from
     # the top whose tip (vertex 5) lies on the segment from vertex 0 to vertex 3, a
     # quarter of the way: that segment stays in the polygon, its midpoint inside
     p = np.array([[0, 0], [2, 0], [4, 0], [4, 2], [1.5, 2], [1, 0.5], [0.5, 2], [0, 2]])
-    c = merge._chords(p.astype(float))
+    c = cavity.chords(p.astype(float))
     n = len(p)
     assert (c == c.T).all() and all(c[i, (i + 1) % n] for i in range(n))  # the sides
     assert not c[0, 2]  # along the bottom, through vertex 1
@@ -134,8 +133,6 @@ def test_the_best_triangulation_has_the_largest_smallest_angle_of_all(points):
     (each side of every triangle a side or a chord: a shapely check of its own)."""
     import shapely
 
-    import deformesh_cli.merge as merge
-
     p = np.asarray(points, dtype=float)
     if signed_area(p) < 0:
         p = p[::-1].copy()
@@ -151,7 +148,7 @@ def test_the_best_triangulation_has_the_largest_smallest_angle_of_all(points):
             continue
         angle = measures(p, t)[0].min()
         best = angle if best is None else max(best, angle)
-    got = merge._best_triangulation_of.__wrapped__(np.ascontiguousarray(p).tobytes())
+    got = cavity.best_triangulation_of.__wrapped__(np.ascontiguousarray(p).tobytes())
     if best is None:
         assert got is None
     else:
@@ -160,18 +157,17 @@ def test_the_best_triangulation_has_the_largest_smallest_angle_of_all(points):
 
 
 def test_a_kept_triangulation_is_the_one_computed_afresh():
-    import deformesh_cli.merge as merge
 
     p = np.array([[0, 0], [2, 0], [3, 1], [2, 2], [0.5, 2.5], [-1, 1]], dtype=float)
-    first = merge._best_triangulation(p)
-    assert merge._best_triangulation(p.copy()) is first  # kept: asked again, not solved
-    fresh = merge._best_triangulation_of.__wrapped__(p.tobytes())
+    first = cavity.best_triangulation(p)
+    assert cavity.best_triangulation(p.copy()) is first  # kept: asked again, not solved
+    fresh = cavity.best_triangulation_of.__wrapped__(p.tobytes())
     assert np.array_equal(first[0], fresh[0]) and first[1] == fresh[1]
     with pytest.raises(ValueError):
         first[0][0, 0] = 5  # handed out again: nobody may change it
     moved = p.copy()
     moved[2] = (1, 1)  # another polygon, another answer (a reflex vertex)
-    assert merge._best_triangulation(moved) is not first
+    assert cavity.best_triangulation(moved) is not first
 
 
 def test_nothing_to_do_without_extra_nodes():
