@@ -1,9 +1,11 @@
 """Mesh the real corpus (tests/data/corpus) at default options, as one batch, ``--runs``
 times; write the pass rate and the time per contour into benchmarks/RESULTS.md (section
-"corpus").  Each contour's seconds are its least over the runs, as timeit takes the
-least of its repeats: on these shared machines the same batch took 21 to 33 s within
-an hour, and a contour's time moved by a third between runs; every run's wall time
-and slowest contour are written too.
+"corpus"), each contour next to Triangle ``pq30Y`` on the same points (its triangles and
+smallest angle): how many of our smallest angles are at least Triangle's, and our
+triangles over Triangle's at the median.  Each contour's seconds are its least over the
+runs, as timeit takes the least of its repeats: on these shared machines the same batch
+took 21 to 33 s within an hour, and a contour's time moved by a third between runs;
+every run's wall time and slowest contour are written too.
 
 Usage: python benchmarks/run_corpus.py [--jobs N] [--runs N] [--max-nodes N]   (make bench)
        python benchmarks/run_corpus.py --records FILE --wall SECONDS  (format a run already
@@ -23,6 +25,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from results import heading, write_section
 from run_contours import EXE, ROOT
+from run_graded import triangle_run
 
 CORPUS = ROOT / "tests" / "data" / "corpus"
 
@@ -79,17 +82,33 @@ def main():
             f"{len(bad)} | {statistics.median(ok) if ok else 0:.2f} | "
             f"{max(ok, default=0):.2f} | {max(bad, default=0):.2f} |"
         )
+    peers = {r["input"]: triangle_of(r["input"]) for r in recs}
+    ok = [r for r in recs if r["status"] == "ok" and peers[r["input"]] is not None]
+    wins = sum(r["min_angle"] >= peers[r["input"]]["min_angle"] for r in ok)
+    ratio = [r["triangles"] / peers[r["input"]]["triangles"] for r in ok]
+    clean = sum(r["extra_boundary_nodes"] == 0 for r in ok)
+    fast = sum(r["seconds"] < 1.0 for r in ok)
     lines += [
         "",
-        "| contour | status | seconds | nodes | min angle | reason |",
-        "| --- | --- | ---: | ---: | ---: | --- |",
+        f"Next to Triangle `pq30Y` on the same points, of the {len(ok)} meshed: smallest "
+        f"angle at least Triangle's on {wins} ({100 * wins / max(len(ok), 1):.0f}%); "
+        f"triangles {statistics.median(ratio) if ratio else 0:.2f} times Triangle's at the "
+        f"median; {clean} with no extra boundary node; {fast} under 1 s.",
+        "",
+        "| contour | status | seconds | nodes | triangles | extra | min angle | "
+        "Triangle: triangles | min angle | reason |",
+        "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |",
     ]
     for r in recs:
         why = (r["error"] or "").removeprefix(f"{r['input']}: ")[:110].replace("|", "/")
         angle = f"{r['min_angle']:.1f}" if r["min_angle"] is not None else ""
+        extra = r["extra_boundary_nodes"] if r["extra_boundary_nodes"] is not None else ""
+        t = peers[r["input"]]
+        peer = f"{t['triangles']} | {t['min_angle']:.1f}" if t is not None else " | "
         lines.append(
             f"| {Path(r['input']).name} | {r['status']} | {r['seconds']:.2f} | "
-            f"{r['nodes'] or ''} | {angle} | {why} |"
+            f"{r['nodes'] or ''} | {r['triangles'] or ''} | {extra} | {angle} | {peer} | "
+            f"{why} |"
         )
     write_section("corpus", "\n".join(lines))
     print(
@@ -97,6 +116,18 @@ def main():
         f"{' / '.join(f'{w:.0f}' for w in walls)} s; wrote benchmarks/RESULTS.md",
         file=sys.stderr,
     )
+
+
+def triangle_of(path: str) -> dict | None:
+    """Triangle ``pq30Y`` on the contour file's points (None if deformesh cannot read
+    it: a contour it refuses as invalid)."""
+    from deformesh_cli.errors import DeformeshError
+    from deformesh_cli.readers import load_contour
+
+    try:
+        return triangle_run(load_contour(path))
+    except DeformeshError:
+        return None
 
 
 def run_batch(jobs: int, extra: list[str]) -> tuple[str, float]:

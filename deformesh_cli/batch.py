@@ -36,6 +36,7 @@ RECORD_KEYS = (
     "nodes",
     "triangles",
     "min_angle",
+    "extra_boundary_nodes",
     "contract",
 )
 
@@ -147,6 +148,7 @@ def run_task(task: Task) -> tuple[dict, list[tuple[str, bytes]]]:
             nodes=r["nodes"],
             triangles=r["triangles"],
             min_angle=r["min_angle"],
+            extra_boundary_nodes=r["extra_boundary_nodes"],
             contract=r["contract"],
         )
     except DeformeshError as exc:
