@@ -256,6 +256,7 @@ def test_batch_meshes_the_good_and_reports_every_bad(run, tmp_path):
             "nodes",
             "triangles",
             "min_angle",
+            "extra_boundary_nodes",
             "contract",
         }
         if x["status"] != "ok":
