@@ -91,11 +91,8 @@ def prepare(
     fmt = formats.format_for(f"x.{options.fmt or 'msh'}", None)
     _size.check_options(options.size, options.size_field)
     tasks = make_tasks(expand_inputs(inputs), out_dir, options.replace(fmt=fmt))
-    outputs = [t.output for t in tasks]
-    implied = outputs + [s for out in outputs for s in formats.sidecars(out, fmt)]
-    files.check_outputs([], [t.source for t in tasks] + [options.size_field], implied)
-    for out in outputs:
-        formats.check_sidecars(out, fmt, force)
+    inputs = [t.source for t in tasks] + [options.size_field]
+    formats.check_outputs([t.output for t in tasks], fmt, inputs, typed=False, force=force)
     files.make_folder(out_dir)
     return tasks
 

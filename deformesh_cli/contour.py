@@ -431,20 +431,25 @@ def resample(contour: Contour, spacing: float) -> Contour:
     )
 
 
-def split_edges(c: Contour, h: float, max_points: int | None = None) -> tuple[Contour, np.ndarray]:
+def split_edges(
+    c: Contour, h: float | None, max_points: int | None = None
+) -> tuple[Contour, np.ndarray | None]:
     """``c`` with every edge longer than ``h`` split into equal pieces (``ceil(L / h)``
     of them), and where each given point is in it: ``(fine, given)``, point ``k`` of
-    ``c`` being point ``given[k]`` of ``fine``.  The given points keep their exact
-    coordinates and order; the added ones lie on their edge (rounded to the nearest
-    double) and carry its first point's source line.  Raises :class:`LimitError` past
+    ``c`` being point ``given[k]`` of ``fine``; ``(c, None)`` where nothing is split
+    (``h`` None, or no edge longer).  The given points keep their exact coordinates
+    and order; the added ones lie on their edge (rounded to the nearest double) and
+    carry its first point's source line.  Raises :class:`LimitError` past
     ``max_points``."""
+    if h is None:
+        return c, None
     p = c.points
-    nxt = np.arange(len(p)) + 1
-    ends = np.asarray(c.starts[1:]) - 1
-    nxt[ends] = np.asarray(c.starts[:-1])  # (each ring's last point goes to its first)
+    nxt = next_on_ring(c.ring)
     length = np.hypot(*(p[nxt] - p).T)
     pieces = np.maximum(1, np.ceil(length / h)).astype(np.int64)
     total = int(pieces.sum())
+    if total == len(p):
+        return c, None
     if max_points is not None and total > max_points:
         raise LimitError(
             f"{c.source}: --max-h {h:g} splits the contour into {total:,} boundary nodes, "

@@ -79,11 +79,8 @@ def check_outputs(
     input of the run or the same file as another output; an implied output that is a
     symbolic link (it is created new, never written through a link).  ``-`` is stdin or
     stdout, never a file.  :class:`OptionError` naming both paths."""
-    seen: dict[tuple, str] = {}
-    for path in inputs:
-        if path is not None and path != "-":
-            seen.setdefault(_identity(path), path)
-    n_inputs = len(seen)
+    given = {_identity(p): p for p in reversed(inputs) if p is not None and p != "-"}
+    written: dict[tuple, str] = {}
     for path in implied:
         if os.path.islink(path):
             raise OptionError(
@@ -94,13 +91,12 @@ def check_outputs(
         if path == "-":
             continue
         key = _identity(path)
-        other = seen.get(key)
+        other = given.get(key, written.get(key))
         if other is not None:
-            is_input = list(seen).index(key) < n_inputs
-            what = "an input of this run" if is_input else "another output of this run"
+            what = "an input of this run" if key in given else "another output of this run"
             same = "" if other == path else f" (the same file as {other})"
             raise OptionError(f"{path}: is {what}{same}; refusing to overwrite it")
-        seen[key] = path
+        written[key] = path
 
 
 def check_folder(path: str) -> Path:

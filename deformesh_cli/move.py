@@ -401,25 +401,20 @@ def move_frames(
     for c in contours[1:]:  # a bad frame fails before any work
         check_frame(motion, c)
     width = max(4, len(str(len(frame_paths))))
-    outputs = [
+    frames = [
         os.path.join(out_dir, f"{stem}_{k:0{width}d}.{fmt}") for k in range(len(contours) + 1)
     ]
-    if fmt == "vtu":
-        outputs.append(os.path.join(out_dir, f"{stem}.pvd"))
-    implied = outputs + [
-        s for out in outputs[: len(contours) + 1] for s in formats.sidecars(out, fmt)
-    ]
-    files.check_outputs([], [mesh_path, *frame_paths], implied)
-    for out in outputs:
-        formats.check_sidecars(out, fmt, force)
+    pvd = [os.path.join(out_dir, f"{stem}.pvd")] if fmt == "vtu" else []
+    inputs = [mesh_path, *frame_paths]
+    formats.check_outputs(frames, fmt, inputs, typed=False, others=pvd, force=force)
     files.make_folder(out_dir)
     written: list[tuple[float, str]] = []
     records: list[dict] = []
 
     def write(k, pts, velocity, source, report):
         mesh = frame_mesh(motion, pts, {"velocity": velocity})
-        file = f"{stem}_{k:0{width}d}.{fmt}"
-        formats.write_mesh(mesh, os.path.join(out_dir, file), fmt)
+        file = os.path.basename(frames[k])
+        formats.write_mesh(mesh, frames[k], fmt)
         written.append((k * o.dt, file))
         records.append({"frame": k, "input": source, "output": file, **report})
 
@@ -440,8 +435,8 @@ def move_frames(
             if on_frame is not None:
                 on_frame(k, len(contours), c, records[-1])
     finally:  # the time series of the frames written so far
-        if fmt == "vtu" and written:
-            files.write_bytes(formats.pvd_bytes(written), os.path.join(out_dir, f"{stem}.pvd"))
+        if pvd and written:
+            files.write_bytes(formats.pvd_bytes(written), pvd[0])
     lowest = min(records, key=lambda r: r["min_angle"])
     return {
         "mesh": mesh_path,

@@ -562,6 +562,9 @@ def run_triangulate(
             else np.flatnonzero(quality.measures(mesh.points, mesh.triangles)[0] < 30)
         )
         report["forced_angle"] = forced.weakest_bound(mesh.points, mesh.triangles, mesh.lines, weak)
+    note = forced_note(mesh, report) if o.max_h is None else None
+    if note is not None and note not in sel.notes:  # (the summary's notes are the selection's)
+        sel.notes.append(note)
     if size is not None:
         report["size"] = size.label
         rho = _size.spearman(mesh.points, mesh.triangles, size, exclude=mesh.lines.ravel())
@@ -653,9 +656,6 @@ def mesh_contour(
     fine, given = split(contour, o)
     res = _mesh_contour(fine, o, callback=callback, size_function=size_function)
     if given is None:
-        note = forced_note(res.mesh, res.report) if o.max_h is None else None
-        if note is not None:
-            res.report["notes"] = [*res.report.get("notes", []), note]
         return res
     sel = res.selection
     box = sel.grid.box if sel.exterior else None
@@ -694,13 +694,9 @@ def forced_note(mesh: Mesh, report: dict) -> str | None:
 
 
 def split(contour: Contour, o: MeshOptions) -> tuple[Contour, np.ndarray | None]:
-    """The contour the grid is laid for: ``contour`` itself, or with ``--max-h`` its
-    edges longer than ``max_h`` split into equal pieces (:func:`.contour.split_edges`),
-    and where its given points are in that one (None without a split)."""
-    if o.max_h is None:
-        return contour, None
-    fine, given = split_edges(contour, o.max_h, o.max_nodes)
-    return (contour, None) if fine.n == contour.n else (fine, given)
+    """The contour the grid is laid for, and where its given points are in it:
+    :func:`.contour.split_edges` at ``--max-h``."""
+    return split_edges(contour, o.max_h, o.max_nodes)
 
 
 def given_first(

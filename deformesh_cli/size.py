@@ -179,29 +179,28 @@ def from_rows(rows: np.ndarray, label: str) -> SizeFunction:
     errors): bilinear inside the grid, constant outside."""
     from scipy.interpolate import RegularGridInterpolator
 
-    path = label
     if rows.ndim != 2 or rows.shape[1] != 3 or not 4 <= len(rows) <= MAX_FIELD_ROWS:
         raise InputError(
-            f"{path}: a size field is 4 to {MAX_FIELD_ROWS:,} rows of x, y, f "
+            f"{label}: a size field is 4 to {MAX_FIELD_ROWS:,} rows of x, y, f "
             f"(got shape {rows.shape})"
         )
     if not np.isfinite(rows[:, :2]).all():
-        raise InputError(f"{path}: a size field's x and y must be finite numbers")
+        raise InputError(f"{label}: a size field's x and y must be finite numbers")
     xs, ys = np.unique(rows[:, 0]), np.unique(rows[:, 1])
     if len(xs) * len(ys) != len(rows) or len(xs) < 2 or len(ys) < 2:
         raise InputError(
-            f"{path}: the x, y of a size field must form a regular grid "
+            f"{label}: the x, y of a size field must form a regular grid "
             f"({len(xs)} x values, {len(ys)} y values, {len(rows)} rows)"
         )
     grid = np.full((len(xs), len(ys)), np.nan)
     grid[np.searchsorted(xs, rows[:, 0]), np.searchsorted(ys, rows[:, 1])] = rows[:, 2]
     if np.isnan(grid).any():
-        raise InputError(f"{path}: the size field has repeated or missing grid points")
+        raise InputError(f"{label}: the size field has repeated or missing grid points")
     bad = ~(np.isfinite(grid) & (grid > 0))
     if bad.any():
         i, j = np.argwhere(bad)[0]
         raise InputError(
-            f"{path}: f = {grid[i, j]:g} at ({xs[i]:g}, {ys[j]:g}); it must be finite and > 0"
+            f"{label}: f = {grid[i, j]:g} at ({xs[i]:g}, {ys[j]:g}); it must be finite and > 0"
         )
     interp = RegularGridInterpolator((xs, ys), grid, bounds_error=False, fill_value=None)
 
@@ -209,7 +208,7 @@ def from_rows(rows: np.ndarray, label: str) -> SizeFunction:
         c = np.column_stack([np.clip(q[:, 0], xs[0], xs[-1]), np.clip(q[:, 1], ys[0], ys[-1])])
         return interp(c)
 
-    return SizeFunction(raw, path, rows=rows)
+    return SizeFunction(raw, label, rows=rows)
 
 
 def _header_lines(p: Path) -> int:

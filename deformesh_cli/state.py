@@ -24,6 +24,7 @@ from .contour import MAX_COORDINATE, Contour, make_contour, split_edges
 from .errors import InputError, LimitError, OptionError, WriteError, printable
 from .expression import Expression
 from .files import parse_json
+from .geometry import signed_areas
 from .options import MeshOptions
 from .options import fields as option_fields
 from .select import DEFAULT_MAX_NODES, Grid, Selection
@@ -60,15 +61,25 @@ class State:
     options: dict = field(default_factory=dict)
     #: the rows ``x, y, f`` of the size field given to ``select`` or ``deform``, or None
     size_field: np.ndarray | None = None
-    #: with ``--max-h``: the contour with its long edges split, which the grid is laid
-    #: for, and where the given points are in it (:func:`.contour.split_edges`); else None
-    fine: Contour | None = None
-    given: np.ndarray | None = None
+    #: the contour the grid is laid for (with ``--max-h``, its long edges split), and
+    #: where the given points are in it, or None (:func:`.contour.split_edges`): derived
+    #: from the contour and the recorded ``max_h``
+    grid_contour: Contour = field(init=False)
+    given: np.ndarray | None = field(init=False)
 
-    @property
-    def grid_contour(self) -> Contour:
-        """The contour the selection's path carries: :attr:`fine`, or the contour."""
-        return self.contour if self.fine is None else self.fine
+    def __post_init__(self):
+        self.grid_contour, self.given = split_edges(self.contour, self.options.get("max_h"))
+
+    def size_function(self, name: str):
+        """The size function the state records (a size field's rows, or an expression),
+        or None; its errors name the state file ``name``."""
+        from .size import from_expression
+
+        if self.size_field is not None:
+            return from_rows(self.size_field, f"{name}: its size field")
+        if self.options.get("size") is not None:
+            return from_expression(self.options["size"], self.contour)
+        return None
 
 
 def dumps(state: State) -> bytes:
@@ -406,16 +417,12 @@ def _parse(zf: zipfile.ZipFile, meta: dict, stage: str) -> State:
         "path_slide": a.get("path_slide"),
     }
     sel = (GradedSelection if graded else Selection)(**fields)
-    fine, given = contour, None
-    if options.get("max_h") is not None:  # the grid was laid for the split contour
-        try:
-            fine, given = split_edges(contour, options["max_h"], len(fields["path_nodes"]))
-        except LimitError:
-            raise _Damaged(
-                "options.max_h splits the contour into more points than the path has"
-            ) from None
-        if fine.n == contour.n:
-            fine, given = contour, None
+    try:  # (the grid was laid for the contour split at max_h: bounded by the path)
+        fine, _ = split_edges(contour, options.get("max_h"), len(fields["path_nodes"]))
+    except LimitError:
+        raise _Damaged(
+            "options.max_h splits the contour into more points than the path has"
+        ) from None
     _check_path(fine, sel, a)
     points = a.get("points")
     if points is not None and not graded:
@@ -429,17 +436,13 @@ def _parse(zf: zipfile.ZipFile, meta: dict, stage: str) -> State:
     return State(
         stage, contour, sel, None if points is None else points.astype(float), options,
         None if field_rows is None else field_rows.astype(np.float64),
-        None if given is None else fine, given,
     )  # fmt: skip
 
 
 def _check_unfolded(sel, points: np.ndarray) -> None:
     """A deformed uniform grid's triangles keep their orientation (the deformation
     folds none of them; moved or shuffled points do)."""
-    tri = sel.triangles()
-    a, b, c = points[tri[:, 0]], points[tri[:, 1]], points[tri[:, 2]]
-    with np.errstate(all="ignore"):
-        area = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    area = signed_areas(points, sel.triangles())  # (points checked finite, in the box)
     if not (area > 0).all():
         raise _Damaged(f"points: {int((area <= 0).sum())} of the grid's triangles are folded")
 
@@ -612,13 +615,12 @@ def _graded_grid(g: dict, a: dict) -> GradedGrid:
         level.astype(np.int64), i.astype(np.int64), j.astype(np.int64),
     )  # fmt: skip
     # leaves that cover the box's area and are disjoint tile it: no cell twice, and no
-    # leaf inside another (its ancestors are not leaves)
+    # leaf inside another (no leaf holds a leaf's parent cell)
     keys = np.sort(tree._keys(tree.level, tree.i, tree.j))
     if (np.diff(keys) == 0).any():
         raise _Damaged("the graded grid's leaves do not tile its box (a leaf twice)")
-    for up in range(1, top + 1):
-        has = tree.level + up <= top
-        anc = tree._keys(tree.level[has] + up, tree.i[has] >> up, tree.j[has] >> up)
-        if np.isin(anc, keys).any():
-            raise _Damaged("the graded grid's leaves do not tile its box (nested leaves)")
+    low = tree.level < top
+    up = tree.leaf_index(tree.level[low] + 1, tree.i[low] >> 1, tree.j[low] >> 1)
+    if (up >= 0).any():
+        raise _Damaged("the graded grid's leaves do not tile its box (nested leaves)")
     return GradedGrid(tree, tree.triangulate()[0])

@@ -37,7 +37,9 @@ def test_every_format_module_is_registered():
         if hasattr(module, "FORMAT"):
             defined.add(module.FORMAT.name)
     assert defined == set(FORMATS)
-    assert all(f.description and callable(f.write) for f in FORMATS.values())
+    assert all(
+        f.description and callable(f.render if f.sidecar else f.write) for f in FORMATS.values()
+    )
 
 
 @pytest.mark.parametrize("name", [n for n, f in FORMATS.items() if f.readable])

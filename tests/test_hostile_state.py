@@ -184,6 +184,17 @@ def _with_stream(data: bytes, member: str, head: bytes, size: int) -> bytes:
     return buf.getvalue()
 
 
+def _duplicate_leaf(meta, arrays):
+    """One leaf replaced by a copy of another of the same level: the leaves still add
+    up to the box's area, but one cell is covered twice and another not at all."""
+    lv = arrays["leaf_level"]
+    same = np.flatnonzero(lv == lv[0])
+    k = same[1]
+    for name in ("leaf_i", "leaf_j"):
+        arrays[name] = arrays[name].copy()
+        arrays[name][k] = arrays[name][same[0]]
+
+
 # (stage, grid, mutation); stage "selected" goes to deform, "deformed" to triangulate
 CASES = {
     # arrays of the wrong dtype, shape or kind
@@ -337,22 +348,8 @@ CASES = {
     "size-zero-somewhere": ("selected", "graded", _set("options.size", "x - x")),
     "size-negative-deformed": ("deformed", "graded", _set("options.size", "0 - 2")),
     # a graded grid's leaves that do not tile its box
-    "leaf-duplicated": ("selected", "graded", _arr("leaf_level", lambda a: a)),
+    "leaf-duplicated": ("selected", "graded", _duplicate_leaf),
 }
-
-
-def _duplicate_leaf(meta, arrays):
-    """One leaf replaced by a copy of another of the same level: the leaves still add
-    up to the box's area, but one cell is covered twice and another not at all."""
-    lv = arrays["leaf_level"]
-    same = np.flatnonzero(lv == lv[0])
-    k = same[1]
-    for name in ("leaf_i", "leaf_j"):
-        arrays[name] = arrays[name].copy()
-        arrays[name][k] = arrays[name][same[0]]
-
-
-CASES["leaf-duplicated"] = ("selected", "graded", _duplicate_leaf)
 
 
 @pytest.fixture(scope="module")

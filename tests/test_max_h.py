@@ -37,8 +37,9 @@ def test_split_edges_keeps_the_given_points_and_bounds_every_piece():
         assert np.abs(cross).max(initial=0) < 1e-12
         n = int(np.ceil(np.hypot(*(b - a)) / 0.4))
         assert len(q) == n - 1
-    same, none = split_edges(c, 10.0)
-    assert same.n == c.n and np.array_equal(none, np.arange(c.n))
+    for h in (10.0, None):  # (nothing longer, or no --max-h: the contour itself)
+        fine, given = split_edges(c, h)
+        assert fine is c and given is None
 
 
 def _mesh(run, tmp_path, points, *args):
@@ -124,6 +125,11 @@ def test_without_max_h_a_note_names_the_forced_angle_and_the_max_h_that_lifts_it
     assert rep["extra_boundary_nodes"] == 0  # (the given points are the boundary)
     note = next(n for n in rep["notes"] if "--max-h" in n)
     assert f"{rep['forced_angle']:.1f} there" in note
+    src, s, d = tmp_path / "c.csv", tmp_path / "s.state", tmp_path / "d.state"
+    assert run("select", src, "-o", s, "-q").exit_code == 0
+    assert run("deform", s, "-o", d, "-q").exit_code == 0
+    staged = run("triangulate", d, "-o", tmp_path / "t.vtu", "--json", "-q")
+    assert note in json.loads(staged.stdout)["notes"]  # (the stages say it too)
     h = re.search(r"--max-h (\S+) splits them", note).group(1)
     _, _, lifted = _mesh(run, tmp_path, shape, "--max-h", h)
     assert lifted["min_angle"] >= 30

@@ -178,3 +178,27 @@ def test_readme_speed_numbers_are_the_benchmark_files():
     )
     assert said is not None
     assert said.groups() == (ratio["circle"], ratio["bean"], ratio["naca0012"])
+
+
+def test_limits_corpus_numbers_are_the_benchmark_file():
+    """docs/limits.md's corpus claims (batch time, the comparison with Triangle, the
+    slowest contour) are the numbers ``make bench`` last wrote in RESULTS.md."""
+    results = (ROOT / "benchmarks" / "RESULTS.md").read_text()
+    corpus = results.split("<!-- section:corpus -->")[1].split("<!-- end:corpus -->")[0]
+    wall = re.search(r"contours in (\d+) s wall", corpus).group(1)
+    meshed, wins, ratio, clean, fast = re.search(
+        r"of the (\d+) meshed: smallest angle at least Triangle's on (\d+) \(\d+%\); "
+        r"triangles ([\d.]+) times Triangle's at the median; (\d+) with no extra boundary "
+        r"node; (\d+) under 1 s",
+        corpus,
+    ).groups()
+    slowest = re.search(r"\| all \| \d+ \| \d+ \(\d+%\) \| \d+ \| [\d.]+ \| ([\d.]+) \|", corpus)
+    text = " ".join(DOCS["limits.md"].split())
+    assert f"in {wall} s for the whole batch" in text
+    assert (
+        f"{wins} of the {meshed} have a smallest angle at least Triangle's, with {ratio} "
+        f"times its triangles at the median; {clean} have no extra boundary node"
+    ) in text
+    assert (
+        f"at most {slowest.group(1)} s" in text and f"{fast} of the {meshed} take under 1 s" in text
+    )

@@ -13,7 +13,6 @@ from .options import (
     check_binary_stdout,
     output_option,
     quiet_option,
-    recorded_size,
     say,
     stages,
     steps_bar,
@@ -39,7 +38,7 @@ def command(state_in: str, output: str, quiet: bool, **kwargs) -> None:
     if own:
         del given["size"], given["size_field"]
     o = from_record(MeshOptions, st.options).replace(**given)
-    size = recorded_size(st, name) if own else _size.make(o.size, o.size_field, st.contour)
+    size = st.size_function(name) if own else _size.make(o.size, o.size_field, st.contour)
     try:
         with steps_bar(quiet) as progress:
             d = pipeline.run_deform(
@@ -56,7 +55,6 @@ def command(state_in: str, output: str, quiet: bool, **kwargs) -> None:
     options = {**st.options, **o.stage("deform"), "size_field": None}
     rows = None if size is None else size.rows
     out = state.State("deformed", st.contour, st.selection, d.points, options, rows)
-    out.fine, out.given = st.fine, st.given
     files.write_bytes(state.dumps(out), output)
     say(
         quiet,

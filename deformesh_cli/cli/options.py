@@ -149,18 +149,6 @@ force_option = click.option(
 )
 
 
-def recorded_size(st, name: str):
-    """The size function a state file records (a size field's rows, or an expression),
-    or None; its errors name the state file."""
-    from .. import size
-
-    if st.size_field is not None:
-        return size.from_rows(st.size_field, f"{name}: its size field")
-    if st.options.get("size") is not None:
-        return size.from_expression(st.options["size"], st.contour)
-    return None
-
-
 def say(quiet: bool, msg: str) -> None:
     """A message on stderr, unless ``--quiet``."""
     if not quiet:

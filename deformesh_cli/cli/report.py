@@ -25,9 +25,8 @@ def check_outputs(
     """Before any work: the mesh, its sidecar and the picture are not an input of the run
     nor one another, the sidecar is not a link, nor a file deformesh did not write
     (unless ``force``)."""
-    named = [output] if png is None else [output, png]
-    files.check_outputs(named, inputs, formats.sidecars(output, fmt))
-    formats.check_sidecars(output, fmt, force)
+    others = [] if png is None else [png]
+    formats.check_outputs([output], fmt, inputs, typed=True, others=others, force=force)
 
 
 def finish(

@@ -31,15 +31,12 @@ def command(contour: str, output: str, quiet: bool, **kwargs) -> None:
     files.check_outputs([output], [contour, o.size_field])
     c = load_contour(contour, None, o.decimal, o.tolerance, o.element_id, o.resample, o.stroke)
     size = _size.make(o.size, o.size_field, c)
-    fine, given = pipeline.split(c, o)
-    sel = pipeline.run_select(fine, o, size_function=size)
+    sel = pipeline.run_select(pipeline.split(c, o)[0], o, size_function=size)
     options = {**o.stage("read"), **o.stage("select")}
     if o.size is not None:
         options["size"] = o.size
     rows = None if size is None else size.rows  # (a field's rows, never its path)
     st = state.State("selected", c, sel, options=options, size_field=rows)
-    if given is not None:
-        st.fine, st.given = fine, given
     files.write_bytes(state.dumps(st), output)
     g = sel.grid
     say(

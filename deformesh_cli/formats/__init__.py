@@ -1,7 +1,8 @@
 """Mesh output formats, one module each, behind the registry :data:`FORMATS`.
 
 Adding a format is a module with a ``write(mesh, path, version)`` function
-and a :class:`~.format.Format` named ``FORMAT``, and its line in
+(or, for a format with a sidecar, a ``render`` making both files' bytes) and a
+:class:`~.format.Format` named ``FORMAT``, and its line in
 :data:`_MODULES`.  :func:`write_mesh` is the one way a mesh reaches a file:
 atomically (a failure leaves no file), with a format's sidecar moved into
 place with it, meshio's console chatter kept quiet, and any writer error
@@ -18,6 +19,7 @@ from pathlib import Path
 
 from ..errors import DeformeshError, OptionError, WriteError
 from ..files import atomic_path, check_folder, output_target, write_bytes
+from ..files import check_outputs as check_files
 from ..mesh import Mesh
 from . import gmsh, obj, ply, su2, vtk, vtu, xdmf
 from .format import Format
@@ -43,9 +45,8 @@ __all__ = [
     "format_for",
     "mesh_files",
     "pvd_bytes",
-    "check_sidecars",
+    "check_outputs",
     "read_mesh",
-    "sidecars",
     "write_mesh",
 ]
 
@@ -107,29 +108,42 @@ def mesh_files(
         return [(p.name, p.read_bytes()) for p in [*others, main]]
 
 
-def sidecars(path: str, fmt: str) -> list[str]:
-    """The files besides ``path`` that writing it in ``fmt`` writes (next to the file a
-    symbolic link ``path`` points to)."""
-    form = FORMATS[format_for(path, fmt)]
-    if path == "-" or form.sidecar is None:
-        return []
-    return [str(output_target(path).with_suffix(form.sidecar))]
-
-
-def check_sidecars(path: str, fmt: str, force: bool = False) -> None:
-    """Refuse (:class:`OptionError`) to replace an existing sidecar deformesh did not
-    write, unless ``force``: it has the output's name but may be a user's file."""
-    for side in sidecars(path, fmt):
-        if force or not os.path.lexists(side):
+def check_outputs(
+    meshes: list[str],
+    fmt: str,
+    inputs: list,
+    *,
+    typed: bool,
+    others: list[str] = (),
+    force: bool = False,
+) -> None:
+    """Before any work, what writing the mesh files ``meshes`` in ``fmt`` (and the
+    ``others``: a ``--png``, a ``.pvd``) would lose, refused (:func:`.files.check_outputs`):
+    a file that is one of the run's ``inputs`` or another of its outputs; a symbolic
+    link in place of a file the run names itself (the sidecars, and ``meshes`` and
+    ``others`` unless ``typed``: the user named them, as ``-o``, not a batch); and,
+    unless ``force``, an existing sidecar that does not start with the format's
+    ``sidecar_mark`` (a user's file with the output's name)."""
+    form = FORMATS[format_for(meshes[0], fmt)] if meshes else None
+    side = [] if form is None or form.sidecar is None else [
+        str(output_target(m).with_suffix(form.sidecar)) for m in meshes if m != "-"
+    ]  # fmt: skip
+    written = [*meshes, *others]
+    check_files(written if typed else [], inputs, side if typed else written + side)
+    if force:
+        return
+    mark = form.sidecar_mark if form is not None else b""
+    for path in side:
+        if not os.path.lexists(path):
             continue
         try:
-            with open(side, "rb") as f:
-                head = f.read(len(xdmf.MARK))
+            with open(path, "rb") as f:
+                head = f.read(len(mark))
         except OSError as exc:
-            raise WriteError(f"{side}: cannot read: {exc.strerror}") from None
-        if not xdmf.is_ours(head):
+            raise WriteError(f"{path}: cannot read: {exc.strerror}") from None
+        if not mark or head != mark:  # (a format without a mark: never known as ours)
             raise OptionError(
-                f"{side}: exists and was not written by deformesh; writing {path} would "
+                f"{path}: exists and was not written by deformesh; writing its mesh would "
                 "replace it (--force replaces it)"
             )
 

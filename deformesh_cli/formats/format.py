@@ -20,25 +20,28 @@ class Format:
     ----------
     name : the file extension, lower case (``vtk``).
     description : one line for ``--help`` and the docs.
-    write : the :data:`Writer`.
+    write : the :data:`Writer` of a one-file format, or None.
     boundary_groups : the boundary's named groups (``contour``, ``hole_1``, the box
         sides) survive in the file.
     point_data : per-node arrays (``contour_point``, a moving mesh's ``velocity``) are
         written.
     sidecar : extension of a second file written beside the first (``.h5``), or None.
-    render : for a format with a sidecar, ``render(mesh, file name) -> (file bytes,
-        sidecar bytes)``, both made in memory.
+    render : for a format with a sidecar (instead of ``write``), ``render(mesh, file
+        name) -> (file bytes, sidecar bytes)``, both made in memory.
+    sidecar_mark : the first bytes of every sidecar deformesh writes: an existing
+        sidecar without them is a user's file (replaced only with ``--force``).
     meshio_format : the name meshio reads the file back by, or None if it cannot.
     versions : the file versions ``--msh-version`` offers, the default first.
     """
 
     name: str
     description: str
-    write: Writer
+    write: Writer | None = None
     boundary_groups: bool = False
     point_data: bool = False
     sidecar: str | None = None
     render: Callable[[Mesh, str], tuple[bytes, bytes]] | None = None
+    sidecar_mark: bytes = b""
     meshio_format: str | None = None
     versions: tuple[str, ...] = field(default=())
 

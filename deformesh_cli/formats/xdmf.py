@@ -7,7 +7,7 @@ Both files are made in memory (:func:`render`), never in a temporary folder:
 h5py, closing a file on a full disk, reports the error and then crashes the
 process.  The sidecar's HDF5 user block (the 512 bytes HDF5 leaves to the
 application) starts with :data:`MARK`, so a later run can tell a sidecar it
-wrote from a user's file of the same name (:func:`is_ours`).
+wrote from a user's file of the same name.
 """
 
 from __future__ import annotations
@@ -71,24 +71,13 @@ def render(mesh: Mesh, name: str) -> tuple[bytes, bytes]:
     return w.xml, bytes(side)
 
 
-def is_ours(head: bytes) -> bool:
-    """A sidecar's first bytes are those deformesh writes."""
-    return head.startswith(MARK)
-
-
-def write(mesh: Mesh, path: str, version: str | None = None) -> None:
-    xml, side = render(mesh, path)
-    Path(path).with_suffix(".h5").write_bytes(side)
-    Path(path).write_bytes(xml)
-
-
 FORMAT = Format(
     name="xdmf",
     description="XDMF 3 with an HDF5 sidecar (.h5; needs h5py)",
-    write=write,
     boundary_groups=True,
     point_data=True,
     sidecar=".h5",
     render=render,
+    sidecar_mark=MARK,
     meshio_format="xdmf",
 )
