@@ -1,31 +1,62 @@
-"""Boundary recovery: every extra boundary node taken out, one at a time.
+"""Boundary recovery: every extra boundary node taken out, a contour edge at a time.
 
-An extra boundary node ``c`` lies on the contour edge between its two boundary
-neighbours ``a`` and ``b`` (the deformation put it there).  Its triangles form a
-simple polygon, star-shaped from ``c``, with ``a``, ``c`` and ``b`` on one
-straight side; without ``c`` the same polygon has the vertices ``a, b`` and the
-chain of ``c``'s other neighbours.  A simple polygon always has a triangulation
-of its own vertices with every triangle counter-clockwise, so the node can
-always be taken out: its triangles are replaced by the triangulation of that
-polygon with the largest smallest angle (:func:`.cavity.best_triangulation`),
-and the boundary edges ``a c``, ``c b`` by ``a b``.  Nodes are taken out in
-boundary order; once all are out, the mesh's boundary nodes are exactly the
-contour's points.  The cost is one small polygon per extra node.
+The extra boundary nodes ``c1 .. ck`` between two consecutive contour points
+``a`` and ``b`` lie on the segment ``a b`` (the deformation put them there).
+The triangles touching any of them, the *cavity*, cover a polygon with the
+straight side ``a c1 .. ck b``.  When the cavity's outline is one simple loop
+(through every node of it but the ones it surrounds), the polygon without
+``c1 .. ck`` is simple and has the side ``a b``: its constrained Delaunay
+triangulation (:func:`.cavity.delaunay_polygon`, the largest smallest angle
+of any triangulation of its vertices) replaces the cavity, and the boundary
+edges ``a c1 .. ck b`` become ``a b``.  Nodes the cavity surrounds go with it.
+
+When the outline is not simple (the cavity touches itself), the run is halved
+and each half taken in turn; a run of one node always has a simple outline,
+the star of a boundary node, star-shaped from that node.  So every extra node
+can be taken out, each contour edge in one step where its cavity allows, and
+the cost grows with the cavities' sizes, not their squares.  Once all are
+out, the mesh's boundary nodes are exactly the contour's points.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .cavity import best_triangulation, renumber
+from .cavity import delaunay_polygon, renumber
 from .mesh import Mesh
+
+
+def _outline(tris: list[tuple[int, int, int]]) -> tuple[list[int], set[int]] | None:
+    """The outline of the triangles ``tris`` counter-clockwise and the nodes it
+    surrounds, if it is one simple loop; else None."""
+    edges = {(u, v) for t in tris for u, v in ((t[0], t[1]), (t[1], t[2]), (t[2], t[0]))}
+    after: dict[int, int] = {}
+    for u, v in edges:
+        if (v, u) in edges:
+            continue
+        if u in after:
+            return None
+        after[u] = v
+    if not after:
+        return None
+    start = min(after)
+    ring = [start]
+    while after[ring[-1]] != start:
+        ring.append(after[ring[-1]])
+        if len(ring) > len(after):
+            return None
+    if len(ring) != len(after):
+        return None
+    nodes = {v for t in tris for v in t}
+    return ring, nodes - set(ring)
 
 
 def recover(mesh: Mesh) -> tuple[Mesh, int]:
     """``mesh`` with its extra boundary nodes taken out (see the module), and how many.
 
-    A node whose polygon has no counter-clockwise triangulation in floating point
-    (its neighbours collinear to round-off) stays, and the contract check counts it.
+    A run of one node whose polygon has no counter-clockwise triangulation in
+    floating point (its neighbours collinear to round-off) stays, and the
+    contract check counts it.
     """
     m, e = mesh.n_contour, mesh.n_extra
     if e == 0:
@@ -40,47 +71,55 @@ def recover(mesh: Mesh) -> tuple[Mesh, int]:
         star[v].add(t)
         star[w].add(t)
     nxt = np.full(n, -1, dtype=np.int64)
-    prv = np.full(n, -1, dtype=np.int64)
     nxt[mesh.lines[:, 0]] = mesh.lines[:, 1]
-    prv[mesh.lines[:, 1]] = mesh.lines[:, 0]
     gone = np.zeros(n, dtype=bool)
-    for c in range(m, m + e):
-        a, b = int(prv[c]), int(nxt[c])
-        link: dict[int, int] = {}  # c's triangles (c, u, v) counter-clockwise: u -> v
-        for t in star[c]:
-            u, v, w = tri[t]
-            if u == c:
-                link[v] = w
-            elif v == c:
-                link[w] = u
-            else:
-                link[u] = v
-        ring = [a, b]
-        x = link.get(b, -1)
-        while x != a and x >= 0 and len(ring) <= len(link) + 1:
-            ring.append(x)
-            x = link.get(x, -1)
-        if x != a or len(ring) < 3:
-            continue
-        best = best_triangulation(pts[ring])
-        if best is None:
-            continue
-        for t in star[c]:
+    extra = np.zeros(n, dtype=bool)
+    extra[m : m + e] = True
+    # runs of extra nodes, each between two contour points
+    runs = []
+    for a in mesh.lines[~extra[mesh.lines[:, 0]], 0].tolist():
+        run = []
+        x = int(nxt[a])
+        while extra[x]:
+            run.append(x)
+            x = int(nxt[x])
+        if run:
+            runs.append(run)
+
+    def take(run: list[int]) -> None:
+        cav = sorted({t for c in run for t in star[c]})
+        found = _outline([tri[t] for t in cav])
+        ok = None
+        if found is not None:
+            ring, inner = found
+            drop = set(run)
+            poly = [v for v in ring if v not in drop]
+            tris = delaunay_polygon(pts[poly])
+            ok = (poly, inner, tris) if tris is not None else None
+        if ok is None:
+            if len(run) > 1:
+                half = len(run) // 2
+                take(run[:half])
+                take(run[half:])
+            return
+        poly, inner, tris = ok
+        for t in cav:
             alive[t] = False
             for v in tri[t]:
-                if v != c:
-                    star[v].discard(t)
-        star[c] = set()
-        for u, v, w in np.asarray(ring)[best[0]].tolist():
+                star[v].discard(t)
+        for u, v, w in np.asarray(poly)[tris].tolist():
             star[u].add(len(tri))
             star[v].add(len(tri))
             star[w].add(len(tri))
             tri.append((u, v, w))
             alive.append(True)
-        gone[c] = True
-        nxt[a], prv[b] = b, a
-    taken = int(gone.sum())
-    if taken == 0:
+        gone[run] = True
+        gone[list(inner)] = True
+
+    for run in runs:
+        take(run)
+    taken = int(gone[m : m + e].sum())
+    if not gone.any():
         return mesh, 0
     kept = np.array(tri, dtype=np.int64)[np.array(alive)]
     return renumber(mesh, kept, gone), taken

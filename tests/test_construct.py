@@ -97,3 +97,85 @@ def test_a_rectangle_by_its_corners_is_constructed():
     c = make_contour(np.array([[0, 0], [10, 0], [10, 1], [0, 1]], float), source="rect")
     _, mesh = _construct_and_mesh(c)
     assert mesh.n_extra == 0 and len(mesh.lines) == 4
+
+
+def test_recover_halves_a_run_whose_cavity_touches_itself():
+    """Extra nodes c1 c2 c3 on the side a-b of the triangle a b v; the triangles
+    touching them surround one that does not (w1 w2 v), so their outline meets itself
+    at v: the run is taken out in halves, and every extra node still goes."""
+    a, b, v = [0, 0], [4, 0], [2, 3]
+    c1, c2, c3, w1, w2 = [1, 0], [2, 0], [3, 0], [1.5, 1], [2.5, 1]
+    pts = np.array([a, b, v, c1, c2, c3, w1, w2], dtype=float)
+    A, B, V, C1, C2, C3, W1, W2 = range(8)
+    tri = np.array(
+        [
+            [A, C1, V],
+            [C1, W1, V],
+            [C1, C2, W1],
+            [C2, W2, W1],
+            [C2, C3, W2],
+            [W1, W2, V],
+            [W2, C3, V],
+            [C3, B, V],
+        ]
+    )
+    lines = np.array([[A, C1], [C1, C2], [C2, C3], [C3, B], [B, V], [V, A]])
+    mesh, taken = recover(Mesh(pts, tri, lines, n_contour=3, n_extra=3))
+    assert taken == 3 and mesh.n_extra == 0
+    assert sorted(map(tuple, mesh.lines.tolist())) == [(0, 1), (1, 2), (2, 0)]
+    assert (signed_areas(mesh.points, mesh.triangles) > 0).all()
+    assert signed_areas(mesh.points, mesh.triangles).sum() == pytest.approx(6.0)
+
+
+def test_recover_takes_a_long_run_in_one_cavity():
+    """A strip 100 x 1 whose bottom edge carries 999 extra nodes above a row of inner
+    nodes: all go, and the strip's triangles are the constrained Delaunay ones of
+    what is left (the inner row's nodes stay, the area is kept)."""
+    k = 1000
+    x = np.linspace(0, 100, k + 1)
+    bottom = np.column_stack([x, np.zeros_like(x)])
+    top = np.column_stack([x, np.full_like(x, 0.5)])
+    pts = np.vstack([[[0, 0], [100, 0], [100, 1], [0, 1]], bottom[1:-1], top])
+    extra = np.arange(4, 4 + k - 1)
+    row = np.arange(4 + k - 1, 4 + k - 1 + k + 1)
+    chain = np.concatenate([[0], extra, [1]])
+    lower = np.column_stack([chain[:-1], chain[1:], row[1:]])
+    lower2 = np.column_stack([chain[:-1], row[1:], row[:-1]])
+    upper = [[row[-1], 2, 3]] + [[row[i], row[i + 1], 3] for i in range(k)]
+    tri = np.vstack([lower, lower2, upper])
+    lines = np.vstack([np.column_stack([chain[:-1], chain[1:]]), [[1, 2], [2, 3], [3, 0]]])
+    before = Mesh(pts, tri, lines, n_contour=4, n_extra=k - 1)
+    assert (signed_areas(before.points, before.triangles) > 0).all()
+    mesh, taken = recover(before)
+    assert taken == k - 1 and mesh.n_extra == 0 and len(mesh.points) == 4 + k + 1
+    assert (signed_areas(mesh.points, mesh.triangles) > 0).all()
+    assert signed_areas(mesh.points, mesh.triangles).sum() == pytest.approx(100.0)
+
+
+def _star_polygon(rng, k):
+    t = np.sort(rng.uniform(0, 2 * np.pi, k))
+    r = rng.uniform(0.2, 1.0, k)
+    return np.column_stack([r * np.cos(t), r * np.sin(t)])
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_delaunay_polygon_has_the_largest_smallest_angle(seed):
+    """The constrained Delaunay triangulation of a polygon's vertices has the largest
+    smallest angle of all its triangulations: it matches the dynamic programme over
+    every chord, on random star-shaped polygons."""
+    from deformesh_cli.cavity import best_triangulation, delaunay_polygon
+    from deformesh_cli.quality import measures
+
+    rng = np.random.default_rng(seed)
+    p = _star_polygon(rng, int(rng.integers(4, 30)))
+    tri = delaunay_polygon(p)
+    assert tri is not None and len(tri) == len(p) - 2
+    assert (signed_areas(p, tri) > 0).all()
+    assert signed_areas(p, tri).sum() == pytest.approx(_area(p))
+    best = best_triangulation(p)
+    assert measures(p, tri)[0].min() == pytest.approx(best[1], abs=1e-7)
+
+
+def _area(p):
+    x, y = p.T
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))

@@ -139,7 +139,7 @@ def feature_samples(contour: Contour) -> tuple[np.ndarray, np.ndarray, np.ndarra
         qi, si = tree.query(shapely.points(mid), predicate="dwithin", distance=2 * ell)
         c = np.full(len(seg), np.inf)
         x_arc = arc[seg] + tm * length[seg]
-        own = np.column_stack([seg, prv[seg], nxt[seg]])  # (a corner: its points' sizes)
+        own = np.column_stack([seg, seg])  # (an adjacent edge counts where it turned back)
         np.minimum.at(c, qi, _clearance(mid, x_arc, ring[seg], own, qi, si, *geo))
         end_size = np.minimum(
             np.where(t0 == 0, s[seg], np.inf), np.where(t1 == 1, s[nxt[seg]], np.inf)
