@@ -179,3 +179,39 @@ def test_delaunay_polygon_has_the_largest_smallest_angle(seed):
 def _area(p):
     x, y = p.T
     return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+
+
+def test_a_needle_is_one_ear_triangle():
+    """A square with a needle 2 long and 0.04 wide at its base: the needle's tip
+    (1.1 degrees, its base the ear's shortest side, nothing inside) is cut off
+    before the grid is laid and comes back as the one triangle any mesh of these
+    points has there; the contract holds on the whole contour."""
+    pts = np.array([[0, 0], [1, 0], [1, 1], [0.52, 1], [0.5, 3], [0.48, 1], [0, 1]], float)
+    c = make_contour(pts, source="needle")
+    grid_contour, kept, ears = construct.cut_ears(c)
+    assert ears.tolist() == [[3, 4, 5]] and kept.tolist() == [0, 1, 2, 3, 5, 6]
+    assert grid_contour.n == 6
+    sel, mesh = _construct_and_mesh(grid_contour)
+    mesh, _ = improve.improve(construct.restore_ears(mesh, c, kept, ears))
+    check_contract(mesh, c)
+    assert np.array_equal(mesh.points[: c.n], c.points)
+    assert sorted(map(tuple, mesh.lines.tolist())) == [(k, (k + 1) % 7) for k in range(7)]
+    assert (np.sort(mesh.triangles, axis=1) == [3, 4, 5]).all(axis=1).any()
+
+
+@pytest.mark.parametrize(
+    "pts",
+    [
+        [[0, 0], [1, 0], [1, 1], [0, 1]],  # right angles
+        [[0, 0], [10, 0], [0.1, 0.2]],  # a triangle keeps its three points
+        # the sharp corner's ear holds a hole
+        [[0, 0], [2, 0.05], [0, 0.1], [-0.1, 0.1], [-0.1, 0], [1, 0.045], [1, 0.055], [1.1, 0.05]],
+    ],
+)
+def test_ears_that_stay(pts):
+    """No cut where the corner is not sharp, where a ring would drop under three
+    points, or where another point lies in the ear."""
+    starts = [0, 5] if len(pts) == 8 else None
+    c = make_contour(np.array(pts, float), source="x", ring_starts=starts)
+    grid_contour, kept, ears = construct.cut_ears(c)
+    assert len(ears) == 0 and grid_contour is c

@@ -492,3 +492,132 @@ def _assign(contour: Contour, grid: GradedGrid, nxt: np.ndarray, exterior: bool,
     if crowded:
         raise _Crowded(np.unique(np.concatenate(crowded)))
     return tuple(np.concatenate(a) for a in (nodes, targets, rings, sources))
+
+
+#: Corners sharper than this (degrees, on the domain's side) whose ear is empty and
+#: has them as its smallest angle are cut off before the grid is laid.
+EAR_ANGLE = 30.0
+
+
+def _domain_walk(contour: Contour, exterior: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Per point, its next and previous point with the domain on the left."""
+    nxt = next_on_ring(contour.ring)
+    prv = prev_on_ring(contour.ring)
+    # input order is clockwise, or counter-clockwise with the domain on the right
+    flip = np.array(
+        [
+            contour.ring_clockwise[r] != (contour.is_hole(r) != exterior)
+            for r in range(contour.n_rings)
+        ]
+    )[contour.ring]
+    return np.where(flip, prv, nxt), np.where(flip, nxt, prv)
+
+
+def cut_ears(contour: Contour, exterior: bool = False, max_angle: float | None = None):
+    """``(grid contour, kept, ears)``: the contour without the tips of its sharp
+    empty ears, the original indices of the points it keeps, and the ears cut
+    (previous, tip, next; counter-clockwise).
+
+    An ear at point P (previous A, next B, domain on the left) is cut when P's
+    angle on the domain's side is under ``max_angle`` degrees, the chord A B is
+    the ear's shortest side (so P's angle is the ear's smallest: the forced one,
+    since any mesh keeping exactly the contour's points has a triangle at P no
+    better), and no other point lies in the closed triangle A P B (so no contour
+    edge crosses the chord and the ear lies in the domain).  Cuts repeat on the
+    points left (sharpest first) while a ring keeps more than three points.  A
+    needle the cells could follow only by thousands of cells across is one
+    triangle, as in any mesh of those points."""
+    import heapq
+
+    if max_angle is None:
+        max_angle = EAR_ANGLE
+    p = contour.points
+    m = contour.n
+    nxt, prv = _domain_walk(contour, exterior)
+    alive = np.ones(m, dtype=bool)
+    left = np.bincount(contour.ring, minlength=contour.n_rings)
+    tree = shapely.STRtree(shapely.points(p))
+
+    def candidate(k: int) -> float | None:
+        a, b = prv[k], nxt[k]
+        u, v = p[a] - p[k], p[b] - p[k]
+        cross = u[1] * v[0] - u[0] * v[1]  # (b to a, counter-clockwise about k)
+        ang = np.degrees(np.arctan2(cross, u @ v)) % 360.0
+        if not 0.0 < ang < max_angle or left[contour.ring[k]] <= 3:
+            return None
+        base = np.hypot(*(p[a] - p[b]))
+        if base > min(np.hypot(*u), np.hypot(*v)):
+            return None
+        ear = shapely.Polygon(p[[a, k, b]])
+        near = tree.query(ear, predicate="intersects")
+        near = near[alive[near]]
+        if np.isin(near, [a, k, b], invert=True).any():
+            return None
+        return float(ang)
+
+    heap = [(a, k) for k in range(m) if (a := candidate(k)) is not None]
+    heapq.heapify(heap)
+    ears = []
+    while heap:
+        ang, k = heapq.heappop(heap)
+        if not alive[k] or candidate(k) != ang:
+            continue
+        a, b = int(prv[k]), int(nxt[k])
+        ears.append((a, k, b))
+        alive[k] = False
+        left[contour.ring[k]] -= 1
+        nxt[a], prv[b] = b, a
+        for j in (a, b):
+            c = candidate(j)
+            if c is not None:
+                heapq.heappush(heap, (c, j))
+    kept = np.flatnonzero(alive)
+    if len(kept) == m:
+        return contour, kept, np.zeros((0, 3), dtype=np.int64)
+    ring = contour.ring[kept]
+    starts = tuple(np.searchsorted(ring, np.arange(contour.n_rings + 1)).tolist())
+    grid_contour = Contour(
+        p[kept],
+        contour.lines[kept],
+        contour.source,
+        starts=starts,
+        ring_clockwise=contour.ring_clockwise,
+        depth=contour.depth,
+        ring_labels=contour.ring_labels,
+    )
+    return grid_contour, kept, np.array(ears, dtype=np.int64)
+
+
+def restore_ears(mesh, contour: Contour, kept: np.ndarray, ears: np.ndarray, exterior=False):
+    """The mesh of the grid contour (:func:`cut_ears`) with the ears added back: node
+    k is contour point k again, the boundary is the contour's."""
+    from ..mesh import Mesh
+
+    if not len(ears):
+        return mesh
+    mk, m = len(kept), contour.n
+    n = len(mesh.points)
+    new = np.concatenate([kept, m + np.arange(n - mk)])
+    points = np.concatenate([contour.points, mesh.points[mk:]])
+    tri = np.concatenate([new[mesh.triangles], ears])
+    nxt, _ = _domain_walk(contour, exterior)
+    lines, groups = [], []
+    for (u, v), g in zip(new[mesh.lines].tolist(), mesh.line_group.tolist()):
+        if u < m and v < m:
+            while nxt[u] != v:  # (a chord over cut tips: the contour's edges instead)
+                lines.append((u, int(nxt[u])))
+                groups.append(g)
+                u = int(nxt[u])
+        lines.append((u, v))
+        groups.append(g)
+    return Mesh(
+        points=points,
+        triangles=tri,
+        lines=np.array(lines, dtype=np.int64),
+        n_contour=m,
+        n_extra=0,
+        line_group=np.array(groups, dtype=np.int64),
+        groups=mesh.groups,
+        n_box=mesh.n_box,
+        point_data={},
+    )
