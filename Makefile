@@ -48,6 +48,7 @@ bench: $(VENV)/.installed-bench
 	$(BIN)/python benchmarks/run_moving.py --repeat 3
 	$(BIN)/python benchmarks/run_graded.py
 	$(BIN)/python benchmarks/run_random.py
+	$(BIN)/python benchmarks/run_construct.py
 	$(BIN)/python benchmarks/run_circles.py
 
 # only the side-by-side comparison with Triangle and Gmsh (about 25 minutes)

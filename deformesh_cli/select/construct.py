@@ -44,9 +44,11 @@ from .graded_path import GradedGrid, GradedSelection
 #: The ``path_rule`` of a constructed selection (stage 3 takes every extra node out).
 CONSTRUCTED = "graded-loop"
 
-#: Cells next to a contour point measure about this times its size (its shorter edge,
-#: or its distance to the nearest edge not incident to it).
-CELL_FACTOR = 1.0
+#: Cells next to a contour point measure at most this times its size (its shorter
+#: edge, or its distance to another part of the contour): a loop step, a cell's side
+#: or diagonal, is then no longer than the points' spacing, so each point has a loop
+#: node of its own without halving.
+CELL_FACTOR = 2.0**-0.5
 
 #: Cells along an edge measure about this times the clearance there (the distance to
 #: the nearest other part of the contour): the loops of two parts stay apart.
