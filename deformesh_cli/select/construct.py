@@ -361,6 +361,12 @@ def _select_on(contour: Contour, tree: graded.Quadtree, exterior: bool, size) ->
     raise SelectionError(f"{contour.source}: triangles that would flatten still in the region")
 
 
+#: An extra node's place on its contour edge: its projection onto the edge (made
+#: monotone along the loop) blended with this share of its share of the loop's length
+#: between the edge's points, which increases strictly, so the targets keep the loop's
+#: order and a node moves about its distance from the edge.
+SHARE = 0.1
+
 #: Loop nodes a point may take: the nearest this many.
 CANDIDATES = 8
 
@@ -481,9 +487,17 @@ def _assign(contour: Contour, grid: GradedGrid, nxt: np.ndarray, exterior: bool,
         end = np.append(rel[1:], nl)
         k_of = np.repeat(np.arange(m), end - start)  # the edge each loop node lies on
         pos_in = np.arange(nl)
-        frac = (cum[pos_in] - cum[start[k_of]]) / (cum[end[k_of]] - cum[start[k_of]])
+        share = (cum[pos_in] - cum[start[k_of]]) / (cum[end[k_of]] - cum[start[k_of]])
         qa, qb = q[k_of], q[(k_of + 1) % m]
-        tgt = qa + frac[:, None] * (qb - qa)
+        # where the node projects onto its edge, kept in the loop's order along it
+        ab = qb - qa
+        proj = np.einsum("ij,ij->i", xy - qa, ab) / np.einsum("ij,ij->i", ab, ab)
+        proj = np.clip(proj, 0.0, 1.0)
+        proj[start] = 0.0
+        run = np.maximum.accumulate(np.where(pos_in == start[k_of], 0.0, proj) + k_of)
+        proj = run - k_of
+        frac = (1.0 - SHARE) * proj + SHARE * share
+        tgt = qa + frac[:, None] * ab
         src = np.full(nl, -1, dtype=np.int64)
         src[start] = order
         tgt[start] = q
@@ -497,8 +511,17 @@ def _assign(contour: Contour, grid: GradedGrid, nxt: np.ndarray, exterior: bool,
 
 
 #: Corners sharper than this (degrees, on the domain's side) whose ear is empty and
-#: has them as its smallest angle are cut off before the grid is laid.
+#: has no angle under :data:`EAR_SHARE` of theirs are cut off before the grid is laid.
 EAR_ANGLE = 30.0
+
+#: ... where the corner's angle bounds every mesh of these points there: an ear whose
+#: other angles are at least half of it keeps the mesh within half the bound.
+EAR_SHARE = 0.5
+
+
+def _angle_between(u: np.ndarray, v: np.ndarray) -> float:
+    """The angle between the vectors ``u`` and ``v`` (degrees, 0 to 180)."""
+    return float(np.degrees(np.arctan2(abs(u[0] * v[1] - u[1] * v[0]), u @ v)))
 
 
 def _domain_walk(contour: Contour, exterior: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -521,14 +544,14 @@ def cut_ears(contour: Contour, exterior: bool = False, max_angle: float | None =
     (previous, tip, next; counter-clockwise).
 
     An ear at point P (previous A, next B, domain on the left) is cut when P's
-    angle on the domain's side is under ``max_angle`` degrees, the chord A B is
-    the ear's shortest side (so P's angle is the ear's smallest: the forced one,
-    since any mesh keeping exactly the contour's points has a triangle at P no
-    better), and no other point lies in the closed triangle A P B (so no contour
-    edge crosses the chord and the ear lies in the domain).  Cuts repeat on the
-    points left (sharpest first) while a ring keeps more than three points.  A
-    needle the cells could follow only by thousands of cells across is one
-    triangle, as in any mesh of those points."""
+    angle on the domain's side is under ``max_angle`` degrees, the ear's angles at
+    A and B are at least :data:`EAR_SHARE` of it (P's angle bounds every mesh
+    keeping exactly the contour's points: each has a triangle at P no better, so
+    the ear is within that share of the best there), and no other point lies in
+    the closed triangle A P B (so no contour edge crosses the chord and the ear
+    lies in the domain).  Cuts repeat on the points left (sharpest first) while a
+    ring keeps more than three points.  A needle the cells could follow only by
+    thousands of cells across is one triangle, as in any mesh of those points."""
     import heapq
 
     if max_angle is None:
@@ -547,8 +570,12 @@ def cut_ears(contour: Contour, exterior: bool = False, max_angle: float | None =
         ang = np.degrees(np.arctan2(cross, u @ v)) % 360.0
         if not 0.0 < ang < max_angle or left[contour.ring[k]] <= 3:
             return None
-        base = np.hypot(*(p[a] - p[b]))
-        if base > min(np.hypot(*u), np.hypot(*v)):
+        # the ear's angles at a and b
+        rest = [
+            _angle_between(p[k] - p[a], p[b] - p[a]),
+            _angle_between(p[a] - p[b], p[k] - p[b]),
+        ]
+        if min(rest) < EAR_SHARE * ang:
             return None
         ear = shapely.Polygon(p[[a, k, b]])
         near = tree.query(ear, predicate="intersects")
