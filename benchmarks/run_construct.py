@@ -1,17 +1,20 @@
 """The constructed graded selection (``select/construct.py``, not yet the pipeline's)
-on the random set (tests/random_polygons.py): cut the sharp ears, select, deform
+on the random set (tests/random_polygons.py) or the corpus (tests/data/corpus, each
+next to Triangle ``pq30Y`` on the same points): cut the sharp ears, select, deform
 keeping folds, mend them, recover the boundary, add the ears back, run the quality
 stage, check the contract and tests/independent.py.  In process, one case per
 worker with a bound of ``--bound`` seconds each.  Writes the tally, the stage
-times and every case that did not mesh into benchmarks/RESULTS.md (section
-"construct").
+times and every case that did not mesh into benchmarks/RESULTS.md (sections
+"construct" and "construct-corpus").
 
-Usage: python benchmarks/run_construct.py [--count 60] [--jobs 2] [--bound 30]
+Usage: python benchmarks/run_construct.py [--set random|corpus] [--count 60] [--jobs 2]
+       [--bound 30]
 """
 
 import argparse
 import collections
 import signal
+import statistics
 import sys
 import tempfile
 import time
@@ -27,7 +30,7 @@ sys.path.insert(0, str(ROOT))
 STAGES = ("select", "deform", "mend", "recover", "improve")
 
 
-def one(case, bound: float) -> dict:
+def one(case, bound: float, growth: float | None = None) -> dict:
     from deformesh_cli import improve, pipeline, quality, triangulate, untangle
     from deformesh_cli.options import MeshOptions
     from deformesh_cli.readers import load_contour
@@ -36,10 +39,22 @@ def one(case, bound: float) -> dict:
     from tests.independent import contract_problems
     from tests.random_polygons import write_csv
 
-    name, points, ring = case
-    f = Path(tempfile.mkdtemp()) / f"{name}.csv"
-    write_csv(f, points, ring)
-    c = load_contour(f)
+    if isinstance(case, Path):
+        from deformesh_cli.errors import InputError
+
+        f = case
+        name = f.name
+        try:
+            c = load_contour(f)
+        except InputError as exc:  # (the corpus holds two invalid contours)
+            return {"name": name, "n": 0, "outcome": "invalid", "why": str(exc)[-60:],
+                    "times": [], "s": 0.0}  # fmt: skip
+        points, ring = c.points, c.ring
+    else:
+        name, points, ring = case
+        f = Path(tempfile.mkdtemp()) / f"{name}.csv"
+        write_csv(f, points, ring)
+        c = load_contour(f)
 
     def up(*_):
         raise TimeoutError(f"over {bound:g} s")
@@ -50,7 +65,8 @@ def one(case, bound: float) -> dict:
     rec = {"name": name, "n": c.n}
     try:
         grid_contour, kept, ears = construct.cut_ears(c)
-        sel = construct.select_constructed(grid_contour)
+        kw = {} if growth is None else {"growth": growth}
+        sel = construct.select_constructed(grid_contour, **kw)
         t.append(time.perf_counter())
         d = pipeline.run_deform(grid_contour, sel, MeshOptions(), keep_folds=True)
         t.append(time.perf_counter())
@@ -76,6 +92,10 @@ def one(case, bound: float) -> dict:
             triangles=len(mesh.triangles),
             angle=float(quality.measures(mesh.points, mesh.triangles)[0].min()),
         )
+        if isinstance(case, Path):
+            from run_graded import triangle_run
+
+            rec["triangle"] = triangle_run(c)
     except Exception as exc:  # (a benchmark records every outcome)
         why = str(exc).splitlines()[0].replace(f"{f}: ", "")
         rec.update(outcome=type(exc).__name__, why=why[:120])
@@ -88,22 +108,31 @@ def one(case, bound: float) -> dict:
 
 def main():
     ap = argparse.ArgumentParser()
+    ap.add_argument("--set", choices=("random", "corpus"), default="random")
     ap.add_argument("--count", type=int, default=60)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--bound", type=float, default=30.0)
+    ap.add_argument("--growth", type=float, default=None, help="default: deformesh's own")
     args = ap.parse_args()
     from tests.random_polygons import catalogue
 
-    cases = list(catalogue(args.count))
+    if args.set == "corpus":
+        cases = sorted((ROOT / "tests" / "data" / "corpus").glob("*_*.*"))
+        what = "the corpus (tests/data/corpus), each next to Triangle `pq30Y` on its points"
+    else:
+        cases = list(catalogue(args.count))
+        what = f"the first {args.count} polygons of tests/random_polygons.py"
     with ProcessPoolExecutor(args.jobs) as pool:
-        recs = list(pool.map(one, cases, [args.bound] * len(cases)))
+        recs = list(pool.map(one, cases, [args.bound] * len(cases), [args.growth] * len(cases)))
     tally = collections.Counter(r["outcome"] for r in recs)
     ok = [r for r in recs if r["outcome"] == "ok"]
     lines = heading(
-        "## The constructed selection on the random set",
-        f"`python benchmarks/run_construct.py --count {args.count}`: the first "
-        f"{args.count} polygons of tests/random_polygons.py through the construction "
-        f"in process ({args.bound:g} s each at most), not yet what `deformesh all` runs.",
+        f"## The constructed selection on the {args.set} set",
+        f"`python benchmarks/run_construct.py --set {args.set}"
+        + (f" --count {args.count}" if args.set == "random" else "")
+        + (f" --growth {args.growth:g}" if args.growth else "")
+        + f"`: {what} through the construction in process ({args.bound:g} s each at "
+        "most), not yet what `deformesh all` runs.",
     )
     lines += [
         "Outcomes: " + ", ".join(f"{k} {v}" for k, v in sorted(tally.items())) + ".",
@@ -113,12 +142,30 @@ def main():
         total = sorted(r["s"] for r in ok)
         extra = sorted(r["extra"] for r in ok)
         lines += [
-            f"Meshed: median {total[len(total) // 2]:.2f} s, slowest {total[-1]:.2f} s; "
+            f"Meshed: median {total[len(total) // 2]:.2f} s, slowest {total[-1]:.2f} s, "
+            f"{sum(t < 1 for t in total)} under 1 s; "
             f"extra boundary nodes taken out: median {extra[len(extra) // 2]}, "
             f"most {extra[-1]}; {sum(r['ears'] > 0 for r in ok)} had ears cut; "
             f"smallest angle under 1 degree on {sum(r['angle'] < 1 for r in ok)}.",
             "",
         ]
+    if args.set == "corpus" and ok:
+        wins = sum(r["angle"] >= r["triangle"]["min_angle"] - 1e-9 for r in ok)
+        ratio = statistics.median(r["triangles"] / r["triangle"]["triangles"] for r in ok)
+        lines += [
+            f"Smallest angle at least Triangle's on {wins} of {len(ok)}; triangles "
+            f"{ratio:.2f} times Triangle's at the median.",
+            "",
+            "| contour | points | s | triangles | Triangle's | smallest angle | Triangle's |",
+            "|---|---:|---:|---:|---:|---:|---:|",
+        ]
+        for r in ok:
+            t = r["triangle"]
+            lines.append(
+                f"| {r['name']} | {r['n']} | {r['s']:.2f} | {r['triangles']} | "
+                f"{t['triangles']} | {r['angle']:.1f} | {t['min_angle']:.1f} |"
+            )
+        lines.append("")
     lines += ["| polygon | points | outcome | s | stages (s) |", "|---|---|---|---|---|"]
     for r in recs:
         if r["outcome"] == "ok":
@@ -127,7 +174,7 @@ def main():
         lines.append(
             f"| {r['name']} | {r['n']} | {r['outcome']}: {r['why']} | {r['s']:.1f} | {stages} |"
         )
-    write_section("construct", "\n".join(lines))
+    write_section("construct" if args.set == "random" else "construct-corpus", "\n".join(lines))
     print("\n".join(lines))
 
 

@@ -2,20 +2,24 @@
 
 The extra boundary nodes ``c1 .. ck`` between two consecutive contour points
 ``a`` and ``b`` lie on the segment ``a b`` (the deformation put them there).
-The triangles touching any of them, the *cavity*, cover a polygon with the
-straight side ``a c1 .. ck b``.  When the cavity's outline is one simple loop
-(through every node of it but the ones it surrounds), the polygon without
+Their *cavity* is every triangle touching one of them, grown by the star of
+every inner node it reaches that lies in the diametral disk of ``a b`` (such a
+node sees ``a b`` under more than a right angle: it would leave slivers along
+the edge, one per extra node).  When the cavity's outline is one simple loop
+(through every node of it but the inner ones it covers), the polygon without
 ``c1 .. ck`` is simple and has the side ``a b``: its constrained Delaunay
-triangulation (:func:`.cavity.delaunay_polygon`, the largest smallest angle
-of any triangulation of its vertices) replaces the cavity, and the boundary
-edges ``a c1 .. ck b`` become ``a b``.  Nodes the cavity surrounds go with it.
+triangulation (:func:`.cavity.delaunay_polygon`, the largest smallest angle of
+any triangulation of its vertices) replaces the cavity, and the boundary edges
+``a c1 .. ck b`` become ``a b``.  The inner nodes it covers go with it, so the
+triangle on ``a b`` has its apex outside the disk (an angle under 90 degrees
+there) unless a boundary node lies in it.
 
 When the outline is not simple (the cavity touches itself), the run is halved
-and each half taken in turn; a run of one node always has a simple outline,
-the star of a boundary node, star-shaped from that node.  So every extra node
-can be taken out, each contour edge in one step where its cavity allows, and
-the cost grows with the cavities' sizes, not their squares.  Once all are
-out, the mesh's boundary nodes are exactly the contour's points.
+and each half taken in turn; a run of one node whose grown cavity is not simple
+takes its star alone, which is: a boundary node's star is star-shaped from it.  So every
+extra node can be taken out, each contour edge in one step where its cavity
+allows, and the cost grows with the cavities' sizes, not their squares.  Once
+all are out, the mesh's boundary nodes are exactly the contour's points.
 """
 
 from __future__ import annotations
@@ -84,10 +88,26 @@ def recover(mesh: Mesh) -> tuple[Mesh, int]:
             run.append(x)
             x = int(nxt[x])
         if run:
-            runs.append(run)
+            runs.append((a, run, x))
+    boundary = np.zeros(n, dtype=bool)
+    boundary[mesh.lines.ravel()] = True
 
-    def take(run: list[int]) -> None:
-        cav = sorted({t for c in run for t in star[c]})
+    def take(a: int, run: list[int], b: int, grow: bool = True) -> None:
+        cav_set = {t for c in run for t in star[c]}
+        # inner nodes in the diametral disk of a b, reached from the run, go too
+        mid, r2 = 0.5 * (pts[a] + pts[b]), 0.25 * float(((pts[a] - pts[b]) ** 2).sum())
+        seen: set[int] = set()
+        todo = {v for t in cav_set for v in tri[t]} if grow else set()
+        while todo:
+            v = todo.pop()
+            seen.add(v)
+            if boundary[v] or float(((pts[v] - mid) ** 2).sum()) >= r2:
+                continue
+            for t in star[v]:
+                if t not in cav_set:
+                    cav_set.add(t)
+                    todo |= {w for w in tri[t] if w not in seen}
+        cav = sorted(cav_set)
         found = _outline([tri[t] for t in cav])
         ok = None
         if found is not None:
@@ -99,8 +119,10 @@ def recover(mesh: Mesh) -> tuple[Mesh, int]:
         if ok is None:
             if len(run) > 1:
                 half = len(run) // 2
-                take(run[:half])
-                take(run[half:])
+                take(a, run[:half], b)
+                take(a, run[half:], b)
+            elif grow:
+                take(a, run, b, grow=False)  # (its star alone: always simple)
             return
         poly, inner, tris = ok
         for t in cav:
@@ -116,8 +138,8 @@ def recover(mesh: Mesh) -> tuple[Mesh, int]:
         gone[run] = True
         gone[list(inner)] = True
 
-    for run in runs:
-        take(run)
+    for a, run, b in runs:
+        take(a, run, b)
     taken = int(gone[m : m + e].sum())
     if not gone.any():
         return mesh, 0

@@ -32,14 +32,15 @@ def _square_with_extra_nodes(lift: float) -> Mesh:
     return Mesh(pts, tri, lines, n_contour=4, n_extra=2)
 
 
-@pytest.mark.parametrize("lift", [0.5, 0.01])
-def test_recover_takes_every_extra_node_out(lift):
-    """However close the inner nodes hug the edge, every extra node goes (no angle
-    floor): the boundary is the contour's four edges, every triangle counter-clockwise,
-    the area kept."""
+@pytest.mark.parametrize("lift, nodes", [(0.5, 6), (0.01, 4)])
+def test_recover_takes_every_extra_node_out(lift, nodes):
+    """However close the inner nodes hug the edge, every extra node goes: the boundary
+    is the contour's four edges, every triangle counter-clockwise, the area kept.  The
+    inner nodes in the edge's diametral disk go with them (at 0.01), the others stay
+    (at 0.5, 0.53 from the edge's middle)."""
     before = _square_with_extra_nodes(lift)
     mesh, taken = recover(before)
-    assert taken == 2 and mesh.n_extra == 0 and len(mesh.points) == 6
+    assert taken == 2 and mesh.n_extra == 0 and len(mesh.points) == nodes
     assert sorted(map(tuple, mesh.lines.tolist())) == [(0, 1), (1, 2), (2, 3), (3, 0)]
     assert (signed_areas(mesh.points, mesh.triangles) > 0).all()
     assert signed_areas(mesh.points, mesh.triangles).sum() == pytest.approx(1.0)
@@ -128,9 +129,10 @@ def test_recover_halves_a_run_whose_cavity_touches_itself():
 
 
 def test_recover_takes_a_long_run_in_one_cavity():
-    """A strip 100 x 1 whose bottom edge carries 999 extra nodes above a row of inner
-    nodes: all go, and the strip's triangles are the constrained Delaunay ones of
-    what is left (the inner row's nodes stay, the area is kept)."""
+    """A strip 100 x 1 whose bottom edge carries 999 extra nodes under a row of inner
+    nodes: all go in one cavity, and the row with them where it lies in the edge's
+    diametral disk (where a node sees the edge under more than a right angle): all
+    but its two end nodes, over the strip's short sides, just outside the disk."""
     k = 1000
     x = np.linspace(0, 100, k + 1)
     bottom = np.column_stack([x, np.zeros_like(x)])
@@ -147,7 +149,7 @@ def test_recover_takes_a_long_run_in_one_cavity():
     before = Mesh(pts, tri, lines, n_contour=4, n_extra=k - 1)
     assert (signed_areas(before.points, before.triangles) > 0).all()
     mesh, taken = recover(before)
-    assert taken == k - 1 and mesh.n_extra == 0 and len(mesh.points) == 4 + k + 1
+    assert taken == k - 1 and mesh.n_extra == 0 and len(mesh.points) == 6
     assert (signed_areas(mesh.points, mesh.triangles) > 0).all()
     assert signed_areas(mesh.points, mesh.triangles).sum() == pytest.approx(100.0)
 
