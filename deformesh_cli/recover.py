@@ -2,24 +2,27 @@
 
 The extra boundary nodes ``c1 .. ck`` between two consecutive contour points
 ``a`` and ``b`` lie on the segment ``a b`` (the deformation put them there).
-Their *cavity* is every triangle touching one of them, grown by the star of
-every inner node it reaches that lies in the diametral disk of ``a b`` (such a
-node sees ``a b`` under more than a right angle: it would leave slivers along
-the edge, one per extra node).  When the cavity's outline is one simple loop
-(through every node of it but the inner ones it covers), the polygon without
-``c1 .. ck`` is simple and has the side ``a b``: its constrained Delaunay
-triangulation (:func:`.cavity.delaunay_polygon`, the largest smallest angle of
-any triangulation of its vertices) replaces the cavity, and the boundary edges
-``a c1 .. ck b`` become ``a b``.  The inner nodes it covers go with it, so the
-triangle on ``a b`` has its apex outside the disk (an angle under 90 degrees
-there) unless a boundary node lies in it.
+Their *cavity* is the triangles touching any of them, grown by the star of
+every inner node it reaches in the diametral disk of ``a b`` (such a node sees
+``a b`` under more than a right angle; along a long edge those nodes would
+leave a sliver each).  When the cavity's outline is one simple loop (through
+every node of it but the ones it surrounds), the polygon without ``c1 .. ck``
+is simple and has the side ``a b``: its constrained Delaunay triangulation
+(:func:`.cavity.delaunay_polygon`, the largest smallest angle of any
+triangulation of its vertices) replaces the cavity, the boundary edges
+``a c1 .. ck b`` become ``a b``, and the nodes it surrounds go with it.
 
-When the outline is not simple (the cavity touches itself), the run is halved
-and each half taken in turn; a run of one node whose grown cavity is not simple
-takes its star alone, which is: a boundary node's star is star-shaped from it.  So every
-extra node can be taken out, each contour edge in one step where its cavity
-allows, and the cost grows with the cavities' sizes, not their squares.  Once
-all are out, the mesh's boundary nodes are exactly the contour's points.
+Where that outline is not simple (the cavity touches itself), the triangles
+touching the run alone are taken the same way, the run halved while their
+outline is not simple (a run of one node is a boundary node's star,
+star-shaped from it, always simple); then, while the apex of the triangle on
+``a b`` is an inner node in the disk, that node is taken out and its star
+meshed again (star-shaped from it: the polygon of its neighbours is simple).
+Either way the apex on ``a b`` ends outside the disk, or at a boundary node.
+
+Every step succeeds, the cost grows with the cavities' sizes, not their
+squares, and once all are done the mesh's boundary nodes are exactly the
+contour's points.
 """
 
 from __future__ import annotations
@@ -92,39 +95,8 @@ def recover(mesh: Mesh) -> tuple[Mesh, int]:
     boundary = np.zeros(n, dtype=bool)
     boundary[mesh.lines.ravel()] = True
 
-    def take(a: int, run: list[int], b: int, grow: bool = True) -> None:
-        cav_set = {t for c in run for t in star[c]}
-        # inner nodes in the diametral disk of a b, reached from the run, go too
-        mid, r2 = 0.5 * (pts[a] + pts[b]), 0.25 * float(((pts[a] - pts[b]) ** 2).sum())
-        seen: set[int] = set()
-        todo = {v for t in cav_set for v in tri[t]} if grow else set()
-        while todo:
-            v = todo.pop()
-            seen.add(v)
-            if boundary[v] or float(((pts[v] - mid) ** 2).sum()) >= r2:
-                continue
-            for t in star[v]:
-                if t not in cav_set:
-                    cav_set.add(t)
-                    todo |= {w for w in tri[t] if w not in seen}
-        cav = sorted(cav_set)
-        found = _outline([tri[t] for t in cav])
-        ok = None
-        if found is not None:
-            ring, inner = found
-            drop = set(run)
-            poly = [v for v in ring if v not in drop]
-            tris = delaunay_polygon(pts[poly])
-            ok = (poly, inner, tris) if tris is not None else None
-        if ok is None:
-            if len(run) > 1:
-                half = len(run) // 2
-                take(a, run[:half], b)
-                take(a, run[half:], b)
-            elif grow:
-                take(a, run, b, grow=False)  # (its star alone: always simple)
-            return
-        poly, inner, tris = ok
+    def replace(cav: list[int], poly: list[int], tris: np.ndarray) -> None:
+        """The triangles ``cav`` replaced by ``tris`` over the polygon ``poly``."""
         for t in cav:
             alive[t] = False
             for v in tri[t]:
@@ -135,11 +107,73 @@ def recover(mesh: Mesh) -> tuple[Mesh, int]:
             star[w].add(len(tri))
             tri.append((u, v, w))
             alive.append(True)
+
+    def take(run: list[int], a: int = -1, b: int = -1) -> bool:
+        cav_set = {t for c in run for t in star[c]}
+        if a >= 0:  # grown by the inner nodes in the disk of a b it reaches
+            mid = 0.5 * (pts[a] + pts[b])
+            r2 = 0.25 * float(((pts[a] - pts[b]) ** 2).sum())
+            seen: set[int] = set()
+            todo = {v for t in cav_set for v in tri[t]}
+            while todo:
+                v = todo.pop()
+                seen.add(v)
+                if boundary[v] or float(((pts[v] - mid) ** 2).sum()) >= r2:
+                    continue
+                for t in star[v]:
+                    if t not in cav_set:
+                        cav_set.add(t)
+                        todo |= {w for w in tri[t] if w not in seen}
+        cav = sorted(cav_set)
+        found = _outline([tri[t] for t in cav])
+        tris = None
+        if found is not None:
+            ring, inner = found
+            drop = set(run)
+            poly = [v for v in ring if v not in drop]
+            tris = delaunay_polygon(pts[poly])
+        if tris is None:
+            if a < 0 and len(run) > 1:
+                half = len(run) // 2
+                take(run[:half])
+                take(run[half:])
+            return False
+        replace(cav, poly, tris)
         gone[run] = True
         gone[list(inner)] = True
+        return True
+
+    def clear(a: int, b: int) -> None:
+        """Inner nodes in the diametral disk of ``a b`` taken out while one is the apex
+        of the triangle on ``a b``, each by meshing its star again (star-shaped from
+        it, so the polygon of its neighbours is simple)."""
+        mid, r2 = 0.5 * (pts[a] + pts[b]), 0.25 * float(((pts[a] - pts[b]) ** 2).sum())
+        while True:
+            on = [t for t in star[a] & star[b] if alive[t]]
+            if len(on) != 1:
+                return
+            x = next(v for v in tri[on[0]] if v != a and v != b)
+            if boundary[x] or float(((pts[x] - mid) ** 2).sum()) >= r2:
+                return
+            after = {}
+            for t in star[x]:
+                u, v, w = tri[t]
+                u, v = (v, w) if u == x else (w, u) if v == x else (u, v)
+                after[u] = v
+            ring = [next(iter(after))]
+            while after[ring[-1]] != ring[0] and len(ring) <= len(after):
+                ring.append(after[ring[-1]])
+            tris = delaunay_polygon(pts[ring]) if len(ring) == len(after) else None
+            if tris is None:
+                return
+            replace(sorted(star[x]), ring, tris)
+            gone[x] = True
 
     for a, run, b in runs:
-        take(a, run, b)
+        if not take(run, a, b):
+            take(run)
+            if gone[run].all():
+                clear(a, b)
     taken = int(gone[m : m + e].sum())
     if not gone.any():
         return mesh, 0

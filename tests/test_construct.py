@@ -102,10 +102,11 @@ def test_a_rectangle_by_its_corners_is_constructed():
 
 def test_recover_halves_a_run_whose_cavity_touches_itself():
     """Extra nodes c1 c2 c3 on the side a-b of the triangle a b v; the triangles
-    touching them surround one that does not (w1 w2 v), so their outline meets itself
-    at v: the run is taken out in halves, and every extra node still goes."""
-    a, b, v = [0, 0], [4, 0], [2, 3]
-    c1, c2, c3, w1, w2 = [1, 0], [2, 0], [3, 0], [1.5, 1], [2.5, 1]
+    touching them surround one that does not (w1 w2 v, its corners outside the
+    disk of a b, so the cavity does not grow to it): their outline meets itself
+    at v, the run is taken out in halves, and every extra node still goes."""
+    a, b, v = [0, 0], [4, 0], [2, 6]
+    c1, c2, c3, w1, w2 = [1, 0], [2, 0], [3, 0], [1.4, 2.2], [2.6, 2.2]
     pts = np.array([a, b, v, c1, c2, c3, w1, w2], dtype=float)
     A, B, V, C1, C2, C3, W1, W2 = range(8)
     tri = np.array(
@@ -125,7 +126,8 @@ def test_recover_halves_a_run_whose_cavity_touches_itself():
     assert taken == 3 and mesh.n_extra == 0
     assert sorted(map(tuple, mesh.lines.tolist())) == [(0, 1), (1, 2), (2, 0)]
     assert (signed_areas(mesh.points, mesh.triangles) > 0).all()
-    assert signed_areas(mesh.points, mesh.triangles).sum() == pytest.approx(6.0)
+    assert signed_areas(mesh.points, mesh.triangles).sum() == pytest.approx(12.0)
+    assert len(mesh.points) == 5  # (w1 and w2 stay)
 
 
 def test_recover_takes_a_long_run_in_one_cavity():
