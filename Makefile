@@ -49,6 +49,7 @@ bench: $(VENV)/.installed-bench
 	$(BIN)/python benchmarks/run_graded.py
 	$(BIN)/python benchmarks/run_random.py
 	$(BIN)/python benchmarks/run_construct.py
+	$(BIN)/python benchmarks/run_construct.py --set corpus
 	$(BIN)/python benchmarks/run_circles.py
 
 # only the side-by-side comparison with Triangle and Gmsh (about 25 minutes)
