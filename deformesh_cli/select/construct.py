@@ -514,9 +514,10 @@ def _assign(contour: Contour, grid: GradedGrid, nxt: np.ndarray, exterior: bool,
 #: has no angle under :data:`EAR_SHARE` of theirs are cut off before the grid is laid.
 EAR_ANGLE = 30.0
 
-#: ... where the corner's angle bounds every mesh of these points there: an ear whose
-#: other angles are at least half of it keeps the mesh within half the bound.
-EAR_SHARE = 0.5
+#: ... where the corner's angle, and its sides' room, bound every mesh of these points
+#: there: an ear whose other angles are at least a third of that keeps the smallest
+#: angle within a third of what the points force.
+EAR_SHARE = 1.0 / 3.0
 
 
 def _angle_between(u: np.ndarray, v: np.ndarray) -> float:
@@ -545,9 +546,10 @@ def cut_ears(contour: Contour, exterior: bool = False, max_angle: float | None =
 
     An ear at point P (previous A, next B, domain on the left) is cut when P's
     angle on the domain's side is under ``max_angle`` degrees, the ear's angles at
-    A and B are at least :data:`EAR_SHARE` of it (P's angle bounds every mesh
-    keeping exactly the contour's points: each has a triangle at P no better, so
-    the ear is within that share of the best there), and no other point lies in
+    A and B are at least :data:`EAR_SHARE` of the least of P's angle and the
+    forced bounds of its sides A P and P B (every mesh keeping exactly the
+    contour's points has a triangle at P, and one on each side, no better than
+    those: the ear is within that share of the best there), and no other point lies in
     the closed triangle A P B (so no contour edge crosses the chord and the ear
     lies in the domain).  Cuts repeat on the points left (sharpest first) while a
     ring keeps more than three points.  A needle the cells could follow only by
@@ -563,6 +565,25 @@ def cut_ears(contour: Contour, exterior: bool = False, max_angle: float | None =
     left = np.bincount(contour.ring, minlength=contour.n_rings)
     tree = shapely.STRtree(shapely.points(p))
 
+    geom = None
+    rooms: dict[tuple[int, int], float] = {}
+
+    def room(u: int, v: int) -> float:
+        """The forced bound on the edge (or chord) u v: the largest base angle of an
+        isosceles triangle on it inside the domain (:func:`.forced.edge_angles`); any
+        mesh has a triangle on it no better (inf for a far field, not measured)."""
+        nonlocal geom
+        if exterior:
+            return np.inf
+        if (u, v) not in rooms:
+            from ..forced import edge_angles
+            from ..geometry import domain
+
+            if geom is None:
+                geom = domain([p[contour.ring_order(r)] for r in range(contour.n_rings)])
+            rooms[u, v] = float(edge_angles(p, np.array([[u, v]]), geom)[0])
+        return rooms[u, v]
+
     def candidate(k: int) -> float | None:
         a, b = prv[k], nxt[k]
         u, v = p[a] - p[k], p[b] - p[k]
@@ -575,7 +596,7 @@ def cut_ears(contour: Contour, exterior: bool = False, max_angle: float | None =
             _angle_between(p[k] - p[a], p[b] - p[a]),
             _angle_between(p[a] - p[b], p[k] - p[b]),
         ]
-        if min(rest) < EAR_SHARE * ang:
+        if min(rest) < EAR_SHARE * min(ang, room(a, k), room(k, b)):
             return None
         ear = shapely.Polygon(p[[a, k, b]])
         near = tree.query(ear, predicate="intersects")
