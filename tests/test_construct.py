@@ -219,3 +219,20 @@ def test_ears_that_stay(pts):
     c = make_contour(np.array(pts, float), source="x", ring_starts=starts)
     grid_contour, kept, ears = construct.cut_ears(c)
     assert len(ears) == 0 and grid_contour is c
+
+
+def test_an_ear_within_a_third_of_its_bound_is_cut():
+    """A spike whose sides differ (2 and 1.4): the ear's angle at its short side's end
+    is 0.43 of the tip's, under half but over a third of the bound its tip and sides
+    force there, so it is cut; the contract holds on the whole contour."""
+    pts = np.array([[0, 0], [1, 0], [1, 1], [3, 1.06], [2.4, 1.08], [0, 1.2]], float)
+    c = make_contour(pts, source="spike")
+    grid_contour, kept, ears = construct.cut_ears(c)
+    assert ears[0].tolist() == [2, 3, 4]
+    tip = construct._angle_between(pts[2] - pts[3], pts[4] - pts[3])
+    at_a = construct._angle_between(pts[3] - pts[2], pts[4] - pts[2])
+    assert tip / 3 <= at_a < tip / 2
+    _, mesh = _construct_and_mesh(grid_contour)
+    mesh, _ = improve.improve(construct.restore_ears(mesh, c, kept, ears))
+    check_contract(mesh, c)
+    assert np.array_equal(mesh.points[: c.n], c.points)
