@@ -215,9 +215,9 @@ class Slide:
 #: The ladder: (slide?, divisor of the typical spacing), tried in order.  Sliding
 #: suits smooth, densely sampled curves (airfoils); on jagged outlines (coastlines)
 #: a slid node crosses details the grid does not resolve, and selecting the real
-#: points on a finer grid gave better meshes (measured on the corpus: cuba, italy,
-#: madagascar meshed slid at h/2 with smallest angles 0.1-1.7 degrees, and
-#: unslid at h/4 with 14-18 degrees).  Each halving doubles the grid's cost.
+#: points on a finer grid gave better meshes (measured on three coastlines of the
+#: corpus: slid at h/2, smallest angles 0.1-1.7 degrees; unslid at h/4, 14-18
+#: degrees).  Each halving doubles the grid's cost.
 LADDER = ((True, 1), (False, 2), (False, 4), (True, 2), (False, 8))
 
 #: A ring with at least this fraction of corners is jagged: the copy is nearly the
