@@ -236,3 +236,38 @@ def test_an_ear_within_a_third_of_its_bound_is_cut():
     mesh, _ = improve.improve(construct.restore_ears(mesh, c, kept, ears))
     check_contract(mesh, c)
     assert np.array_equal(mesh.points[: c.n], c.points)
+
+
+def test_recover_clears_the_disk_one_star_at_a_time():
+    """As above, with an inner node z in the disk of a b under the run: the cavity grown
+    by z's star still surrounds w1 w2 v, so the run goes by its own triangles in
+    halves, and then z, the apex on a b in its disk, goes by its star: no inner node
+    is left in the disk."""
+    a, b, v = [0, 0], [4, 0], [2, 6]
+    c1, c2, c3, w1, w2, z = [1, 0], [2, 0], [3, 0], [1.4, 2.2], [2.6, 2.2], [2, 0.5]
+    pts = np.array([a, b, v, c1, c2, c3, w1, w2, z], dtype=float)
+    A, B, V, C1, C2, C3, W1, W2, Z = range(9)
+    tri = np.array(
+        [
+            [A, C1, V],
+            [C1, W1, V],
+            [C1, C2, Z],
+            [C1, Z, W1],
+            [C2, C3, Z],
+            [Z, C3, W2],
+            [Z, W2, W1],
+            [W1, W2, V],
+            [W2, C3, V],
+            [C3, B, V],
+        ]
+    )
+    lines = np.array([[A, C1], [C1, C2], [C2, C3], [C3, B], [B, V], [V, A]])
+    before = Mesh(pts, tri, lines, n_contour=3, n_extra=3)
+    assert signed_areas(pts, tri).sum() == pytest.approx(12.0)
+    assert (signed_areas(pts, tri) > 0).all()
+    mesh, taken = recover(before)
+    assert taken == 3 and mesh.n_extra == 0
+    assert (signed_areas(mesh.points, mesh.triangles) > 0).all()
+    assert signed_areas(mesh.points, mesh.triangles).sum() == pytest.approx(12.0)
+    inner = mesh.points[3:]
+    assert len(inner) == 2 and (np.hypot(*(inner - [2, 0]).T) > 2).all()  # (w1, w2)
