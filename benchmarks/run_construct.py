@@ -31,7 +31,7 @@ STAGES = ("select", "deform", "mend", "recover", "improve")
 
 
 def one(case, bound: float, growth: float | None = None) -> dict:
-    from deformesh_cli import improve, pipeline, quality, triangulate, untangle
+    from deformesh_cli import forced, improve, pipeline, quality, triangulate, untangle
     from deformesh_cli.options import MeshOptions
     from deformesh_cli.readers import load_contour
     from deformesh_cli.recover import recover
@@ -91,6 +91,7 @@ def one(case, bound: float, growth: float | None = None) -> dict:
             extra=sel.extra_nodes,
             triangles=len(mesh.triangles),
             angle=float(quality.measures(mesh.points, mesh.triangles)[0].min()),
+            under=int(forced.under_bound(mesh.points, mesh.triangles, mesh.lines)),
         )
         if isinstance(case, Path):
             from run_graded import triangle_run
@@ -146,7 +147,9 @@ def main():
             f"{sum(t < 1 for t in total)} under 1 s; "
             f"extra boundary nodes taken out: median {extra[len(extra) // 2]}, "
             f"most {extra[-1]}; {sum(r['ears'] > 0 for r in ok)} had ears cut; "
-            f"smallest angle under 1 degree on {sum(r['angle'] < 1 for r in ok)}.",
+            f"smallest angle under 1 degree on {sum(r['angle'] < 1 for r in ok)}; "
+            f"triangles under a third of what the boundary forces there "
+            f"(`forced.under_bound`) on {sum(r['under'] > 0 for r in ok)}.",
             "",
         ]
     if args.set == "corpus" and ok:
