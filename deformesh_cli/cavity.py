@@ -26,7 +26,7 @@ The polygon's sides are never split and its vertices never move.
 It is also the kernel the other re-meshing stages share (:mod:`.merge`,
 :mod:`.untangle`, :mod:`.recover`): a cavity grown by whole stars
 (:func:`grow`), the nodes it holds inside (:func:`inner_nodes`), its outline
-(:func:`loop`), the triangulation of an outline with the largest smallest
+(:func:`outline`, :func:`loop`), the triangulation of an outline with the largest smallest
 angle (:func:`best_triangulation` over every chord, cubic in the outline's
 length; :func:`delaunay_polygon`, the same angle in O(k log k)), and a mesh
 renumbered without the nodes a re-meshing took out (:func:`renumber`).  Nothing
@@ -426,9 +426,10 @@ def renumber(mesh: Mesh, tri: np.ndarray, gone: np.ndarray) -> Mesh:
     )
 
 
-def loop(cavity: np.ndarray, inner: set[int]) -> list[int] | None:
-    """The outline of the triangles ``cavity`` counter-clockwise, if it is one simple
-    loop through every node of them but the ``inner`` ones; else None."""
+def outline(cavity) -> tuple[list[int], set[int]] | None:
+    """The outline of the triangles ``cavity`` (rows of three nodes) counter-clockwise,
+    from the first edge used once, and the nodes of theirs it leaves inside; None
+    unless it is one simple loop."""
     edges = [(int(t[k]), int(t[(k + 1) % 3])) for t in cavity for k in range(3)]
     both = set(edges)
     after: dict[int, int] = {}
@@ -446,9 +447,16 @@ def loop(cavity: np.ndarray, inner: set[int]) -> list[int] | None:
         ring.append(after[ring[-1]])
         if len(ring) > len(after):
             return None
-    if len(ring) != len(after) or set(cavity.ravel().tolist()) - set(ring) != inner:
+    if len(ring) != len(after):
         return None
-    return ring
+    return ring, {v for t in cavity for v in t} - set(ring)
+
+
+def loop(cavity: np.ndarray, inner: set[int]) -> list[int] | None:
+    """The outline of the triangles ``cavity`` counter-clockwise, if it is one simple
+    loop through every node of them but the ``inner`` ones; else None."""
+    found = outline(cavity.tolist())
+    return found[0] if found is not None and found[1] == inner else None
 
 
 def delaunay_polygon(p: np.ndarray) -> np.ndarray | None:

@@ -6,6 +6,7 @@ is what ``deformesh all`` runs.  Nothing here prints or exits.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -16,6 +17,7 @@ from . import deadline, forced, geometry, quality, triangulate, untangle
 from . import deform as _deform
 from . import improve as _improve
 from . import merge as _merge
+from . import recover as _recover
 from . import size as _size
 from .contour import Contour, split_edges
 from .deform import SOLVES, DeformStats
@@ -30,6 +32,7 @@ from .errors import (
 from .mesh import Mesh
 from .options import MeshOptions
 from .select import EVEN_SPACING_RATIO, GRIDS, Selection, select
+from .select import construct as _construct
 from .select import respace as _respace
 from .select.graded_path import GradedSelection, select_graded
 from .size import SizeFunction
@@ -661,6 +664,60 @@ def mesh_contour(
     box = sel.grid.box if sel.exterior else None
     mesh, report = given_first(res.mesh, res.report, contour, fine, given, box)
     return MeshResult(mesh, sel, res.deform_stats, report)
+
+
+@dataclass
+class Constructed:
+    """:func:`mesh_constructed`'s result: the mesh, the selection on the grid contour,
+    the ears cut, and each stage's seconds (for the benchmark; nothing reads them)."""
+
+    mesh: Mesh
+    selection: GradedSelection
+    ears: np.ndarray
+    seconds: dict = field(default_factory=dict)
+
+
+def mesh_constructed(
+    contour: Contour,
+    options: MeshOptions | None = None,
+    *,
+    seconds: dict | None = None,
+    **changes,
+) -> Constructed:
+    """The constructed graded selection's stages chained (not yet what
+    :func:`mesh_contour` runs): sharp ears cut (:func:`.construct.cut_ears`), the
+    grid contour selected, deformed keeping folds, folds meshed again, the boundary
+    recovered (:mod:`.recover`), the ears added back, the quality stage, the contract
+    checked.  Options read: ``exterior``, ``growth``, the deformation's.
+    ``seconds``: filled with each stage's time as it ends (also when a later one
+    raises)."""
+    o = _options(options, changes)
+    seconds = {} if seconds is None else seconds
+    start = time.perf_counter()
+
+    def lap(stage: str) -> None:
+        nonlocal start
+        now = time.perf_counter()
+        seconds[stage], start = now - start, now
+
+    grid_contour, kept, ears = _construct.cut_ears(contour, o.exterior)
+    sel = _construct.select_constructed(grid_contour, exterior=o.exterior, growth=o.growth)
+    lap("select")
+    d = run_deform(grid_contour, sel, o, keep_folds=True)
+    lap("deform")
+    cut = triangulate.cut(grid_contour, sel)
+    placed = triangulate.place(grid_contour, sel, cut, d.points, folded=True)
+    mended = untangle.untangle(placed, untangle.most_tangled(placed))
+    if mended is None:
+        raise FoldError(f"{contour.source}: the deformed grid has folds that could not be mended")
+    lap("mend")
+    mesh, _ = _recover.recover(mended)
+    mesh = _construct.restore_ears(mesh, contour, kept, ears, o.exterior)
+    lap("recover")
+    mesh, _ = _improve.improve(mesh)
+    lap("improve")
+    quality.check_contract(mesh, contour, sel.grid.box if o.exterior else None)
+    return Constructed(mesh, sel, ears, seconds)
 
 
 #: A mesh whose smallest angle is under this (degrees) gets a note: what its boundary

@@ -29,33 +29,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .cavity import delaunay_polygon, renumber
+from .cavity import delaunay_polygon, outline, renumber
 from .mesh import Mesh
-
-
-def _outline(tris: list[tuple[int, int, int]]) -> tuple[list[int], set[int]] | None:
-    """The outline of the triangles ``tris`` counter-clockwise and the nodes it
-    surrounds, if it is one simple loop; else None."""
-    edges = {(u, v) for t in tris for u, v in ((t[0], t[1]), (t[1], t[2]), (t[2], t[0]))}
-    after: dict[int, int] = {}
-    for u, v in edges:
-        if (v, u) in edges:
-            continue
-        if u in after:
-            return None
-        after[u] = v
-    if not after:
-        return None
-    start = min(after)
-    ring = [start]
-    while after[ring[-1]] != start:
-        ring.append(after[ring[-1]])
-        if len(ring) > len(after):
-            return None
-    if len(ring) != len(after):
-        return None
-    nodes = {v for t in tris for v in t}
-    return ring, nodes - set(ring)
 
 
 def recover(mesh: Mesh) -> tuple[Mesh, int]:
@@ -108,24 +83,27 @@ def recover(mesh: Mesh) -> tuple[Mesh, int]:
             tri.append((u, v, w))
             alive.append(True)
 
+    def in_disk(v: int, a: int, b: int) -> bool:
+        """``v`` is an inner node strictly inside the diametral disk of ``a b`` (it sees
+        the segment under more than a right angle: ``(v - a) . (v - b) < 0``)."""
+        return not boundary[v] and float(np.dot(pts[v] - pts[a], pts[v] - pts[b])) < 0.0
+
     def take(run: list[int], a: int = -1, b: int = -1) -> bool:
         cav_set = {t for c in run for t in star[c]}
         if a >= 0:  # grown by the inner nodes in the disk of a b it reaches
-            mid = 0.5 * (pts[a] + pts[b])
-            r2 = 0.25 * float(((pts[a] - pts[b]) ** 2).sum())
             seen: set[int] = set()
             todo = {v for t in cav_set for v in tri[t]}
             while todo:
                 v = todo.pop()
                 seen.add(v)
-                if boundary[v] or float(((pts[v] - mid) ** 2).sum()) >= r2:
+                if not in_disk(v, a, b):
                     continue
                 for t in star[v]:
                     if t not in cav_set:
                         cav_set.add(t)
                         todo |= {w for w in tri[t] if w not in seen}
         cav = sorted(cav_set)
-        found = _outline([tri[t] for t in cav])
+        found = outline([tri[t] for t in cav])
         tris = None
         if found is not None:
             ring, inner = found
@@ -147,26 +125,19 @@ def recover(mesh: Mesh) -> tuple[Mesh, int]:
         """Inner nodes in the diametral disk of ``a b`` taken out while one is the apex
         of the triangle on ``a b``, each by meshing its star again (star-shaped from
         it, so the polygon of its neighbours is simple)."""
-        mid, r2 = 0.5 * (pts[a] + pts[b]), 0.25 * float(((pts[a] - pts[b]) ** 2).sum())
         while True:
-            on = [t for t in star[a] & star[b] if alive[t]]
+            on = list(star[a] & star[b])  # (stars hold live triangles only)
             if len(on) != 1:
                 return
             x = next(v for v in tri[on[0]] if v != a and v != b)
-            if boundary[x] or float(((pts[x] - mid) ** 2).sum()) >= r2:
+            if not in_disk(x, a, b):
                 return
-            after = {}
-            for t in star[x]:
-                u, v, w = tri[t]
-                u, v = (v, w) if u == x else (w, u) if v == x else (u, v)
-                after[u] = v
-            ring = [next(iter(after))]
-            while after[ring[-1]] != ring[0] and len(ring) <= len(after):
-                ring.append(after[ring[-1]])
-            tris = delaunay_polygon(pts[ring]) if len(ring) == len(after) else None
+            cav = sorted(star[x])
+            found = outline([tri[t] for t in cav])  # (x's star: its neighbours around it)
+            tris = None if found is None else delaunay_polygon(pts[found[0]])
             if tris is None:
                 return
-            replace(sorted(star[x]), ring, tris)
+            replace(cav, found[0], tris)
             gone[x] = True
 
     for a, run, b in runs:

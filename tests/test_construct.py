@@ -4,12 +4,10 @@
 import numpy as np
 import pytest
 
-from deformesh_cli import improve, pipeline, triangulate, untangle
+from deformesh_cli import pipeline
 from deformesh_cli.contour import make_contour
 from deformesh_cli.geometry import signed_areas
 from deformesh_cli.mesh import Mesh
-from deformesh_cli.options import MeshOptions
-from deformesh_cli.quality import check_contract
 from deformesh_cli.readers import load_contour
 from deformesh_cli.recover import recover
 from deformesh_cli.select import construct
@@ -64,20 +62,6 @@ def test_clearance_is_measured_across_a_thin_part_only():
     assert np.allclose(s, spacing) and size.min() >= spacing * (1 - 1e-9)
 
 
-def _construct_and_mesh(c):
-    o = MeshOptions()
-    sel = construct.select_constructed(c)
-    d = pipeline.run_deform(c, sel, o, keep_folds=True)
-    cut = triangulate.cut(c, sel)
-    placed = triangulate.place(c, sel, cut, d.points, folded=True)
-    mended = untangle.untangle(placed, untangle.most_tangled(placed))
-    assert mended is not None
-    mesh, _ = recover(mended)
-    mesh, _ = improve.improve(mesh)
-    check_contract(mesh, c)  # raises unless it holds
-    return sel, mesh
-
-
 @pytest.mark.parametrize(
     "path",
     [SAMPLES / "peanut.csv", SAMPLES / "naca0012.csv", CORPUS / "icon_si_python.svg"],
@@ -88,7 +72,8 @@ def test_constructed_meshes_keep_exactly_the_contour_points(path):
     boundary nodes are exactly the contour's points (two outer rings with holes
     included), and the contract holds."""
     c = load_contour(path)
-    sel, mesh = _construct_and_mesh(c)
+    got = pipeline.mesh_constructed(c)  # (it checks the contract)
+    sel, mesh = got.selection, got.mesh
     assert sel.extra_nodes > 0  # (the loop's nodes between points: all taken out)
     assert mesh.n_extra == 0 and np.array_equal(mesh.points[: c.n], c.points)
     assert len(np.unique(mesh.lines)) == c.n
@@ -96,38 +81,44 @@ def test_constructed_meshes_keep_exactly_the_contour_points(path):
 
 def test_a_rectangle_by_its_corners_is_constructed():
     c = make_contour(np.array([[0, 0], [10, 0], [10, 1], [0, 1]], float), source="rect")
-    _, mesh = _construct_and_mesh(c)
+    mesh = pipeline.mesh_constructed(c).mesh
     assert mesh.n_extra == 0 and len(mesh.lines) == 4
 
 
-def test_recover_halves_a_run_whose_cavity_touches_itself():
-    """Extra nodes c1 c2 c3 on the side a-b of the triangle a b v; the triangles
-    touching them surround one that does not (w1 w2 v, its corners outside the
-    disk of a b, so the cavity does not grow to it): their outline meets itself
-    at v, the run is taken out in halves, and every extra node still goes."""
-    a, b, v = [0, 0], [4, 0], [2, 6]
-    c1, c2, c3, w1, w2 = [1, 0], [2, 0], [3, 0], [1.4, 2.2], [2.6, 2.2]
-    pts = np.array([a, b, v, c1, c2, c3, w1, w2], dtype=float)
-    A, B, V, C1, C2, C3, W1, W2 = range(8)
-    tri = np.array(
-        [
-            [A, C1, V],
-            [C1, W1, V],
-            [C1, C2, W1],
-            [C2, W2, W1],
-            [C2, C3, W2],
-            [W1, W2, V],
-            [W2, C3, V],
-            [C3, B, V],
-        ]
-    )
+def _pocket(z: list[float] | None = None) -> Mesh:
+    """The triangle a (0, 0), b (4, 0), v (2, 6), area 12, with extra nodes c1 c2 c3 on
+    a-b and inner nodes w1 w2 (outside the diametral disk of a b) whose triangle
+    w1 w2 v touches no extra node: the triangles touching the extra nodes surround
+    it.  With ``z``, an inner node under w1 w2, between them and the run."""
+    pts = [[0, 0], [4, 0], [2, 6], [1, 0], [2, 0], [3, 0], [1.4, 2.2], [2.6, 2.2]]
+    A, B, V, C1, C2, C3, W1, W2, Z = range(9)
+    if z is None:
+        middle = [[C1, C2, W1], [C2, W2, W1], [C2, C3, W2]]
+    else:
+        pts.append(z)
+        middle = [[C1, C2, Z], [C1, Z, W1], [C2, C3, Z], [Z, C3, W2], [Z, W2, W1]]
+    tri = np.array([[A, C1, V], [C1, W1, V], *middle, [W1, W2, V], [W2, C3, V], [C3, B, V]])
     lines = np.array([[A, C1], [C1, C2], [C2, C3], [C3, B], [B, V], [V, A]])
-    mesh, taken = recover(Mesh(pts, tri, lines, n_contour=3, n_extra=3))
+    pts = np.array(pts, dtype=float)
+    assert (signed_areas(pts, tri) > 0).all() and signed_areas(pts, tri).sum() == 12.0
+    return Mesh(pts, tri, lines, n_contour=3, n_extra=3)
+
+
+def _recovered_pocket(mesh: Mesh, taken: int) -> None:
     assert taken == 3 and mesh.n_extra == 0
     assert sorted(map(tuple, mesh.lines.tolist())) == [(0, 1), (1, 2), (2, 0)]
     assert (signed_areas(mesh.points, mesh.triangles) > 0).all()
     assert signed_areas(mesh.points, mesh.triangles).sum() == pytest.approx(12.0)
-    assert len(mesh.points) == 5  # (w1 and w2 stay)
+
+
+def test_recover_halves_a_run_whose_cavity_touches_itself():
+    """The triangles touching the extra nodes surround one that does not (w1 w2 v, its
+    corners outside the disk of a b, so the cavity does not grow to it): their
+    outline meets itself at v, the run is taken out in halves, and every extra node
+    still goes; w1 and w2 stay."""
+    mesh, taken = recover(_pocket())
+    _recovered_pocket(mesh, taken)
+    assert len(mesh.points) == 5
 
 
 def test_recover_takes_a_long_run_in_one_cavity():
@@ -195,9 +186,7 @@ def test_a_needle_is_one_ear_triangle():
     grid_contour, kept, ears = construct.cut_ears(c)
     assert ears.tolist() == [[3, 4, 5]] and kept.tolist() == [0, 1, 2, 3, 5, 6]
     assert grid_contour.n == 6
-    sel, mesh = _construct_and_mesh(grid_contour)
-    mesh, _ = improve.improve(construct.restore_ears(mesh, c, kept, ears))
-    check_contract(mesh, c)
+    mesh = pipeline.mesh_constructed(c).mesh  # (it checks the contract)
     assert np.array_equal(mesh.points[: c.n], c.points)
     assert sorted(map(tuple, mesh.lines.tolist())) == [(k, (k + 1) % 7) for k in range(7)]
     assert (np.sort(mesh.triangles, axis=1) == [3, 4, 5]).all(axis=1).any()
@@ -232,9 +221,7 @@ def test_an_ear_within_a_third_of_its_bound_is_cut():
     tip = construct._angle_between(pts[2] - pts[3], pts[4] - pts[3])
     at_a = construct._angle_between(pts[3] - pts[2], pts[4] - pts[2])
     assert tip / 3 <= at_a < tip / 2
-    _, mesh = _construct_and_mesh(grid_contour)
-    mesh, _ = improve.improve(construct.restore_ears(mesh, c, kept, ears))
-    check_contract(mesh, c)
+    mesh = pipeline.mesh_constructed(c).mesh  # (it checks the contract)
     assert np.array_equal(mesh.points[: c.n], c.points)
 
 
@@ -243,31 +230,7 @@ def test_recover_clears_the_disk_one_star_at_a_time():
     by z's star still surrounds w1 w2 v, so the run goes by its own triangles in
     halves, and then z, the apex on a b in its disk, goes by its star: no inner node
     is left in the disk."""
-    a, b, v = [0, 0], [4, 0], [2, 6]
-    c1, c2, c3, w1, w2, z = [1, 0], [2, 0], [3, 0], [1.4, 2.2], [2.6, 2.2], [2, 0.5]
-    pts = np.array([a, b, v, c1, c2, c3, w1, w2, z], dtype=float)
-    A, B, V, C1, C2, C3, W1, W2, Z = range(9)
-    tri = np.array(
-        [
-            [A, C1, V],
-            [C1, W1, V],
-            [C1, C2, Z],
-            [C1, Z, W1],
-            [C2, C3, Z],
-            [Z, C3, W2],
-            [Z, W2, W1],
-            [W1, W2, V],
-            [W2, C3, V],
-            [C3, B, V],
-        ]
-    )
-    lines = np.array([[A, C1], [C1, C2], [C2, C3], [C3, B], [B, V], [V, A]])
-    before = Mesh(pts, tri, lines, n_contour=3, n_extra=3)
-    assert signed_areas(pts, tri).sum() == pytest.approx(12.0)
-    assert (signed_areas(pts, tri) > 0).all()
-    mesh, taken = recover(before)
-    assert taken == 3 and mesh.n_extra == 0
-    assert (signed_areas(mesh.points, mesh.triangles) > 0).all()
-    assert signed_areas(mesh.points, mesh.triangles).sum() == pytest.approx(12.0)
+    mesh, taken = recover(_pocket(z=[2, 0.5]))
+    _recovered_pocket(mesh, taken)
     inner = mesh.points[3:]
     assert len(inner) == 2 and (np.hypot(*(inner - [2, 0]).T) > 2).all()  # (w1, w2)

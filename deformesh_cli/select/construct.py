@@ -64,15 +64,6 @@ REFINE_ROUNDS = 8
 FLOOR = 1e-9
 
 
-def _point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distance from each point ``p[i]`` to the segment ``a[i] b[i]``."""
-    ab = b - a
-    ll = np.einsum("ij,ij->i", ab, ab)
-    t = np.einsum("ij,ij->i", p - a, ab) / np.where(ll > 0, ll, 1.0)
-    q = a + np.clip(t, 0.0, 1.0)[:, None] * ab
-    return np.hypot(*(p - q).T)
-
-
 #: Another part of the contour: a point ``y`` that the contour reaches from ``x`` only
 #: after more than this times ``|x - y|`` along it (it turned back), or on another ring.
 TURN = 2.0
@@ -526,26 +517,26 @@ def _angle_between(u: np.ndarray, v: np.ndarray) -> float:
 
 
 def _domain_walk(contour: Contour, exterior: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Per point, its next and previous point with the domain on the left."""
-    nxt = next_on_ring(contour.ring)
-    prv = prev_on_ring(contour.ring)
-    # input order is clockwise, or counter-clockwise with the domain on the right
-    flip = np.array(
-        [
-            contour.ring_clockwise[r] != (contour.is_hole(r) != exterior)
-            for r in range(contour.n_rings)
-        ]
-    )[contour.ring]
-    return np.where(flip, prv, nxt), np.where(flip, nxt, prv)
+    """Per point, its next and previous point with the domain on the left (a ring's
+    :meth:`~.Contour.ring_order`, walked backwards where the domain is outside it)."""
+    nxt = np.empty(contour.n, dtype=np.int64)
+    for r in range(contour.n_rings):
+        order = contour.ring_order(r)
+        if contour.is_hole(r) != exterior:
+            order = order[::-1]
+        nxt[order] = np.roll(order, -1)
+    prv = np.empty_like(nxt)
+    prv[nxt] = np.arange(contour.n)
+    return nxt, prv
 
 
-def cut_ears(contour: Contour, exterior: bool = False, max_angle: float | None = None):
+def cut_ears(contour: Contour, exterior: bool = False):
     """``(grid contour, kept, ears)``: the contour without the tips of its sharp
     empty ears, the original indices of the points it keeps, and the ears cut
     (previous, tip, next; counter-clockwise).
 
     An ear at point P (previous A, next B, domain on the left) is cut when P's
-    angle on the domain's side is under ``max_angle`` degrees, the ear's angles at
+    angle on the domain's side is under :data:`EAR_ANGLE` degrees, the ear's angles at
     A and B are at least :data:`EAR_SHARE` of the least of P's angle and the
     forced bounds of its sides A P and P B (every mesh keeping exactly the
     contour's points has a triangle at P, and one on each side, no better than
@@ -556,8 +547,6 @@ def cut_ears(contour: Contour, exterior: bool = False, max_angle: float | None =
     thousands of cells across is one triangle, as in any mesh of those points."""
     import heapq
 
-    if max_angle is None:
-        max_angle = EAR_ANGLE
     p = contour.points
     m = contour.n
     nxt, prv = _domain_walk(contour, exterior)
@@ -589,7 +578,7 @@ def cut_ears(contour: Contour, exterior: bool = False, max_angle: float | None =
         u, v = p[a] - p[k], p[b] - p[k]
         cross = u[1] * v[0] - u[0] * v[1]  # (b to a, counter-clockwise about k)
         ang = np.degrees(np.arctan2(cross, u @ v)) % 360.0
-        if not 0.0 < ang < max_angle or left[contour.ring[k]] <= 3:
+        if not 0.0 < ang < EAR_ANGLE or left[contour.ring[k]] <= 3:
             return None
         # the ear's angles at a and b
         rest = [
@@ -605,12 +594,15 @@ def cut_ears(contour: Contour, exterior: bool = False, max_angle: float | None =
             return None
         return float(ang)
 
-    heap = [(a, k) for k in range(m) if (a := candidate(k)) is not None]
+    # (angle, point, its neighbours' version): an entry is stale once a neighbour of
+    # its point was cut (a cut only empties other ears, never fills one)
+    version = np.zeros(m, dtype=np.int64)
+    heap = [(a, k, 0) for k in range(m) if (a := candidate(k)) is not None]
     heapq.heapify(heap)
     ears = []
     while heap:
-        ang, k = heapq.heappop(heap)
-        if not alive[k] or candidate(k) != ang:
+        _, k, ver = heapq.heappop(heap)
+        if not alive[k] or ver != version[k] or left[contour.ring[k]] <= 3:
             continue
         a, b = int(prv[k]), int(nxt[k])
         ears.append((a, k, b))
@@ -618,9 +610,10 @@ def cut_ears(contour: Contour, exterior: bool = False, max_angle: float | None =
         left[contour.ring[k]] -= 1
         nxt[a], prv[b] = b, a
         for j in (a, b):
+            version[j] += 1
             c = candidate(j)
             if c is not None:
-                heapq.heappush(heap, (c, j))
+                heapq.heappush(heap, (c, j, int(version[j])))
     kept = np.flatnonzero(alive)
     if len(kept) == m:
         return contour, kept, np.zeros((0, 3), dtype=np.int64)
