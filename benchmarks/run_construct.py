@@ -1,4 +1,4 @@
-"""The constructed graded selection (``select/construct.py``, not yet the pipeline's)
+"""The pipeline on the graded grid (``select/construct.py``), stage by stage,
 on the random set (tests/random_polygons.py) or the corpus (tests/data/corpus, each
 next to Triangle ``pq30Y`` on the same points): cut the sharp ears, select, deform
 keeping folds, mend them, recover the boundary, add the ears back, run the quality
@@ -61,14 +61,14 @@ def one(case, bound: float, growth: float | None = None) -> dict:
     rec = {"name": name, "n": c.n}
     try:
         kw = {} if growth is None else {"growth": growth}
-        got = pipeline.mesh_constructed(c, seconds=seconds, **kw)
+        got = pipeline.mesh_contour(c, seconds=seconds, **kw)
         mesh = got.mesh
         problems = contract_problems(mesh.points, mesh.triangles, points, ring)
         if problems:
             raise RuntimeError(f"independent check: {problems[0]}")
         rec.update(
             outcome="ok",
-            ears=len(got.ears),
+            ears=got.report["ears"],
             extra=got.selection.extra_nodes,
             triangles=len(mesh.triangles),
             angle=float(quality.measures(mesh.points, mesh.triangles)[0].min()),

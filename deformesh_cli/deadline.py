@@ -1,15 +1,16 @@
-"""A time bound on the search for a grid path.
+"""A time bound on the search for a grid path on Appendix A's uniform grid.
 
-Finding a path (the graded grid's ways, the adapted rungs, Appendix A's grid on
-its shifts and halvings) is a search whose cost a hostile contour can make
+Finding a path there (Appendix A's grid on its shifts and halvings, the traced
+path) is a search whose cost a hostile contour can make
 explode: a jagged polygon of a few hundred points kept the uniform grid's
 router busy for minutes before it refused.  :func:`limit` sets a bound for
 the search (:func:`search_bound`: it grows with the number of contour points),
 and the search loops call :func:`check`, which raises :class:`TimeUp` once the
 bound has passed, and the contour is refused.  Nothing after the search reads
 the clock: what a found selection costs afterwards (deformation, triangulation,
-merging, quality stage, contract check, writing) is bounded by its grid, and the
-same selection always gives the same mesh.
+recovery, quality stage, contract check, writing) is bounded by its grid, and the
+same selection always gives the same mesh.  The graded grid is constructed, not
+searched for: it reads no clock.
 
 The bound lives in a context variable, so a batch's workers and the tests each
 have their own; code run outside :func:`limit` is never stopped.

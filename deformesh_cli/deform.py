@@ -271,7 +271,6 @@ def deform_(
     describe: Callable[[int], str] | None = None,
     solver: str = "auto",
     size=None,
-    slide=None,
     advice: tuple[str, str] = ADVICE,
     keep_folds: bool = False,
     flat_ok: bool = False,
@@ -299,10 +298,6 @@ def deform_(
     callback : called with (pseudo-time done in [0, 1], stats) after each accepted step.
     describe : turns a node id into words for error messages.
     solver : one of :data:`SOLVERS`.
-    slide : a :class:`deformesh_cli.respace.Slide`: the path nodes then follow
-        the contour (``slide.at(t)``; the first step closes the gap from the
-        grid node to the contour) instead of straight lines; ``targets`` must
-        equal ``slide.at(1)``.
     advice : what a fold message tells the user to do (:data:`ADVICE`: at the
         last step, and before it).
     keep_folds : at the first step that would fold a triangle, go the rest of the
@@ -329,19 +324,10 @@ def deform_(
     ud = np.zeros((n, 2))
     lin = LinearSolver(solver)
     prev = None  # last free-node solution (U) per unit of step, for warm starts
-    offset0 = None if slide is None else pos[path_nodes] - slide.at(0.0)
     while remaining > 0:
         dt = min(1.0, remaining)
         frac = dt / remaining
-        if slide is None:
-            share = (targets - pos[path_nodes]) * frac
-        else:
-            t_next = 1.0 - (remaining - dt) / steps  # exactly 1.0 on the last step
-            # the offset from the grid node to the contour is closed in the first step:
-            # carried further, it would point the wrong way once the node has slid
-            # round a bend (measured: folds on naca0012_1000 at t = 0.9)
-            fade = max(0.0, 1.0 - steps * t_next)
-            share = slide.at(t_next) + fade * offset0 - pos[path_nodes]
+        share = (targets - pos[path_nodes]) * frac
         f = None
         if size is not None:
             g, rate = size.g_and_rate(pos, 1.0 - remaining / steps)

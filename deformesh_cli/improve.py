@@ -21,9 +21,6 @@ rings of it, and takes only changes that make things better:
   moved), the corner made one triangle with its whole angle; taken only if the
   smallest angle there grows.  :mod:`.forced` says what the boundary allows.
 
-With ``clear_corners``, inner nodes in the tips of sharp corners are first
-taken out (:func:`.merge.clear_sharp_corners`, off the uniform grid).
-
 Boundary nodes never move, so the contract is untouched (it is checked
 afterwards as always); triangles at 35 degrees or more and away from bad ones,
 the grid's interior, are left as they are, and the mesh's smallest angle can
@@ -38,7 +35,6 @@ import numpy as np
 
 from .forced import corner_angles
 from .geometry import node_stars, touching
-from .merge import clear_sharp_corners
 from .mesh import Mesh
 from .smoothing import (  # noqa: F401 (tan_min_angle, GAIN: the quality stage's measure)
     GAIN,
@@ -70,23 +66,14 @@ class ImproveStats:
     rounds: int = 0
     moved_nodes: int = 0  # nodes that ended somewhere else
     min_angle_before: float = 0.0
-    corners: int = 0  # inner nodes taken out of sharp corners first
     weak: np.ndarray | None = None  # ids of the triangles under 30 degrees at the end
 
 
-def improve(
-    mesh: Mesh, rounds: int = ROUNDS, clear_corners: bool = False
-) -> tuple[Mesh, ImproveStats]:
+def improve(mesh: Mesh, rounds: int = ROUNDS) -> tuple[Mesh, ImproveStats]:
     """A copy of ``mesh`` with better triangles where they were under :data:`TARGET`,
-    and what was done.  ``clear_corners``: first take inner nodes out of sharp
-    corners (:func:`.merge.clear_sharp_corners`); then ``stats.changed`` refers to
-    that mesh's triangles, not ``mesh``'s."""
+    and what was done."""
     tan = _tan_all(mesh.points, mesh.triangles)
     stats = ImproveStats(min_angle_before=_degrees(tan.min()))
-    if clear_corners:
-        mesh, stats.corners = clear_sharp_corners(mesh)
-        if stats.corners:
-            tan = _tan_all(mesh.points, mesh.triangles)
     pts = np.array(mesh.points, dtype=np.float64, copy=True)
     tri = np.array(mesh.triangles, copy=True)
     n = len(pts)

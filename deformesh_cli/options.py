@@ -125,12 +125,11 @@ class MeshOptions:
     )
     grid: str = _opt(
         "auto",
-        "'graded': a quadtree grid whose cells follow the contour's spacing and grow "
-        "away from it, no extra boundary node (where it finds no path: 'adapt' when "
-        "the median spacing is over 4x the smallest, else 'uniform'); 'adapt': select "
-        "on the points evenly re-spaced between corners with h their median spacing, "
-        "then slide each node along the contour to its point; 'uniform': Appendix A's "
-        "grid; 'auto': graded, or uniform with --h.",
+        "'graded': a quadtree grid whose cells follow the contour's spacing and its "
+        "thin parts and grow away from it; the boundary nodes are exactly the given "
+        "points; 'uniform': Appendix A's grid of one step (extra boundary nodes where "
+        "consecutive points take grid nodes that are not neighbours); 'auto': graded, "
+        "or uniform with --h.",
         "choice",
         choices=GRIDS,
     )
@@ -182,9 +181,10 @@ class MeshOptions:
     merge_extra: str = _opt(
         "auto",
         "Extra boundary nodes (where the grid path needed nodes between two consecutive "
-        "contour points): 'merge' them into their neighbouring contour points where the "
-        "triangles stay valid, or 'keep' them; 'auto' keeps them on the uniform grid "
-        "(--grid uniform or --h, the paper's form) and merges them elsewhere.",
+        "contour points): 'merge' takes them out (the triangles around each run are "
+        "meshed again with the contour edge), 'keep' keeps them; 'auto' keeps them on the "
+        "uniform grid (--grid uniform or --h, the paper's form) and takes them out on "
+        "the graded one.",
         "choice",
         choices=MERGE_EXTRA,
     )

@@ -33,8 +33,9 @@ from .cavity import delaunay_polygon, outline, renumber
 from .mesh import Mesh
 
 
-def recover(mesh: Mesh) -> tuple[Mesh, int]:
+def recover(mesh: Mesh, only: set[tuple[int, int]] | None = None) -> tuple[Mesh, int]:
     """``mesh`` with its extra boundary nodes taken out (see the module), and how many.
+    ``only``: the runs between these pairs of contour points (either order) alone.
 
     A run of one node whose polygon has no counter-clockwise triangulation in
     floating point (its neighbours collinear to round-off) stays, and the
@@ -65,7 +66,7 @@ def recover(mesh: Mesh) -> tuple[Mesh, int]:
         while extra[x]:
             run.append(x)
             x = int(nxt[x])
-        if run:
+        if run and (only is None or (a, x) in only or (x, a) in only):
             runs.append((a, run, x))
     boundary = np.zeros(n, dtype=bool)
     boundary[mesh.lines.ravel()] = True

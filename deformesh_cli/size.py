@@ -337,7 +337,8 @@ def limited_target(g1, g0, box, ratio: float = MAX_DENSITY_RATIO, n: int = 256):
 def grid_density(points: np.ndarray, triangles: np.ndarray, box, n: int = 256):
     """A graded grid's own density, as a function of position: at each node the mean
     of one over the areas of its triangles (a node on the box's sides has half the
-    triangles of one inside, not twice the density), linear in between, scaled so its
+    triangles of one inside, not twice the density), linear in between (the nodes of
+    none of ``triangles`` left out; outside their hull, the median), scaled so its
     mean over ``box`` is 1 as :meth:`SizeFunction.g1`'s is."""
     from scipy.interpolate import LinearNDInterpolator
 
@@ -346,9 +347,10 @@ def grid_density(points: np.ndarray, triangles: np.ndarray, box, n: int = 256):
     inv = np.repeat(1.0 / np.abs(signed_areas(points, triangles)), 3)
     count = np.bincount(triangles.ravel(), minlength=len(points))
     rho = np.bincount(triangles.ravel(), inv, minlength=len(points)) / np.maximum(count, 1)
+    used = count > 0
     # linear over the Delaunay triangulation scipy builds of the nodes: nearly the
     # grid's own triangles
-    interp = LinearNDInterpolator(points, rho, fill_value=float(np.median(rho)))
+    interp = LinearNDInterpolator(points[used], rho[used], fill_value=float(np.median(rho[used])))
     scale = float(np.mean(interp(box_samples(box, n))))
 
     def g0(q: np.ndarray) -> np.ndarray:

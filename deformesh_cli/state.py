@@ -20,20 +20,21 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import __version__
-from .contour import MAX_COORDINATE, Contour, make_contour, split_edges
+from .contour import MAX_COORDINATE, Contour, make_contour
 from .errors import InputError, LimitError, OptionError, WriteError, printable
 from .expression import Expression
 from .files import parse_json
 from .geometry import signed_areas
-from .options import MeshOptions
+from .options import MeshOptions, from_record
 from .options import fields as option_fields
+from .pipeline import Laid, lay
 from .select import DEFAULT_MAX_NODES, Grid, Selection
+from .select.construct import GradedGrid, GradedSelection
 from .select.graded import MAX_CELLS_ACROSS, Quadtree
-from .select.graded_path import GradedGrid, GradedSelection
 from .size import MAX_FIELD_ROWS, from_rows
 
 FORMAT = "deformesh-state"
-VERSION = 4
+VERSION = 5
 STAGES = ("selected", "deformed")
 
 _ARRAYS = {
@@ -61,14 +62,19 @@ class State:
     options: dict = field(default_factory=dict)
     #: the rows ``x, y, f`` of the size field given to ``select`` or ``deform``, or None
     size_field: np.ndarray | None = None
-    #: the contour the grid is laid for (with ``--max-h``, its long edges split), and
-    #: where the given points are in it, or None (:func:`.contour.split_edges`): derived
-    #: from the contour and the recorded ``max_h``
-    grid_contour: Contour = field(init=False)
-    given: np.ndarray | None = field(init=False)
+    #: the contour the grid is laid for (:func:`.pipeline.lay`: with ``--max-h`` its
+    #: long edges split, on the graded grid its sharp ears cut): derived from the
+    #: contour and the recorded options
+    laid: Laid | None = None
 
     def __post_init__(self):
-        self.grid_contour, self.given = split_edges(self.contour, self.options.get("max_h"))
+        if self.laid is None:
+            graded = isinstance(self.selection, GradedSelection)
+            self.laid = lay(self.contour, from_record(MeshOptions, self.options), graded)
+
+    @property
+    def grid_contour(self) -> Contour:
+        return self.laid.grid
 
     def size_function(self, name: str):
         """The size function the state records (a size field's rows, or an expression),
@@ -119,10 +125,9 @@ def dumps(state: State) -> bytes:
         "contour_starts": np.asarray(state.contour.starts, dtype=np.int64),
         "diagonals": sel.diagonals,
     }
-    if sel.path_slide is not None:
-        arrays["path_slide"] = sel.path_slide
     if graded:
         arrays.update(leaf_level=g.tree.level, leaf_i=g.tree.i, leaf_j=g.tree.j)
+        arrays["kept"] = sel.kept_triangles().astype(np.uint8)
     if state.stage == "deformed":
         arrays["points"] = state.points
     if state.size_field is not None:
@@ -348,12 +353,11 @@ def _parse(zf: zipfile.ZipFile, meta: dict, stage: str) -> State:
     spec = dict(_ARRAYS)
     if stage == "deformed":
         spec["points"] = ("f", 2, (2,))
-    if "path_slide.npy" in zf.namelist():  # optional: an adapted grid's slide
-        spec["path_slide"] = ("f", 2, (2,))
     if "size_field.npy" in zf.namelist():  # optional: a size field's rows x, y, f
         spec["size_field"] = ("f", 2, (3,))
-    if graded:  # the graded grid's leaves
+    if graded:  # the graded grid's leaves, and which of its triangles the domain keeps
         spec.update(leaf_level=("i", 1, ()), leaf_i=("i", 1, ()), leaf_j=("i", 1, ()))
+        spec["kept"] = ("u", 1, ())
     heads = {key: _header(zf, key, *spec[key]) for key in spec}
     rows = {key: shape[0] for key, (shape, _) in heads.items()}
     if graded:
@@ -363,8 +367,6 @@ def _parse(zf: zipfile.ZipFile, meta: dict, stage: str) -> State:
         cells, nodes = leaves, max_nodes  # (the node count is known once the leaves are)
     p = rows["path_nodes"]
     same = {"diagonals": cells, **dict.fromkeys(("path_targets", "path_source", "path_ring"), p)}
-    if "path_slide" in spec:
-        same["path_slide"] = p
     if not graded and stage == "deformed":
         same["points"] = nodes
     same["contour_lines"] = rows["contour_points"]
@@ -414,16 +416,20 @@ def _parse(zf: zipfile.ZipFile, meta: dict, stage: str) -> State:
         "notes": list(meta["notes"]),
         "path_rule": meta["path_rule"],
         "exterior": meta["exterior"],
-        "path_slide": a.get("path_slide"),
     }
     sel = (GradedSelection if graded else Selection)(**fields)
     try:  # (the grid was laid for the contour split at max_h: bounded by the path)
-        fine, _ = split_edges(contour, options.get("max_h"), len(fields["path_nodes"]))
+        o = from_record(MeshOptions, options).replace(max_nodes=max(4, len(fields["path_nodes"])))
+        laid = lay(contour, o, graded)
     except LimitError:
         raise _Damaged(
             "options.max_h splits the contour into more points than the path has"
         ) from None
-    _check_path(fine, sel, a)
+    _check_path(laid.grid, sel, a)
+    if graded:
+        if len(a["kept"]) != len(sel.triangles()) or not np.isin(a["kept"], (0, 1)).all():
+            raise _Damaged("kept: not one 0 or 1 per triangle of the grid")
+        sel._kept = a["kept"].astype(bool)
     points = a.get("points")
     if points is not None and not graded:
         _check_unfolded(sel, points)
@@ -435,7 +441,7 @@ def _parse(zf: zipfile.ZipFile, meta: dict, stage: str) -> State:
             raise _Damaged(str(exc)) from None
     return State(
         stage, contour, sel, None if points is None else points.astype(float), options,
-        None if field_rows is None else field_rows.astype(np.float64),
+        None if field_rows is None else field_rows.astype(np.float64), laid,
     )  # fmt: skip
 
 
@@ -530,9 +536,6 @@ def _check_path(contour: Contour, sel, a: dict) -> None:
         step = np.sort(np.column_stack([path, np.roll(path, -1)]), axis=1)
         if not np.isin(step[:, 0] * n + step[:, 1], codes).all():
             raise _Damaged(f"path_nodes: ring {r}'s path leaves the grid's edges")
-    slide = a.get("path_slide")
-    if slide is not None and np.abs(slide).max() > 4 * contour.edge_lengths().sum():
-        raise _Damaged("path_slide: a slide longer than the contour")
 
 
 def _options(meta: dict) -> dict:

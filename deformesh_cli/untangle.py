@@ -5,7 +5,7 @@ A deformation let go on past a fold (:func:`.deform.deform_` with
 squeeze the cells between them, at the tip of a tongue thinner than its cells,
 or flat: three path nodes of one grid triangle carried onto one contour edge,
 whose signed area is then round-off, a hair above or below zero (:func:`tangled`).
-Each is mended as :mod:`.merge` re-meshes the cavity of an extra node:
+Each is mended by re-meshing its cavity:
 
 1. the *cavity*: the tangled triangle and every triangle at its inner corners
    (those not on the boundary);
@@ -15,10 +15,10 @@ Each is mended as :mod:`.merge` re-meshes the cavity of an extra node:
    of the cavity's signed areas, so the mesh's area does not change;
 3. the outline is triangulated again, by the triangulation of its own vertices
    with the largest smallest angle (:func:`.cavity.best_triangulation`), if that
-   is at least :data:`.merge.THIN_ANGLE` (no new points);
+   is at least :data:`THIN_ANGLE` (no new points);
 4. otherwise the cavity grows by the triangles around it, up to :data:`GROW`
    times and :data:`MAX_TRIANGLES` triangles, its outline up to
-   :data:`.merge.MAX_CAVITY` nodes.
+   :data:`MAX_CAVITY` nodes.
 
 Boundary nodes never move and every boundary edge of the cavity is a side of
 its outline, so the boundary is the one the deformation gave.  With no triangle
@@ -32,10 +32,20 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import cavity, merge
+from . import cavity
 from .deform import flat_margin
 from .geometry import node_stars, signed_area, signed_areas
 from .mesh import Mesh
+
+#: The smallest angle a cavity's triangulation without new points must reach: low,
+#: because a folded patch is mended where the deformation left it, and the quality
+#: stage then raises it (the finished mesh is checked against the bound of what the
+#: boundary forces).
+THIN_ANGLE = 1.0
+
+#: Cavities with more vertices than this are left alone (the triangulation costs
+#: their cube).
+MAX_CAVITY = 40
 
 #: A cavity grows at most this many times (by the triangles touching it) ...
 GROW = 6
@@ -93,7 +103,7 @@ def _mend(mesh: Mesh, t: int) -> Mesh | None:
     inner = cavity.inner_nodes(tri, stars, cav, boundary)
     for _ in range(GROW + 1):
         ring = cavity.loop(tri[cav], set(inner))
-        if ring is not None and len(ring) > merge.MAX_CAVITY:
+        if ring is not None and len(ring) > MAX_CAVITY:
             return None
         local = None if ring is None else _remesh(pts[ring])
         if local is not None:
@@ -112,7 +122,7 @@ def _mend(mesh: Mesh, t: int) -> Mesh | None:
 def _remesh(p: np.ndarray) -> np.ndarray | None:
     """The triangles of the outline ``p`` (module docstring, step 3) in its local
     indices, or None if it is not a simple counter-clockwise polygon or no
-    triangulation reaches :data:`.merge.THIN_ANGLE`."""
+    triangulation reaches :data:`.THIN_ANGLE`."""
     import shapely
 
     if signed_area(p) <= 0:
@@ -120,6 +130,6 @@ def _remesh(p: np.ndarray) -> np.ndarray | None:
     if not shapely.Polygon(p).is_valid:
         return None
     got = cavity.best_triangulation(p)
-    if got is None or got[1] < merge.THIN_ANGLE:
+    if got is None or got[1] < THIN_ANGLE:
         return None
     return got[0]

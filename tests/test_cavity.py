@@ -1,116 +1,111 @@
-"""cavity.fill: a polygon meshed with new inner points, its sides and vertices kept."""
+"""The re-meshing kernel (``cavity.py``): chords of a polygon, and the triangulation of
+its own vertices with the largest smallest angle; extra boundary nodes taken out
+of finished meshes as ``--merge-extra`` asks."""
+
+import json
 
 import numpy as np
 import pytest
-import shapely
-from hypothesis import assume, given, settings
-from hypothesis import strategies as st
+from hypothesis import HealthCheck, given, settings
 
-from deformesh_cli.cavity import _delaunay, _recover, fill
-from deformesh_cli.geometry import signed_areas
+from deformesh_cli import cavity
+from deformesh_cli.geometry import signed_area, signed_areas
 from deformesh_cli.quality import measures
 
+from .conftest import SAMPLES
+from .test_properties import star_polygons
 
-def check_fill(p, got=None):
-    got = fill(p) if got is None else got
-    assert got is not None
-    new, tri, angle = got
-    pts = np.concatenate([p, new])
+
+def test_chords_go_through_the_inside_and_touch_no_other_vertex():
+
+    # a 4 x 2 rectangle with a vertex in the middle of its bottom side, and a notch from
+    # the top whose tip (vertex 5) lies on the segment from vertex 0 to vertex 3, a
+    # quarter of the way: that segment stays in the polygon, its midpoint inside
+    p = np.array([[0, 0], [2, 0], [4, 0], [4, 2], [1.5, 2], [1, 0.5], [0.5, 2], [0, 2]])
+    c = cavity.chords(p.astype(float))
+    n = len(p)
+    assert (c == c.T).all() and all(c[i, (i + 1) % n] for i in range(n))  # the sides
+    assert not c[0, 2]  # along the bottom, through vertex 1
+    assert not c[0, 3]  # through the notch's tip
+    assert not c[4, 6]  # outside, across the notch
+    assert c[1, 3] and c[1, 5] and c[2, 5] and c[0, 5] and c[3, 5]
+
+
+def _every_triangulation(k: int, i: int = 0, j: int | None = None):
+    """Every triangulation of the polygon's vertices ``i..j`` (all of them: j = k - 1),
+    as lists of index triples."""
+    j = k - 1 if j is None else j
+    if j - i < 2:
+        yield []
+        return
+    for m in range(i + 1, j):
+        for left in _every_triangulation(k, i, m):
+            for right in _every_triangulation(k, m, j):
+                yield [(i, m, j), *left, *right]
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(star_polygons(r_min=0.15, max_points=8))
+def test_the_best_triangulation_has_the_largest_smallest_angle_of_all(points):
+    """Against every triangulation of a small polygon whose triangles all lie inside it
+    (each side of every triangle a side or a chord: a shapely check of its own)."""
+    import shapely
+
+    p = np.asarray(points, dtype=float)
+    if signed_area(p) < 0:
+        p = p[::-1].copy()
     poly = shapely.Polygon(p)
-    # the new points are strictly inside, the triangles counter-clockwise and inside
-    assert shapely.contains_xy(poly, new[:, 0], new[:, 1]).all()
-    area = signed_areas(pts, tri)
-    assert (area > 0).all()
-    assert area.sum() == pytest.approx(poly.area, rel=1e-9)
-    # every side is an edge of exactly one triangle; every inner edge of two
-    uses: dict = {}
-    for t in tri.tolist():
-        for a, b in ((t[0], t[1]), (t[1], t[2]), (t[2], t[0])):
-            uses[frozenset((a, b))] = uses.get(frozenset((a, b)), 0) + 1
-    k = len(p)
-    sides = {frozenset((i, (i + 1) % k)) for i in range(k)}
-    assert all(uses.get(s) == 1 for s in sides)
-    assert all(n == 2 for e, n in uses.items() if e not in sides)
-    # every vertex and every new point is used
-    assert set(np.unique(tri).tolist()) == set(range(len(pts)))
-    assert angle == pytest.approx(measures(pts, tri)[0].min())
-    return new, tri, angle
+    best = None
+    for t in _every_triangulation(len(p)):
+        t = np.array(t)
+        if (signed_areas(p, t) <= 0).any():
+            continue
+        if not all(poly.covers(shapely.Polygon(p[tri])) for tri in t):
+            continue
+        if abs(signed_areas(p, t).sum() - poly.area) > 1e-9 * poly.area:
+            continue
+        angle = measures(p, t)[0].min()
+        best = angle if best is None else max(best, angle)
+    got = cavity.best_triangulation_of.__wrapped__(np.ascontiguousarray(p).tobytes())
+    if best is None:
+        assert got is None
+    else:
+        assert got is not None and got[1] == pytest.approx(best, abs=1e-9)
+        assert measures(p, got[0])[0].min() == pytest.approx(got[1])
 
 
-def long_edge_cavity(length, depth, steps):
-    """A contour edge from (0, 0) to (length, 0), and above it a chain of ``steps``
-    segments ``depth`` up: what a graded path's cavity looks like (counter-clockwise,
-    starting at the edge's ends)."""
-    xs = np.linspace(length, 0, steps + 1)
-    chain = np.column_stack([xs, np.full_like(xs, depth)])
-    return np.concatenate([[[0.0, 0.0], [length, 0.0]], chain])
+def test_a_kept_triangulation_is_the_one_computed_afresh():
+
+    p = np.array([[0, 0], [2, 0], [3, 1], [2, 2], [0.5, 2.5], [-1, 1]], dtype=float)
+    first = cavity.best_triangulation(p)
+    assert cavity.best_triangulation(p.copy()) is first  # kept: asked again, not solved
+    fresh = cavity.best_triangulation_of.__wrapped__(p.tobytes())
+    assert np.array_equal(first[0], fresh[0]) and first[1] == fresh[1]
+    with pytest.raises(ValueError):
+        first[0][0, 0] = 5  # handed out again: nobody may change it
+    moved = p.copy()
+    moved[2] = (1, 1)  # another polygon, another answer (a reflex vertex)
+    assert cavity.best_triangulation(moved) is not first
 
 
-def test_a_long_edge_over_a_shallow_cavity_gets_inner_points_and_a_fair_angle():
-    """A cavity 8 long and 4 deep, unit sides but the contour edge and its two ends:
-    the best triangulation of its own vertices fans the short sides out to the far
-    ones (8.1 degrees).  Inner points graded from the short sides more than double
-    the smallest angle."""
-    from deformesh_cli.cavity import best_triangulation
+def test_auto_keeps_the_uniform_grid_as_the_paper_has_it(run, tmp_path):
+    """``auto``: the uniform grid keeps its extra boundary nodes (the paper's form), the
+    graded one takes every one out; ``merge`` takes the uniform grid's out too, ``keep``
+    keeps the graded one's."""
+    out = tmp_path / "m.vtk"
 
-    p = long_edge_cavity(8.0, 4.0, 8)
-    new, tri, angle = check_fill(p)
-    assert len(new) > 0
-    assert angle > 2 * best_triangulation(p)[1]
+    def report(*args):
+        r = run("all", SAMPLES / "peanut.csv", "-o", out, "--json", *args)
+        assert r.exit_code == 0, r.stderr
+        return json.loads(r.stdout)
 
-
-@settings(max_examples=200)
-@given(
-    st.lists(st.tuples(st.floats(0.2, 3.0), st.floats(-0.4, 0.4)), min_size=3, max_size=24),
-    st.floats(0.5, 6.0),
-)
-def test_random_cavities_are_filled_conformingly(radii, stretch):
-    """Star-shaped polygons around the origin (random radii, stretched): whenever fill
-    answers, the sides are kept, the vertices stay, the area is the polygon's; on a
-    convex one it always answers."""
-    k = len(radii)
-    ang = 2 * np.pi * (np.arange(k) + np.array([j for _, j in radii]) * 0.9) / k
-    r = np.array([q for q, _ in radii])
-    p = np.column_stack([stretch * r * np.cos(ang), r * np.sin(ang)])
-    poly = shapely.Polygon(p)
-    assume(poly.is_valid and poly.exterior.is_ccw and poly.area > 1e-3)
-    got = fill(p)
-    if got is not None:
-        check_fill(p, got)
-    else:  # (a convex one always has its Delaunay triangulation, sides and all)
-        assert not np.isclose(poly.convex_hull.area, poly.area, rtol=1e-12)
-
-
-def test_recover_flips_a_missing_side_in():
-    """A square's Delaunay diagonal is 0-2 or 1-3; asking for the other one flips it."""
-    pts = np.array([[0, 0], [1, 0], [1, 1.1], [0, 1]], dtype=float)
-    tri = np.array([[0, 1, 2], [0, 2, 3]])
-    out = _recover(pts, tri, 1, 3)
-    edges = {frozenset(e) for t in out.tolist() for e in ((t[0], t[1]), (t[1], t[2]), (t[2], t[0]))}
-    assert frozenset((1, 3)) in edges and frozenset((0, 2)) not in edges
-    assert (signed_areas(pts, out) > 0).all()
-
-
-def test_the_long_edge_cavity_shape_is_what_merge_sees():
-    p = long_edge_cavity(6.0, 1.0, 6)
-    assert shapely.Polygon(p).is_valid and shapely.Polygon(p).exterior.is_ccw
-    check_fill(p)
-
-
-def test_a_triangulation_without_one_of_the_vertices_is_refused(monkeypatch):
-    """qhull may leave out a vertex lying on a straight side (seen on a cavity along a
-    contour edge, its points there only to the nearest double): the triangles then
-    cover the polygon, but without that vertex, and no flip can put the side back."""
-    import scipy.spatial
-
-    p = np.array([[0, 0], [1, 0], [2, 0], [2, 1], [0, 1]], dtype=float)  # (1, 0) on a side
-    edges = np.column_stack([np.arange(5), (np.arange(5) + 1) % 5])
-    poly = shapely.Polygon(p)
-
-    class WithoutVertex1:
-        def __init__(self, pts):
-            self.simplices = np.array([[0, 2, 3], [0, 3, 4]])
-
-    assert _delaunay(p, np.empty((0, 2)), edges, poly) is not None  # (qhull keeps it here)
-    monkeypatch.setattr(scipy.spatial, "Delaunay", WithoutVertex1)
-    assert _delaunay(p, np.empty((0, 2)), edges, poly) is None
+    uniform = report("--grid", "uniform")
+    assert uniform["extra_boundary_nodes"] > 100 and uniform["recovered_extra_nodes"] == 0
+    merged = report("--grid", "uniform", "--merge-extra", "merge")
+    assert merged["extra_boundary_nodes"] == 0
+    assert merged["recovered_extra_nodes"] == uniform["extra_boundary_nodes"]
+    graded = report()
+    kept = report("--merge-extra", "keep")
+    assert graded["extra_boundary_nodes"] == 0 and graded["recovered_extra_nodes"] > 0
+    assert kept["recovered_extra_nodes"] == 0
+    assert kept["extra_boundary_nodes"] == graded["recovered_extra_nodes"]

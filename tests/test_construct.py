@@ -72,7 +72,7 @@ def test_constructed_meshes_keep_exactly_the_contour_points(path):
     boundary nodes are exactly the contour's points (two outer rings with holes
     included), and the contract holds."""
     c = load_contour(path)
-    got = pipeline.mesh_constructed(c)  # (it checks the contract)
+    got = pipeline.mesh_contour(c)  # (it checks the contract)
     sel, mesh = got.selection, got.mesh
     assert sel.extra_nodes > 0  # (the loop's nodes between points: all taken out)
     assert mesh.n_extra == 0 and np.array_equal(mesh.points[: c.n], c.points)
@@ -81,7 +81,7 @@ def test_constructed_meshes_keep_exactly_the_contour_points(path):
 
 def test_a_rectangle_by_its_corners_is_constructed():
     c = make_contour(np.array([[0, 0], [10, 0], [10, 1], [0, 1]], float), source="rect")
-    mesh = pipeline.mesh_constructed(c).mesh
+    mesh = pipeline.mesh_contour(c).mesh
     assert mesh.n_extra == 0 and len(mesh.lines) == 4
 
 
@@ -186,7 +186,7 @@ def test_a_needle_is_one_ear_triangle():
     grid_contour, kept, ears = construct.cut_ears(c)
     assert ears.tolist() == [[3, 4, 5]] and kept.tolist() == [0, 1, 2, 3, 5, 6]
     assert grid_contour.n == 6
-    mesh = pipeline.mesh_constructed(c).mesh  # (it checks the contract)
+    mesh = pipeline.mesh_contour(c).mesh  # (it checks the contract)
     assert np.array_equal(mesh.points[: c.n], c.points)
     assert sorted(map(tuple, mesh.lines.tolist())) == [(k, (k + 1) % 7) for k in range(7)]
     assert (np.sort(mesh.triangles, axis=1) == [3, 4, 5]).all(axis=1).any()
@@ -221,7 +221,7 @@ def test_an_ear_within_a_third_of_its_bound_is_cut():
     tip = construct._angle_between(pts[2] - pts[3], pts[4] - pts[3])
     at_a = construct._angle_between(pts[3] - pts[2], pts[4] - pts[2])
     assert tip / 3 <= at_a < tip / 2
-    mesh = pipeline.mesh_constructed(c).mesh  # (it checks the contract)
+    mesh = pipeline.mesh_contour(c).mesh  # (it checks the contract)
     assert np.array_equal(mesh.points[: c.n], c.points)
 
 

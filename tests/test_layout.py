@@ -146,13 +146,10 @@ def test_only_deformesh_errors_reach_the_cli_layer():
                 f = node.exc.func
                 raised.add(f.id if isinstance(f, ast.Name) else getattr(f, "attr", None))
     ours = {n for n in dir(errors) if isinstance(getattr(errors, n), type)}
-    # SelectionError subclasses of select, trace, graded_path and construct; state's
-    # InputError
+    # SelectionError subclasses of select, trace and construct; state's InputError
     local = {
         "NoFreeNode",
         "TraceError",
-        "_Clash",
-        "_NoRoute",
         "_Damaged",
         "_Crowded",
         "_Stray",

@@ -79,10 +79,9 @@ def finish(
 
 def summary_line(r: dict) -> str:
     """The one line on stderr that sums up a mesh."""
-    merged = f" ({r['merged_extra_nodes']} merged)" if r.get("merged_extra_nodes") else ""
     return (
         f"{r['input']} -> {r['output']}: {r['nodes']} nodes, {r['triangles']} triangles, "
         f"angles {r['min_angle']:.1f}-{r['max_angle']:.1f} deg, smallest area "
         f"{r['smallest_area']:.3g}, {r['extra_boundary_nodes']} extra boundary nodes"
-        f"{merged}, contract {r['contract']} ({r['seconds']:.2f} s)"
+        f", contract {r['contract']} ({r['seconds']:.2f} s)"
     )

@@ -31,7 +31,7 @@ def command(contour: str, output: str, quiet: bool, **kwargs) -> None:
     files.check_outputs([output], [contour, o.size_field])
     c = load_contour(contour, None, o.decimal, o.tolerance, o.element_id, o.resample, o.stroke)
     size = _size.make(o.size, o.size_field, c)
-    sel = pipeline.run_select(pipeline.split(c, o)[0], o, size_function=size)
+    sel = pipeline.run_select(pipeline.lay(c, o).grid, o, size_function=size)
     options = {**o.stage("read"), **o.stage("select")}
     if o.size is not None:
         options["size"] = o.size

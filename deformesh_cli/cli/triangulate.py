@@ -48,13 +48,8 @@ def command(
     deformed = pipeline.Deformed(st.selection, st.points)
     try:
         size = st.size_function(name)
-        mesh, report = pipeline.run_triangulate(st.grid_contour, deformed, o, size_function=size)
+        mesh, report = pipeline.run_triangulate(st.laid, deformed, o, size_function=size)
         report.update(pipeline.selection_report(st.selection))
-        if st.given is not None:  # (the given points numbered first)
-            box = st.selection.grid.box if st.selection.exterior else None
-            mesh, report = pipeline.given_first(
-                mesh, report, st.contour, st.grid_contour, st.given, box
-            )
     except FoldError as exc:  # (the state's deformed points are what folds)
         raise FoldError(f"{name}: {exc}") from None
     except SizeError as exc:

@@ -5,11 +5,10 @@
   steps);
 - :mod:`.trace`: a simple grid path traced around a region of cells, where
   Appendix A's choice gives none;
-- :mod:`.respace`: the adapted grid (selection on the contour evenly re-spaced,
-  nodes slid along the contour to the real points);
 - :mod:`.graded`: a graded background (a balanced quadtree of square cells
-  split into right isosceles triangles, conforming across levels; not yet used by
-  the pipeline).
+  split into right isosceles triangles, conforming across levels);
+- :mod:`.construct`: the graded grid laid for the contour's sizes and thin parts,
+  and each ring's loop of grid edges fitted to its points.
 """
 
 from .uniform import (

@@ -32,14 +32,157 @@ the mesh are exactly the contour's points.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+from typing import ClassVar
+
 import numpy as np
 import shapely
 
 from ..contour import Contour
-from ..errors import SelectionError
+from ..errors import LimitError, OptionError, SelectionError
 from ..geometry import boundary_edges, next_on_ring, prev_on_ring, signed_areas
 from . import graded
-from .graded_path import GradedGrid, GradedSelection
+from .uniform import DEFAULT_MAX_NODES
+
+#: Band of the deformation on the graded grid: nodes within this many edges of the
+#: path (the uniform grid's 4 cells).
+BAND_HOPS = 4
+
+
+@dataclass
+class GradedGrid:
+    """The graded background as the stages see it: its nodes and its box."""
+
+    tree: graded.Quadtree
+    points: np.ndarray  # (n, 2) undeformed node coordinates
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.points)
+
+    @property
+    def box(self) -> tuple[float, float, float, float]:
+        return self.tree.box
+
+    @property
+    def nx(self) -> int:
+        return self.tree.nx
+
+    @property
+    def ny(self) -> int:
+        return self.tree.ny
+
+    @property
+    def hx(self) -> float:
+        return self.tree.hx
+
+    @property
+    def hy(self) -> float:
+        return self.tree.hy
+
+    def coords(self, nid: np.ndarray | int | None = None) -> np.ndarray:
+        return self.points if nid is None else self.points[nid]
+
+    def _sides(self):
+        x0, y0, x1, y1 = self.box
+        x, y = self.points[:, 0], self.points[:, 1]
+        xmax, ymax = x.max(), y.max()  # the box's far sides, as the nodes have them
+        return x == x0, x == xmax, y == y0, y == ymax
+
+    def boundary_nodes(self) -> np.ndarray:
+        left, right, bottom, top = self._sides()
+        return np.flatnonzero(left | right | bottom | top)
+
+    def box_ring(self) -> np.ndarray:
+        """The box's nodes counter-clockwise from the lower left corner."""
+        left, right, bottom, top = self._sides()
+        x, y = self.points[:, 0], self.points[:, 1]
+        parts = [
+            np.flatnonzero(bottom & ~right)[np.argsort(x[bottom & ~right])],
+            np.flatnonzero(right & ~top)[np.argsort(y[right & ~top])],
+            np.flatnonzero(top & ~left)[np.argsort(-x[top & ~left])],
+            np.flatnonzero(left & ~bottom)[np.argsort(-y[left & ~bottom])],
+        ]
+        return np.concatenate(parts)
+
+    def side_edges(self) -> tuple[int, int, int, int]:
+        left, right, bottom, top = self._sides()
+        return (
+            int((bottom & ~right).sum()),
+            int((right & ~top).sum()),
+            int((top & ~left).sum()),
+            int((left & ~bottom).sum()),
+        )
+
+
+@dataclass
+class GradedSelection:
+    """Stage 1's result on the graded grid (the attributes the later stages read, as
+    :class:`~deformesh_cli.select.uniform.Selection` has them)."""
+
+    grid: GradedGrid
+    path_nodes: np.ndarray
+    path_targets: np.ndarray
+    path_source: np.ndarray
+    path_ring: np.ndarray
+    diagonals: np.ndarray  # per leaf
+    h: float  # the finest cell
+    exterior: bool = False
+    notes: list[str] = field(default_factory=list)
+    h_rule: str = "graded"
+    path_rule: str = "graded"
+    searched_further: int = 0
+    refinements: int = 0
+    #: the deformation may fold triangles near the path; stage 3 meshes them again
+    mends_folds: ClassVar[bool] = True
+    _triangles: np.ndarray | None = field(default=None, init=False, repr=False)
+    _kept: np.ndarray | None = field(default=None, init=False, repr=False)
+
+    @property
+    def extra_nodes(self) -> int:
+        return int(np.count_nonzero(self.path_source < 0))
+
+    def triangles(self) -> np.ndarray:
+        if self._triangles is None:
+            self._triangles = self.grid.tree.triangulate(self.diagonals)[1]
+        return self._triangles
+
+    def inside_triangles(self) -> np.ndarray:
+        """Per triangle: its centroid inside the rings' paths (even-odd); a centroid is
+        never on a path, whose steps are triangle edges."""
+        tri = self.triangles()
+        p = self.grid.points
+        cen = (p[tri[:, 0]] + p[tri[:, 1]] + p[tri[:, 2]]) / 3.0
+        inside = np.zeros(len(tri), dtype=bool)
+        for r in np.unique(self.path_ring):
+            ring = shapely.Polygon(p[self.path_nodes[self.path_ring == r]])
+            inside ^= shapely.contains_xy(ring, cen[:, 0], cen[:, 1])
+        return inside
+
+    def kept_triangles(self) -> np.ndarray:
+        """Per triangle: on the domain's side of the paths (:meth:`inside_triangles`,
+        or outside them for an exterior mesh)."""
+        if self._kept is None:
+            inside = self.inside_triangles()
+            self._kept = ~inside if self.exterior else inside
+        return self._kept
+
+    def band_nodes(self) -> np.ndarray | None:
+        """Nodes within :data:`BAND_HOPS` edges of the path, or None if half the grid."""
+        import scipy.sparse as sp
+
+        tri = self.triangles()
+        n = self.grid.n_nodes
+        a = np.concatenate([tri[:, 0], tri[:, 1], tri[:, 2]])
+        b = np.concatenate([tri[:, 1], tri[:, 2], tri[:, 0]])
+        adj = sp.csr_matrix((np.ones(len(a), np.int8), (a, b)), shape=(n, n))
+        adj = adj + adj.T
+        on = np.zeros(n, dtype=bool)
+        on[self.path_nodes] = True
+        for _ in range(BAND_HOPS):
+            on |= (adj @ on.astype(np.int8)) > 0
+        return on if on.sum() < 0.5 * n else None
+
 
 #: The ``path_rule`` of a constructed selection (stage 3 takes every extra node out).
 CONSTRUCTED = "graded-loop"
@@ -86,7 +229,9 @@ def _clearance(x, x_arc, x_ring, own, qi, si, a, b, arc, length, ring, perimeter
     return np.where(other, d, np.inf)
 
 
-def feature_samples(contour: Contour) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def feature_samples(
+    contour: Contour, max_nodes: int | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(points, sizes, point_sizes, edge)``: where the cells must be how small, and
     the contour point (for an edge's sample, the edge's first point) each belongs to.
 
@@ -97,7 +242,8 @@ def feature_samples(contour: Contour) -> tuple[np.ndarray, np.ndarray, np.ndarra
     while a piece is longer than the clearance at its middle (its distance to
     another part of the contour), except a piece at an end no longer than that
     end's point size.  A sample's size is :data:`CLEARANCE_FACTOR` times its
-    clearance, at most its piece's length.
+    clearance, at most its piece's length.  More samples than ``max_nodes`` (each
+    asks for a cell of its own) is a :class:`LimitError`.
     """
     p = contour.points
     m = contour.n
@@ -123,7 +269,14 @@ def feature_samples(contour: Contour) -> tuple[np.ndarray, np.ndarray, np.ndarra
     t0 = np.zeros(m)
     t1 = np.ones(m)
     out_xy, out_size, out_edge = [p], [s], [np.arange(m)]
+    count = m
     while len(seg):
+        if max_nodes is not None and count + len(seg) > max_nodes:
+            k = int(seg[0])
+            raise LimitError(
+                f"{contour.source}: its thin parts ask for more than {max_nodes:,} cells "
+                f"(near {contour.where(k)}); raise --max-nodes"
+            )
         ell = (t1 - t0) * length[seg]
         tm = (t0 + t1) / 2
         mid = a[seg] + tm[:, None] * (b[seg] - a[seg])
@@ -140,6 +293,7 @@ def feature_samples(contour: Contour) -> tuple[np.ndarray, np.ndarray, np.ndarra
         end_size[np.isinf(end_size)] = 0.0  # (a piece inside an edge stops at c alone)
         split = (ell > c) & (ell > end_size) & (ell > floor)
         done = ~split & np.isfinite(c)
+        count += int(done.sum())
         out_xy.append(mid[done])
         out_size.append(np.minimum(ell[done], CLEARANCE_FACTOR * c[done]))
         out_edge.append(seg[done])
@@ -218,12 +372,19 @@ def select_constructed(
     growth: float = graded.DEFAULT_GROWTH,
     max_nodes: int | None = None,
     max_h: float | None = None,
-    field=None,
+    size_function=None,
 ) -> GradedSelection:
     """The graded grid laid for ``contour`` and each ring's loop fitted to its points
-    (the module's steps).  ``field``: a further size field (points -> sizes) the
-    cells must not exceed, as a size function asks."""
-    xy, size, s, edge = feature_samples(contour)
+    (the module's steps).  ``size_function`` (a :class:`~..size.SizeFunction`): the
+    cells also follow it, at most ``lambda sqrt(f)`` wide, ``lambda`` the median over
+    the contour's points of their cell size over ``sqrt(f)`` (so the cells along the
+    contour keep the points' spacing on average)."""
+    xy, size, s, edge = feature_samples(contour, max_nodes or DEFAULT_MAX_NODES)
+    field = None
+    if size_function is not None:
+        at = np.sqrt(size_function.values(contour.points))
+        scale = float(np.median(CELL_FACTOR * s / at))
+        field = lambda q: scale * np.sqrt(size_function.values(q))  # noqa: E731
     prv = prev_on_ring(contour.ring)
     lo, hi = contour.points.min(axis=0), contour.points.max(axis=0)
     given = box is not None
@@ -231,6 +392,12 @@ def select_constructed(
         if margin is None:
             margin = float((hi - lo).max()) if exterior else 3.0 * float(s.max())
         box = (lo[0] - margin, lo[1] - margin, hi[0] + margin, hi[1] + margin)
+    else:
+        box = _checked_box(contour, box, exterior)
+        if not exterior:  # (the background only: room for the loop around the contour)
+            room = 3.0 * float(s.max())
+            box = (min(box[0], lo[0] - room), min(box[1], lo[1] - room),
+                   max(box[2], hi[0] + room), max(box[3], hi[1] + room))  # fmt: skip
     factor = np.full(len(xy), CELL_FACTOR)
     crowded = None
     for _ in range(REFINE_ROUNDS + 1):
@@ -247,6 +414,65 @@ def select_constructed(
         f"{contour.source}: contour points still share grid nodes after halving their "
         f"cells {REFINE_ROUNDS} times, near {contour.where(int(crowded[0]))}"
     )
+
+
+def _checked_box(contour: Contour, box, exterior: bool) -> tuple[float, float, float, float]:
+    """A given ``--box``, checked: ordered, holding every contour point, and, for an
+    exterior mesh, with every point strictly inside (the mesh is the box minus the
+    contour: a point on the box's side would split it)."""
+    from .uniform import _fmt_box
+
+    box = tuple(float(v) for v in box)
+    if not (box[0] < box[2] and box[1] < box[3]):
+        raise OptionError(f"--box {_fmt_box(box)}: need XMIN < XMAX and YMIN < YMAX")
+    p = contour.points
+    gap = np.minimum(
+        np.minimum(p[:, 0] - box[0], box[2] - p[:, 0]),
+        np.minimum(p[:, 1] - box[1], box[3] - p[:, 1]),
+    )
+    k = int(np.argmin(gap))
+    if gap[k] < 0:
+        raise OptionError(
+            f"{contour.source}: {contour.where(k)} lies outside --box {_fmt_box(box)}"
+        )
+    if exterior and gap[k] <= 0:
+        raise OptionError(
+            f"{contour.source}: {contour.where(k)} is on the side of the box {_fmt_box(box)}; "
+            "an exterior mesh needs room around the contour: give a larger --box or --margin"
+        )
+    return box
+
+
+def _target_edges(n: int, nodes, ring, source) -> np.ndarray:
+    """Per grid node, the two contour edges its target lies on, each named by the
+    contour point it starts from along the loop (an extra node's twice; -1, -2 for a
+    node without a target, on no edge)."""
+    out = np.column_stack([np.full(n, -1), np.full(n, -2)])
+    for r in np.unique(ring):
+        at = np.flatnonzero(ring == r)
+        src = source[at]
+        is_point = src >= 0
+        # the last point at or before each node along the loop (wrapping round)
+        idx = np.where(is_point, np.arange(len(at)), -1)
+        last = np.maximum.accumulate(idx)
+        last[last < 0] = np.flatnonzero(is_point)[-1]
+        own = src[last]
+        prev_point = np.roll(src[is_point], 1)  # each point's previous point
+        before = own.copy()
+        before[is_point] = prev_point
+        out[nodes[at], 0] = own
+        out[nodes[at], 1] = before
+    return out
+
+
+def _on_one_edge(edges: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Per triangle: its three nodes' targets share a contour edge (:func:`_target_edges`)."""
+    a, b, c = edges[tri[:, 0]], edges[tri[:, 1]], edges[tri[:, 2]]
+    out = np.zeros(len(tri), dtype=bool)
+    for k in (0, 1):
+        e = a[:, k]
+        out |= (e >= 0) & ((b == e[:, None]).any(axis=1)) & ((c == e[:, None]).any(axis=1))
+    return out
 
 
 class _Pinch(SelectionError):
@@ -331,7 +557,9 @@ def _select_on(contour: Contour, tree: graded.Quadtree, exterior: bool, size) ->
             t = np.flatnonzero(full)
             area = signed_areas(target_of, tri[t])
             scale = np.hypot(*(target_of[tri[t, 0]] - target_of[tri[t, 1]]).T) ** 2
-            bad = t[area <= 1e-9 * np.maximum(scale, 1e-300)]
+            # flat by construction (three targets on one contour edge), or by round-off
+            flat = _on_one_edge(_target_edges(n, nodes, ring, source), tri[t])
+            bad = t[flat | (area <= 1e-9 * np.maximum(scale, 1e-300))]
             if len(bad):
                 banned[bad] = True
                 continue
@@ -366,10 +594,14 @@ def _monotone(q: np.ndarray, loop: np.ndarray, s: np.ndarray) -> np.ndarray | No
     """Loop positions for the ring's points ``q`` (in ring order) on the closed
     ``loop`` (coordinates, in the same direction): each point one of its
     :data:`CANDIDATES` nearest loop nodes, the positions strictly increasing once
-    around the loop, the least summed squared distance in units of each point's
-    size ``s``.  Dynamic programming along the ring from the point whose nearest
-    node is nearest (in those units), which keeps it.  Returns the positions, or
-    the indices of the points where no such choice exists (an array shorter than
+    around the loop, the least sum of the squared distances, in units of each
+    point's size ``s``, from each point to its node and from every loop node between
+    two points' nodes that lies past an end of the edge joining them to that end (so
+    a corner takes the loop's corner, not a node past it whose neighbour would then
+    be carried round the corner).
+    Dynamic programming along the ring from the point whose nearest node is
+    nearest (in those units), which keeps it.  Returns the positions, or the
+    indices of the points where no such choice exists (an array shorter than
     ``q``; None: every point)."""
     from scipy.spatial import cKDTree
 
@@ -388,9 +620,11 @@ def _monotone(q: np.ndarray, loop: np.ndarray, s: np.ndarray) -> np.ndarray | No
     total[0] = cost[0, 0]
     back = np.zeros((m, k), dtype=np.int64)
     failed = []  # (where no choice exists: the programme starts again after it)
+    qo, so = q[order], s[order]
     for t in range(1, m):
         gap = (cand[t][None, :] - cand[t - 1][:, None]) % nl
-        step = np.where((gap >= 1) & (gap <= widest), total[:, None], np.inf)
+        between = _between_cost(loop, cand[t - 1], cand[t], qo[t - 1], qo[t], so[t - 1])
+        step = np.where((gap >= 1) & (gap <= widest), total[:, None] + between, np.inf)
         back[t] = np.argmin(step, axis=0)
         total = step[back[t], np.arange(k)] + cost[t]
         if not np.isfinite(total).any():
@@ -399,7 +633,8 @@ def _monotone(q: np.ndarray, loop: np.ndarray, s: np.ndarray) -> np.ndarray | No
     if failed:
         return order[np.clip(failed, 0, m - 1)]
     gap = (cand[0, 0] - cand[m - 1]) % nl
-    total = np.where((gap >= 1) & (gap <= widest), total, np.inf)
+    between = _between_cost(loop, cand[m - 1], cand[0, :1], qo[m - 1], qo[0], so[m - 1])[:, 0]
+    total = np.where((gap >= 1) & (gap <= widest), total + between, np.inf)
     if not np.isfinite(total).any():
         return order[[m - 2, m - 1, 0]] if m > 2 else None
     pick = np.empty(m, dtype=np.int64)
@@ -416,18 +651,47 @@ def _monotone(q: np.ndarray, loop: np.ndarray, s: np.ndarray) -> np.ndarray | No
     return out
 
 
+def _between_cost(loop, ci: np.ndarray, cj: np.ndarray, a, b, size: float) -> np.ndarray:
+    """Per pair of loop positions (``ci[x]``, ``cj[y]``): the summed squared distances,
+    in units of ``size``, from the loop nodes strictly between them (going forward)
+    that lie past an end of the segment ``a b`` (their projection outside it) to that
+    end.  Prefix sums over the stretch of loop the pairs span."""
+    nl = len(loop)
+    lo = ((ci - ci[0] + nl // 2) % nl) - nl // 2  # (signed, about ci[0])
+    hi = (cj - ci[0]) % nl
+    w0 = int(lo.min())
+    span = max(int(hi.max()) - w0 + 1, 1)
+    xy = loop[(ci[0] + w0 + np.arange(span)) % nl]
+    ab = b - a
+    length = max(float(np.hypot(*ab)), 1e-300)
+    t = (xy - a) @ ab / length**2
+    end = np.where(t < 0.0, 0.0, 1.0)
+    past = (t < 0.0) | (t > 1.0)
+    d2 = np.where(past, ((xy - a - end[:, None] * ab) ** 2).sum(axis=1) / size**2, 0.0)
+    c = np.concatenate([[0.0], np.cumsum(d2)])
+    i0 = (lo - w0 + 1)[:, None]  # (first node after ci)
+    j0 = (hi - w0)[None, :]  # (cj itself, excluded)
+    return np.where(j0 >= i0, c[np.clip(j0, 0, span)] - c[np.clip(i0, 0, span)], 0.0)
+
+
 def _owners(contour: Contour, p: np.ndarray, loops: list[np.ndarray]) -> np.ndarray:
     """Per loop, the ring it follows, or -1: each ring's loop is the one that most of
-    its points have the nearest node on."""
+    its points have the nearest node on; two rings choosing one loop (the cells are
+    too coarse for one of them to have its own) is :class:`_Crowded` at both."""
     from scipy.spatial import cKDTree
 
     loop_of = np.concatenate([np.full(len(lp), i) for i, lp in enumerate(loops)])
     kd = cKDTree(p[np.concatenate(loops)])
     _, k = kd.query(contour.points)
+    choice = np.array([
+        int(np.argmax(np.bincount(loop_of[k[contour.ring == r]], minlength=len(loops))))
+        for r in range(contour.n_rings)
+    ])  # fmt: skip
+    shared = np.bincount(choice, minlength=len(loops)) > 1
+    if shared.any():  # (one ring has no loop of its own there: finer cells at both)
+        raise _Crowded(np.flatnonzero(shared[choice][contour.ring]))
     owner = np.full(len(loops), -1, dtype=np.int64)
-    for r in range(contour.n_rings):
-        votes = np.bincount(loop_of[k[contour.ring == r]], minlength=len(loops))
-        owner[int(np.argmax(votes))] = r
+    owner[choice] = np.arange(contour.n_rings)
     return owner
 
 
@@ -445,6 +709,8 @@ def _assign(contour: Contour, grid: GradedGrid, nxt: np.ndarray, exterior: bool,
     (see the module's step 4); raises :class:`_Stray` or :class:`_Crowded`."""
 
     loops = _loops(nxt)
+    if not loops:  # (no triangle's centroid in the domain: finer cells everywhere)
+        raise _Crowded(np.arange(contour.n))
     p = grid.points
     owner = _owners(contour, p, loops)
     stray = np.flatnonzero(owner < 0)
@@ -658,7 +924,7 @@ def restore_ears(mesh, contour: Contour, kept: np.ndarray, ears: np.ndarray, ext
         triangles=tri,
         lines=np.array(lines, dtype=np.int64),
         n_contour=m,
-        n_extra=0,
+        n_extra=mesh.n_extra,
         line_group=np.array(groups, dtype=np.int64),
         groups=mesh.groups,
         n_box=mesh.n_box,

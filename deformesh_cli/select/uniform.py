@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 
@@ -30,15 +31,10 @@ from ..geometry import next_on_ring, signed_area, signed_areas
 #: this machine's 24 GiB while leaving room for the rest of the pipeline.
 DEFAULT_MAX_NODES = 8_000_000
 
-#: ``--grid`` choices: ``graded`` is the graded quadtree grid (:mod:`.graded_path`);
-#: where it finds no path it falls back to ``adapt`` when the median spacing is over
-#: :data:`EVEN_SPACING_RATIO` times the smallest (Appendix A's grid would be that
-#: squared times bigger) and the mesh is not exterior, else to ``uniform``.  Icons
-#: (long edges, even small spacing: median / smallest 1.1-2) fall back to Appendix
-#: A's grid, which gave them 15-21 degrees.  ``adapt`` selects on the evenly
-#: re-spaced contour and slides (:mod:`.respace`); ``uniform`` is Appendix A's grid;
-#: ``auto`` is ``graded``, or ``uniform`` when ``--h`` is given.
-GRIDS = ("auto", "adapt", "uniform", "graded")
+#: ``--grid`` choices: ``graded`` is the constructed graded quadtree grid
+#: (:mod:`.construct`); ``uniform`` is Appendix A's grid; ``auto`` is ``graded``, or
+#: ``uniform`` when ``--h`` is given.
+GRIDS = ("auto", "uniform", "graded")
 
 #: Default margin between the contour's bounding box and the background box, in cells.
 DEFAULT_MARGIN_CELLS = 3
@@ -287,9 +283,8 @@ class Selection:
     path_rule: str = "appendix-a"
     path_ring: np.ndarray | None = None
     exterior: bool = False
-    #: (n_path, 2) arc lengths along the contour where each path node starts and
-    #: ends when the grid was adapted (:mod:`.respace`); None for straight moves.
-    path_slide: np.ndarray | None = None
+    #: the deformation folds no triangle (Appendix A's grid), or fails
+    mends_folds: ClassVar[bool] = False
     #: :meth:`triangles`, built on first use (every stage after selection needs them)
     _triangles: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
 
