@@ -1,8 +1,7 @@
 """Stage 3b: better triangles next to the contour.
 
 A deformed Cartesian mesh is right-isosceles inside (45 degrees); its weak
-triangles sit between the contour and the first grid rows (and, on an adapted
-grid, where a thin part squeezes the cells).  This stage works where a
+triangles sit between the contour and the first grid rows.  This stage works where a
 triangle's smallest angle is under :data:`TARGET`, on the triangles within two
 rings of it, and takes only changes that make things better:
 

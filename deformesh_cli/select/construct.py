@@ -14,20 +14,21 @@
    of closed loops of grid edges within one cell of the contour.  A node where
    the region touches itself at a corner only (a pinch) takes the triangles
    around it, so every loop is simple.
-4. **Selection** (:func:`_assign`): each contour point takes the nearest node
-   of its ring's loop; the loop nodes between two consecutive points' nodes
-   are extra boundary nodes, carried to that contour edge in proportion to
-   their distance along the loop.  A region triangle whose three nodes all
-   have targets, and whose targets would not make a counter-clockwise
-   triangle, would flatten or fold: it leaves the region and the loop is laid
-   again.  Where two points take one node, or take nodes out of the ring's
+4. **Selection** (:func:`_assign`): each contour point takes one of the nearest
+   nodes of its ring's loop, in the ring's order (:func:`_monotone`); the loop
+   nodes between two consecutive points' nodes are extra boundary nodes, each
+   carried to its projection on that contour edge (kept in the loop's order).
+   A region triangle whose three nodes all have targets on one contour edge, or
+   whose targets would not make a counter-clockwise triangle, would flatten or
+   fold: it leaves the region and the loop is laid again.  Where two points take one node, or take nodes out of the ring's
    order, the cells at those points are halved and the grid laid again, at
    most :data:`REFINE_ROUNDS` times (the loop then passes nearer each point
    than half the distance to its neighbours).
 
 The deformation carries every loop node onto its target; stage 3 then takes
-the extra boundary nodes out again (:mod:`..merge`), so the boundary nodes of
-the mesh are exactly the contour's points.
+the extra boundary nodes out again (:mod:`..recover`), so the boundary nodes of
+the mesh are exactly the contour's points.  Sharp empty ears are cut off before
+the grid is laid (:func:`cut_ears`) and added back after (:func:`restore_ears`).
 """
 
 from __future__ import annotations
