@@ -20,8 +20,9 @@
    carried to its projection on that contour edge (kept in the loop's order).
    A region triangle whose three nodes all have targets on one contour edge, or
    whose targets would not make a counter-clockwise triangle, would flatten or
-   fold: it leaves the region and the loop is laid again.  Where two points take one node, or take nodes out of the ring's
-   order, the cells at those points are halved and the grid laid again, at
+   fold: it leaves the region and the loop is laid again.  Where two points take
+   one node, or take nodes out of the ring's order, or no loop follows a ring,
+   the cells at those points are halved and the grid laid again, at
    most :data:`REFINE_ROUNDS` times (the loop then passes nearer each point
    than half the distance to its neighbours).
 
@@ -621,11 +622,10 @@ def _monotone(q: np.ndarray, loop: np.ndarray, s: np.ndarray) -> np.ndarray | No
     total[0] = cost[0, 0]
     back = np.zeros((m, k), dtype=np.int64)
     failed = []  # (where no choice exists: the programme starts again after it)
-    qo, so = q[order], s[order]
+    between = _between_costs(loop, cand, q[order], s[order])
     for t in range(1, m):
         gap = (cand[t][None, :] - cand[t - 1][:, None]) % nl
-        between = _between_cost(loop, cand[t - 1], cand[t], qo[t - 1], qo[t], so[t - 1])
-        step = np.where((gap >= 1) & (gap <= widest), total[:, None] + between, np.inf)
+        step = np.where((gap >= 1) & (gap <= widest), total[:, None] + between[t], np.inf)
         back[t] = np.argmin(step, axis=0)
         total = step[back[t], np.arange(k)] + cost[t]
         if not np.isfinite(total).any():
@@ -634,8 +634,7 @@ def _monotone(q: np.ndarray, loop: np.ndarray, s: np.ndarray) -> np.ndarray | No
     if failed:
         return order[np.clip(failed, 0, m - 1)]
     gap = (cand[0, 0] - cand[m - 1]) % nl
-    between = _between_cost(loop, cand[m - 1], cand[0, :1], qo[m - 1], qo[0], so[m - 1])[:, 0]
-    total = np.where((gap >= 1) & (gap <= widest), total + between, np.inf)
+    total = np.where((gap >= 1) & (gap <= widest), total + between[0][:, 0], np.inf)
     if not np.isfinite(total).any():
         return order[[m - 2, m - 1, 0]] if m > 2 else None
     pick = np.empty(m, dtype=np.int64)
@@ -652,27 +651,48 @@ def _monotone(q: np.ndarray, loop: np.ndarray, s: np.ndarray) -> np.ndarray | No
     return out
 
 
-def _between_cost(loop, ci: np.ndarray, cj: np.ndarray, a, b, size: float) -> np.ndarray:
-    """Per pair of loop positions (``ci[x]``, ``cj[y]``): the summed squared distances,
-    in units of ``size``, from the loop nodes strictly between them (going forward)
-    that lie past an end of the segment ``a b`` (their projection outside it) to that
-    end.  Prefix sums over the stretch of loop the pairs span."""
-    nl = len(loop)
-    lo = ((ci - ci[0] + nl // 2) % nl) - nl // 2  # (signed, about ci[0])
-    hi = (cj - ci[0]) % nl
-    w0 = int(lo.min())
-    span = max(int(hi.max()) - w0 + 1, 1)
-    xy = loop[(ci[0] + w0 + np.arange(span)) % nl]
+def _between_costs(loop: np.ndarray, cand: np.ndarray, q: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """``(m, k, k)``: for each step ``t`` (from point ``t - 1`` to ``t``, ``t = 0`` the
+    closing one from ``m - 1``) and each pair of their candidate loop positions, the
+    summed squared distances, in units of the first point's size ``s``, from the loop
+    nodes strictly between them (going forward) that lie past an end of the edge
+    joining the two points to that end; inf where the second is more than half the
+    loop ahead (a contour edge is never longer than the rest of its ring, and the
+    loop follows the ring).  Every node between every pair at once, in chunks."""
+    nl, (m, k) = len(loop), cand.shape
+    prev = np.roll(np.arange(m), 1)
+    gap = (cand[:, None, :] - cand[prev][:, :, None]) % nl  # (m, k from, k to)
+    ok = (gap >= 1) & (gap <= nl // 2)
+    out = np.where(ok, 0.0, np.inf)
+    pairs = np.flatnonzero(ok)
+    count = gap.ravel()[pairs] - 1
+    pairs, count = pairs[count > 0], count[count > 0]
+    step = pairs // (k * k)
+    start = cand[prev][step, (pairs // k) % k]
+    a, b, size = q[prev][step], q[step], s[prev][step]
     ab = b - a
-    length = max(float(np.hypot(*ab)), 1e-300)
-    t = (xy - a) @ ab / length**2
-    end = np.where(t < 0.0, 0.0, 1.0)
-    past = (t < 0.0) | (t > 1.0)
-    d2 = np.where(past, ((xy - a - end[:, None] * ab) ** 2).sum(axis=1) / size**2, 0.0)
-    c = np.concatenate([[0.0], np.cumsum(d2)])
-    i0 = (lo - w0 + 1)[:, None]  # (first node after ci)
-    j0 = (hi - w0)[None, :]  # (cj itself, excluded)
-    return np.where(j0 >= i0, c[np.clip(j0, 0, span)] - c[np.clip(i0, 0, span)], 0.0)
+    length2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
+    flat = out.ravel()
+    chunk = 1 << 22
+    bounds = np.searchsorted(np.cumsum(count), np.arange(chunk, count.sum() + chunk, chunk))
+    lo = 0
+    for hi in np.unique(np.append(bounds + 1, len(pairs))).tolist():
+        hi = min(hi, len(pairs))
+        if hi <= lo:
+            continue
+        cnt = count[lo:hi]
+        owner = np.repeat(np.arange(lo, hi), cnt)
+        offset = np.arange(len(owner)) - np.repeat(np.cumsum(cnt) - cnt, cnt) + 1
+        xy = loop[(start[owner] + offset) % nl]
+        rel = xy - a[owner]
+        t = np.einsum("ij,ij->i", rel, ab[owner]) / length2[owner]
+        end = np.where(t < 0.0, 0.0, 1.0)
+        past = (t < 0.0) | (t > 1.0)
+        d = rel - end[:, None] * ab[owner]
+        d2 = np.where(past, np.einsum("ij,ij->i", d, d) / size[owner] ** 2, 0.0)
+        flat[pairs[lo:hi]] = np.bincount(owner - lo, d2, minlength=hi - lo)
+        lo = hi
+    return out
 
 
 def _owners(contour: Contour, p: np.ndarray, loops: list[np.ndarray]) -> np.ndarray:
