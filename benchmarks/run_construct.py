@@ -109,12 +109,12 @@ def main():
     tally = collections.Counter(r["outcome"] for r in recs)
     ok = [r for r in recs if r["outcome"] == "ok"]
     lines = heading(
-        f"## The constructed selection on the {args.set} set",
+        f"## The graded grid's stages on the {args.set} set",
         f"`python benchmarks/run_construct.py --set {args.set}"
         + (f" --count {args.count}" if args.set == "random" else "")
         + (f" --growth {args.growth:g}" if args.growth else "")
-        + f"`: {what} through the construction in process ({args.bound:g} s each at "
-        "most), not yet what `deformesh all` runs.",
+        + f"`: {what} through `pipeline.mesh_contour` in process ({args.bound:g} s each "
+        "at most), each stage timed.",
     )
     lines += [
         "Outcomes: " + ", ".join(f"{k} {v}" for k, v in sorted(tally.items())) + ".",
