@@ -56,11 +56,9 @@ class MeshResult:
     report: dict = field(default_factory=dict)
 
 
-def grid_mode(
-    contour: Contour, grid: str = "auto", h: float | None = None, exterior: bool = False
-) -> str:
-    """The grid ``all`` lays first: ``grid``, where ``auto`` is the graded grid (the
-    uniform one with ``h``)."""
+def grid_mode(grid: str = "auto", h: float | None = None) -> str:
+    """The grid a run lays: ``grid``, where ``auto`` is the graded grid (the uniform
+    one with ``h``)."""
     if grid not in GRIDS:
         raise OptionError(f"--grid must be one of {', '.join(GRIDS)}, got {grid!r}")
     if grid == "graded" and h is not None:
@@ -113,7 +111,7 @@ def lay(contour: Contour, o: MeshOptions, graded: bool | None = None) -> Laid:
     graded one; default: as ``o`` asks)."""
     fine, given = split_edges(contour, o.max_h, o.max_nodes)
     if graded is None:
-        graded = grid_mode(contour, o.grid, o.h, o.exterior) == "graded"
+        graded = grid_mode(o.grid, o.h) == "graded"
     if not graded:
         return Laid(contour, fine, given, fine)
     grid, kept, ears = _construct.cut_ears(fine, o.exterior)
@@ -134,8 +132,7 @@ def run_select(
     or ``size_field``).  Appendix A's uniform grid searches its path for at most
     :func:`.deadline.search_bound` seconds, and is refused past it."""
     o = _options(options, changes)
-    mode = grid_mode(contour, o.grid, o.h, o.exterior)
-    if mode == "graded":
+    if grid_mode(o.grid, o.h) == "graded":
         size = size_function or _size.make(o.size, o.size_field, contour)
         return _construct.select_constructed(
             contour,
@@ -249,20 +246,20 @@ def run_deform(
         "callback": callback,
         "describe": _describer(contour, sel),
         "solver": o.solver,
-        "size": None if size is None else _size.SizePath(size.g1, grid.box),
         "keep_folds": keep_folds,
     }
     args = (pts0, tri, sel.path_nodes, sel.path_targets, grid.boundary_nodes())
     try:
         if sel.mends_folds:  # (the domain's side only; stage 3 meshes flat triangles again)
-            kwargs["flat_ok"] = True
             kept = sel.kept_triangles()
             path = None if size is None else _domain_size_path(pts0, tri[kept], size, grid.box)
-            pos, st = _deform.deform_band(*args, band, kept=kept, **{**kwargs, "size": path})
-        elif band is None:
-            pos, st = _deform.deform(*args, **kwargs)
-        else:
-            pos, st = _deform.deform_band(*args, band, **kwargs)
+            pos, st = _deform.deform_band(*args, band, kept=kept, size=path, flat_ok=True, **kwargs)
+        else:  # (the uniform grid: both sides, toward f from uniform cells)
+            path = None if size is None else _size.SizePath(size.g1, grid.box)
+            if band is None:
+                pos, st = _deform.deform(*args, size=path, **kwargs)
+            else:
+                pos, st = _deform.deform_band(*args, band, size=path, **kwargs)
     except SolverError as exc:
         raise SolverError(f"{contour.source}: deformation failed: {exc}") from None
     if st.fold is not None and not np.isfinite(pos).all():

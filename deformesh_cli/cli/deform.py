@@ -54,7 +54,7 @@ def command(state_in: str, output: str, quiet: bool, **kwargs) -> None:
         raise InputError(f"{name}: its recorded size function: {exc}") from None
     options = {**st.options, **o.stage("deform"), "size_field": None}
     rows = None if size is None else size.rows
-    out = state.State("deformed", st.contour, st.selection, d.points, options, rows)
+    out = state.State("deformed", st.contour, st.selection, d.points, options, rows, st.laid)
     files.write_bytes(state.dumps(out), output)
     say(
         quiet,

@@ -31,12 +31,13 @@ def command(contour: str, output: str, quiet: bool, **kwargs) -> None:
     files.check_outputs([output], [contour, o.size_field])
     c = load_contour(contour, None, o.decimal, o.tolerance, o.element_id, o.resample, o.stroke)
     size = _size.make(o.size, o.size_field, c)
-    sel = pipeline.run_select(pipeline.lay(c, o).grid, o, size_function=size)
+    laid = pipeline.lay(c, o)
+    sel = pipeline.run_select(laid.grid, o, size_function=size)
     options = {**o.stage("read"), **o.stage("select")}
     if o.size is not None:
         options["size"] = o.size
     rows = None if size is None else size.rows  # (a field's rows, never its path)
-    st = state.State("selected", c, sel, options=options, size_field=rows)
+    st = state.State("selected", c, sel, options=options, size_field=rows, laid=laid)
     files.write_bytes(state.dumps(st), output)
     g = sel.grid
     say(

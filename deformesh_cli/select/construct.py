@@ -419,24 +419,18 @@ def select_constructed(
 
 
 def _checked_box(contour: Contour, box, exterior: bool) -> tuple[float, float, float, float]:
-    """A given ``--box``, checked: ordered, holding every contour point, and, for an
-    exterior mesh, with every point strictly inside (the mesh is the box minus the
-    contour: a point on the box's side would split it)."""
-    from .uniform import _fmt_box
+    """A given ``--box``, checked (:func:`.uniform.checked_box`) and, for an exterior
+    mesh, with every point strictly inside (the mesh is the box minus the contour: a
+    point on the box's side would split it)."""
+    from .uniform import _fmt_box, checked_box
 
-    box = tuple(float(v) for v in box)
-    if not (box[0] < box[2] and box[1] < box[3]):
-        raise OptionError(f"--box {_fmt_box(box)}: need XMIN < XMAX and YMIN < YMAX")
+    box = checked_box(contour, box)
     p = contour.points
     gap = np.minimum(
         np.minimum(p[:, 0] - box[0], box[2] - p[:, 0]),
         np.minimum(p[:, 1] - box[1], box[3] - p[:, 1]),
     )
     k = int(np.argmin(gap))
-    if gap[k] < 0:
-        raise OptionError(
-            f"{contour.source}: {contour.where(k)} lies outside --box {_fmt_box(box)}"
-        )
     if exterior and gap[k] <= 0:
         raise OptionError(
             f"{contour.source}: {contour.where(k)} is on the side of the box {_fmt_box(box)}; "
@@ -651,6 +645,10 @@ def _monotone(q: np.ndarray, loop: np.ndarray, s: np.ndarray) -> np.ndarray | No
     return out
 
 
+#: Loop nodes whose distances :func:`_between_costs` measures at once (memory).
+CHUNK = 1 << 22
+
+
 def _between_costs(loop: np.ndarray, cand: np.ndarray, q: np.ndarray, s: np.ndarray) -> np.ndarray:
     """``(m, k, k)``: for each step ``t`` (from point ``t - 1`` to ``t``, ``t = 0`` the
     closing one from ``m - 1``) and each pair of their candidate loop positions, the
@@ -673,13 +671,11 @@ def _between_costs(loop: np.ndarray, cand: np.ndarray, q: np.ndarray, s: np.ndar
     ab = b - a
     length2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
     flat = out.ravel()
-    chunk = 1 << 22
-    bounds = np.searchsorted(np.cumsum(count), np.arange(chunk, count.sum() + chunk, chunk))
-    lo = 0
-    for hi in np.unique(np.append(bounds + 1, len(pairs))).tolist():
-        hi = min(hi, len(pairs))
-        if hi <= lo:
-            continue
+    # the pairs in chunks of about CHUNK nodes: pairs cut[i] to cut[i + 1]
+    cum = np.cumsum(count)
+    starts = np.searchsorted(cum, np.arange(0, int(cum[-1]) if len(cum) else 0, CHUNK), "right")
+    cut = np.unique(np.append(starts, len(pairs)))
+    for lo, hi in zip(cut[:-1], cut[1:]):
         cnt = count[lo:hi]
         owner = np.repeat(np.arange(lo, hi), cnt)
         offset = np.arange(len(owner)) - np.repeat(np.cumsum(cnt) - cnt, cnt) + 1
@@ -691,7 +687,6 @@ def _between_costs(loop: np.ndarray, cand: np.ndarray, q: np.ndarray, s: np.ndar
         d = rel - end[:, None] * ab[owner]
         d2 = np.where(past, np.einsum("ij,ij->i", d, d) / size[owner] ** 2, 0.0)
         flat[pairs[lo:hi]] = np.bincount(owner - lo, d2, minlength=hi - lo)
-        lo = hi
     return out
 
 

@@ -144,15 +144,7 @@ def choose_grid(
             raise OptionError(f"--margin must be a non-negative number, got {margin}")
         box = (lo[0] - m, lo[1] - m, hi[0] + m, hi[1] + m)
     else:
-        box = tuple(float(v) for v in box)
-        if not (box[0] < box[2] and box[1] < box[3]):
-            raise OptionError(f"--box {_fmt_box(box)}: need XMIN < XMAX and YMIN < YMAX")
-        out = (p[:, 0] < box[0]) | (p[:, 0] > box[2]) | (p[:, 1] < box[1]) | (p[:, 1] > box[3])
-        if out.any():
-            k = int(np.argmax(out))
-            raise OptionError(
-                f"{contour.source}: {contour.where(k)} lies outside --box {_fmt_box(box)}"
-            )
+        box = checked_box(contour, box)
     width, height = box[2] - box[0], box[3] - box[1]
     est = estimate_nodes(width, height, h)
     info["estimated_nodes"] = est
@@ -194,6 +186,22 @@ def choose_grid(
 
 def _fmt_box(box) -> str:
     return ",".join(f"{v:g}" for v in box)
+
+
+def checked_box(contour: Contour, box) -> tuple[float, float, float, float]:
+    """A given ``--box`` as floats, checked: ordered, and holding every contour point
+    (an :class:`OptionError` naming the first one outside)."""
+    box = tuple(float(v) for v in box)
+    if not (box[0] < box[2] and box[1] < box[3]):
+        raise OptionError(f"--box {_fmt_box(box)}: need XMIN < XMAX and YMIN < YMAX")
+    p = contour.points
+    out = (p[:, 0] < box[0]) | (p[:, 0] > box[2]) | (p[:, 1] < box[1]) | (p[:, 1] > box[3])
+    if out.any():
+        k = int(np.argmax(out))
+        raise OptionError(
+            f"{contour.source}: {contour.where(k)} lies outside --box {_fmt_box(box)}"
+        )
+    return box
 
 
 #: Consecutive spacings varying less than this count as even in the refusal's hint.
