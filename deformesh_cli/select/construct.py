@@ -199,6 +199,11 @@ CELL_FACTOR = 2.0**-0.5
 #: the nearest other part of the contour): the loops of two parts stay apart.
 CLEARANCE_FACTOR = 0.5
 
+#: The cells of a ring the domain surrounds (a hole; for an exterior mesh, every
+#: ring) are at most its length over this: the loop closes round it with at least
+#: about this many nodes, however few its points (a small hole of three).
+RING_CELLS = 16
+
 #: Rounds of mending pinches (each takes in or gives up every pinch's triangles at once).
 PINCH_ROUNDS = 64
 
@@ -214,11 +219,24 @@ FLOOR = 1e-9
 TURN = 2.0
 
 
-def _clearance(x, x_arc, x_ring, own, qi, si, a, b, arc, length, ring, perimeter):
+def _in_wedge(w: np.ndarray, fwd: np.ndarray, back: np.ndarray) -> np.ndarray:
+    """Per row: the direction ``w`` lies in the wedge turning counter-clockwise from
+    ``fwd`` to ``back`` (closed; a half-plane when ``back`` is ``-fwd``)."""
+
+    def turn(z):
+        ang = np.arctan2(fwd[:, 0] * z[:, 1] - fwd[:, 1] * z[:, 0], np.einsum("ij,ij->i", fwd, z))
+        return np.where(ang < 0, ang + 2 * np.pi, ang)
+
+    return turn(w) <= turn(back)
+
+
+def _clearance(x, x_arc, x_ring, own, qi, si, a, b, arc, length, ring, perimeter, wedge):
     """Per candidate pair (query ``qi``, edge ``si``): the distance from ``x[qi]`` to
     the nearest point of the edge, or inf where that point is not another part of
-    the contour (:data:`TURN`) or the edge is one ``x`` lies on (``own``: (k, 2)
-    edges per query)."""
+    the contour (:data:`TURN`), the edge is one ``x`` lies on (``own``: (k, 2) edges
+    per query), or the point is not on the domain's side of ``x`` (``wedge``: per
+    query, the directions along the contour forward and back with the domain on
+    the left; :func:`_in_wedge`): the gap measured is a part of the domain."""
     ab = b[si] - a[si]
     ll = np.einsum("ij,ij->i", ab, ab)
     t = np.clip(np.einsum("ij,ij->i", x[qi] - a[si], ab) / np.where(ll > 0, ll, 1.0), 0, 1)
@@ -228,24 +246,28 @@ def _clearance(x, x_arc, x_ring, own, qi, si, a, b, arc, length, ring, perimeter
     along = np.minimum(along, perimeter[ring[si]] - along)
     other = (x_ring[qi] != ring[si]) | (along > TURN * d)
     other &= ~(si[:, None] == own[qi]).any(axis=1)
+    other &= _in_wedge(y - x[qi], wedge[0][qi], wedge[1][qi])
     return np.where(other, d, np.inf)
 
 
 def feature_samples(
-    contour: Contour, max_nodes: int | None = None
+    contour: Contour, max_nodes: int | None = None, exterior: bool = False
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(points, sizes, point_sizes, edge)``: where the cells must be how small, and
     the contour point (for an edge's sample, the edge's first point) each belongs to.
 
     ``point_sizes[k]`` is contour point ``k``'s size: the smaller of its two edges
-    and its distance to another part of the contour (:data:`TURN`: the two sides of
-    a thin part, a hole near the outline).  ``points`` and ``sizes`` are those
-    points and sizes followed by samples along the edges: each edge is bisected
-    while a piece is longer than the clearance at its middle (its distance to
-    another part of the contour), except a piece at an end no longer than that
-    end's point size.  A sample's size is :data:`CLEARANCE_FACTOR` times its
-    clearance, at most its piece's length.  More samples than ``max_nodes`` (each
-    asks for a cell of its own) is a :class:`LimitError`.
+    and its clearance (on a ring the domain surrounds, also its ring's length over
+    :data:`RING_CELLS`), its distance to another part of the contour (:data:`TURN`)
+    across the domain (on the domain's side of the point: the two sides of a thin
+    part, a hole near the outline).  ``points`` and ``sizes`` are those points and
+    sizes followed by samples along the edges: each edge is bisected while a piece
+    is longer than the clearance at its middle, except a piece at an end no longer
+    than that end's point size.  A sample's size is :data:`CLEARANCE_FACTOR` times
+    its clearance, at most its piece's length.  A thin gap of the outside (a slot,
+    two parts a hair apart) asks for no small cells: the region keeps its two sides
+    apart (:func:`across_gaps`, :func:`bridges`).  More samples than ``max_nodes``
+    (each asks for a cell of its own) is a :class:`LimitError`.
     """
     p = contour.points
     m = contour.n
@@ -261,11 +283,19 @@ def feature_samples(
     segs = shapely.linestrings(np.stack([a, b], axis=1))
     tree = shapely.STRtree(segs)
     geo = (a, b, arc, length, ring, perimeter)
+    # the directions forward and back along the contour with the domain on the left:
+    # at each point, and along each edge
+    dom_next, dom_prev = _domain_walk(contour, exterior)
+    at_point = (p[dom_next] - p, p[dom_prev] - p)
+    along_edge = np.where((dom_next == nxt)[:, None], b - a, a - b)
+    along_edge = (along_edge, -along_edge)
     # point sizes: the shorter edge, and another part of the contour within it
+    surrounded = np.array([contour.is_hole(r) != exterior for r in range(contour.n_rings)])
     s = np.minimum(length, length[prv])
+    s = np.where(surrounded[ring], np.minimum(s, perimeter[ring] / RING_CELLS), s)
     qi, si = tree.query(shapely.points(p), predicate="dwithin", distance=s)
     own = np.column_stack([np.arange(m), prv])
-    np.minimum.at(s, qi, _clearance(p, arc, ring, own, qi, si, *geo))
+    np.minimum.at(s, qi, _clearance(p, arc, ring, own, qi, si, *geo, at_point))
     floor = FLOOR * float(np.ptp(p, axis=0).max())
     seg = np.arange(m)
     t0 = np.zeros(m)
@@ -288,7 +318,8 @@ def feature_samples(
         c = np.full(len(seg), np.inf)
         x_arc = arc[seg] + tm * length[seg]
         own = np.column_stack([seg, seg])  # (an adjacent edge counts where it turned back)
-        np.minimum.at(c, qi, _clearance(mid, x_arc, ring[seg], own, qi, si, *geo))
+        np.minimum.at(c, qi, _clearance(mid, x_arc, ring[seg], own, qi, si, *geo,
+                                      (along_edge[0][seg], along_edge[1][seg])))  # fmt: skip
         end_size = np.minimum(
             np.where(t0 == 0, s[seg], np.inf), np.where(t1 == 1, s[nxt[seg]], np.inf)
         )
@@ -381,7 +412,7 @@ def select_constructed(
     cells also follow it, at most ``lambda sqrt(f)`` wide, ``lambda`` the median over
     the contour's points of their cell size over ``sqrt(f)`` (so the cells along the
     contour keep the points' spacing on average)."""
-    xy, size, s, edge = feature_samples(contour, max_nodes or DEFAULT_MAX_NODES)
+    xy, size, s, edge = feature_samples(contour, max_nodes or DEFAULT_MAX_NODES, exterior)
     field = None
     if size_function is not None:
         at = np.sqrt(size_function.values(contour.points))
@@ -471,6 +502,152 @@ def _on_one_edge(edges: np.ndarray, tri: np.ndarray) -> np.ndarray:
     return out
 
 
+def _arcs(contour: Contour) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(arc, length, perimeter)``: where each edge starts along its ring, its length,
+    and each ring's length."""
+    length = contour.edge_lengths()
+    starts = np.asarray(contour.starts)
+    run = np.cumsum(length)
+    arc = run - length - np.concatenate([[0.0], run])[starts[:-1]][contour.ring]
+    return arc, length, np.add.reduceat(length, starts[:-1])
+
+
+def _to_segment(x: np.ndarray, a: np.ndarray, b: np.ndarray):
+    """``(distance, parameter)`` of the nearest point of the segment ``a b`` to each
+    ``x`` (the point ``a + parameter (b - a)``)."""
+    ab = b - a
+    ll = np.einsum("ij,ij->i", ab, ab)
+    t = np.clip(np.einsum("ij,ij->i", x - a, ab) / np.where(ll > 0, ll, 1.0), 0.0, 1.0)
+    y = a + t[:, None] * ab
+    return np.hypot(*(x - y).T), t
+
+
+def across_gaps(
+    contour: Contour,
+    points: np.ndarray,
+    tri: np.ndarray,
+    cell: np.ndarray,
+    pairs: tuple[np.ndarray, np.ndarray],
+    dom,
+    exterior: bool,
+) -> np.ndarray:
+    """Per triangle (counter-clockwise, sorted by their leaf ``cell``):
+    it meets two other parts of the contour with the outside between them, so it
+    spans a gap of the outside narrower than itself (a slot, two parts a hair
+    apart).  Of the pieces of two contour edges inside it, a pair of points (their
+    ends, or their nearest points) are other parts where the contour joins them
+    only over more than :data:`TURN` times their distance, with the outside between
+    them where their middle is not in the domain.  ``pairs``: :func:`leaf_edges`."""
+    out = np.zeros(len(tri), dtype=bool)
+    leaf, seg = pairs
+    if not len(leaf) or not len(tri):
+        return out
+    first = np.searchsorted(cell, np.arange(int(max(cell.max(), leaf.max())) + 2))
+    count = first[leaf + 1] - first[leaf]
+    t = (
+        np.repeat(first[leaf], count)
+        + np.arange(count.sum())
+        - np.repeat(np.cumsum(count) - count, count)
+    )
+    e = np.repeat(seg, count)
+    p = contour.points
+    nxt = next_on_ring(contour.ring)
+    a, ab = p[e], p[nxt[e]] - p[e]
+    lo, hi = np.zeros(len(t)), np.ones(len(t))
+    v = points[tri[t]]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for i in range(3):  # (the edge's parameters on the inner side of each side)
+            vi, side = v[:, i], v[:, (i + 1) % 3] - v[:, i]
+            num = side[:, 0] * (a[:, 1] - vi[:, 1]) - side[:, 1] * (a[:, 0] - vi[:, 0])
+            den = side[:, 0] * ab[:, 1] - side[:, 1] * ab[:, 0]
+            r = -num / den
+            lo = np.where(den > 0, np.maximum(lo, r), lo)
+            hi = np.where(den < 0, np.minimum(hi, r), hi)
+            hi = np.where((den == 0) & (num < 0), -1.0, hi)
+    # (whether they meet, exactly, a touch included; the pieces as round-off has them)
+    meet = shapely.intersects(
+        shapely.polygons(v), shapely.linestrings(np.stack([a, a + ab], axis=1))
+    )
+    lo, hi = np.minimum(lo, hi), np.maximum(lo, hi)
+    t, e, lo, hi, a, ab = t[meet], e[meet], lo[meet], hi[meet], a[meet], ab[meet]
+    order = np.lexsort((e, t))
+    t, e, lo, hi, a, ab = t[order], e[order], lo[order], hi[order], a[order], ab[order]
+    p0, p1 = a + lo[:, None] * ab, a + hi[:, None] * ab
+    arc, length, perimeter = _arcs(contour)
+    ring = contour.ring
+    hits = []
+    for o in range(1, len(t)):
+        i = np.flatnonzero(t[o:] == t[:-o])
+        if not len(i):
+            break
+        j, r = i + o, np.arange(len(i))
+        ei, ej = e[i], e[j]
+        # pairs of points, one on each piece (edge parameters): the four pairs of their
+        # ends, and their nearest points
+        ends = [_to_segment(p0[i], p0[j], p1[j]), _to_segment(p1[i], p0[j], p1[j]),
+                _to_segment(p0[j], p0[i], p1[i]), _to_segment(p1[j], p0[i], p1[i])]  # fmt: skip
+        k = np.argmin(np.stack([d for d, _ in ends]), axis=0)
+        on = np.stack([u for _, u in ends])[k, r]
+        near_i = np.choose(k, [np.zeros(len(i)), np.ones(len(i)), on, on])
+        near_j = np.choose(k, [on, on, np.zeros(len(i)), np.ones(len(i))])
+        si = np.stack([lo[i], lo[i], hi[i], hi[i], lo[i] + near_i * (hi[i] - lo[i])])
+        sj = np.stack([lo[j], hi[j], lo[j], hi[j], lo[j] + near_j * (hi[j] - lo[j])])
+        x = a[i] + si[..., None] * ab[i]
+        y = a[j] + sj[..., None] * ab[j]
+        dist = np.hypot(x[..., 0] - y[..., 0], x[..., 1] - y[..., 1])
+        # how far the contour runs from one to the other, the shorter way round
+        per = perimeter[ring[ei]]
+        run = (arc[ej] + sj * length[ej] - arc[ei] - si * length[ei]) % per
+        # two edges with a shared point: both from their distances to it and the angle
+        # there (nought apart at that point, whatever round-off does to coordinates)
+        after, before = nxt[ei] == ej, nxt[ej] == ei
+        ri = np.where(after, 1 - si, si) * length[ei]
+        rj = np.where(after, sj, 1 - sj) * length[ej]
+        cos = np.einsum("ij,ij->i", ab[i], ab[j]) / (length[ei] * length[ej])
+        shared = after | before
+        run = np.where(shared, ri + rj, run)
+        dist = np.where(shared, np.sqrt(np.maximum(ri**2 + rj**2 + 2 * ri * rj * cos, 0)), dist)
+        along = np.where(ring[ei] == ring[ej], np.minimum(run, per - run), np.inf)
+        other = along > TURN * dist
+        if other.any():
+            c, q = np.nonzero(other)
+            mid = 0.5 * (x[c, q] + y[c, q])
+            gap = shapely.contains_xy(dom, mid[:, 0], mid[:, 1]) == exterior
+            hits.append(t[i[q[gap]]])
+    if hits:
+        out[np.concatenate(hits)] = True
+    return out
+
+
+def bridges(
+    tri: np.ndarray, kept: np.ndarray, outside: np.ndarray, segments: shapely.STRtree, points
+) -> np.ndarray:
+    """Per triangle: a region triangle (``kept``) sharing with another one a side that
+    lies wholly outside the domain (its ends ``outside``, meeting no contour edge of
+    ``segments``): the two span a gap of the outside between them."""
+    t = np.flatnonzero(kept & (outside[tri].sum(axis=1) >= 2))
+    out = np.zeros(len(tri), dtype=bool)
+    if len(t) < 2:
+        return out
+    sides = np.sort(np.stack([tri[t][:, [0, 1]], tri[t][:, [1, 2]], tri[t][:, [2, 0]]], 1), -1)
+    sides = sides.reshape(-1, 2)
+    owner = np.repeat(t, 3)
+    out_ends = outside[sides].all(axis=1)
+    sides, owner = sides[out_ends], owner[out_ends]
+    order = np.lexsort((sides[:, 1], sides[:, 0]))
+    sides, owner = sides[order], owner[order]
+    twice = np.flatnonzero((sides[1:] == sides[:-1]).all(axis=1))
+    if not len(twice):
+        return out
+    lines = shapely.linestrings(points[sides[twice]])
+    met = np.zeros(len(twice), dtype=bool)
+    met[segments.query(lines, predicate="intersects")[0]] = True
+    clear = twice[~met]
+    out[owner[clear]] = True
+    out[owner[clear + 1]] = True
+    return out
+
+
 class _Pinch(SelectionError):
     """Nodes where the region touches itself and no triangle may mend it."""
 
@@ -487,18 +664,30 @@ class _Crowded(SelectionError):
         self.points = points
 
 
-def diagonals_along(contour: Contour, tree: graded.Quadtree) -> np.ndarray:
-    """Per leaf, the diagonal closer to the direction of the contour edges that cross
-    it (0: ``/``, 1: ``\\``; their lengths weigh each edge's ``sin 2 theta``), so the
-    loop follows the contour along diagonals rather than in steps; 0 where none does."""
+def leaf_edges(contour: Contour, tree: graded.Quadtree) -> tuple[np.ndarray, np.ndarray]:
+    """``(leaf, edge)``: each pair of a leaf and a contour edge (named by its first
+    point) that meet, and a few that pass within round-off of the leaf (its box
+    grown by a billionth of its side: an edge along a side of the leaf counts)."""
     side = tree.sizes()
+    height = tree.hy * 2.0**tree.level
     x0 = tree.x0 + tree.i * side
-    y0 = tree.y0 + tree.j * (tree.hy * 2.0**tree.level)
-    boxes = shapely.box(x0, y0, x0 + side, y0 + tree.hy * 2.0**tree.level)
+    y0 = tree.y0 + tree.j * height
+    pad = 1e-9 * side
+    boxes = shapely.box(x0 - pad, y0 - pad, x0 + side + pad, y0 + height + pad)
     p = contour.points
     q = p[next_on_ring(contour.ring)]
     segs = shapely.linestrings(np.stack([p, q], axis=1))
-    leaf, seg = shapely.STRtree(segs).query(boxes, predicate="intersects")
+    return shapely.STRtree(segs).query(boxes, predicate="intersects")
+
+
+def diagonals_along(contour: Contour, tree: graded.Quadtree, pairs=None) -> np.ndarray:
+    """Per leaf, the diagonal closer to the direction of the contour edges that cross
+    it (0: ``/``, 1: ``\\``; their lengths weigh each edge's ``sin 2 theta``), so the
+    loop follows the contour along diagonals rather than in steps; 0 where none does.
+    ``pairs``: :func:`leaf_edges`, if already found."""
+    leaf, seg = leaf_edges(contour, tree) if pairs is None else pairs
+    p = contour.points
+    q = p[next_on_ring(contour.ring)]
     d = q[seg] - p[seg]
     weight = d[:, 0] * d[:, 1] / np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-300)
     lean = np.bincount(leaf, weights=weight, minlength=tree.n_leaves)
@@ -506,8 +695,9 @@ def diagonals_along(contour: Contour, tree: graded.Quadtree) -> np.ndarray:
 
 
 def _select_on(contour: Contour, tree: graded.Quadtree, exterior: bool, size) -> GradedSelection:
-    diagonals = diagonals_along(contour, tree)
-    points, tri, _ = tree.triangulate(diagonals)
+    pairs = leaf_edges(contour, tree)
+    diagonals = diagonals_along(contour, tree, pairs)
+    points, tri, cell = tree.triangulate(diagonals)
     grid = GradedGrid(tree, points)
     n = len(points)
     fixed = np.zeros(n, dtype=bool)
@@ -521,7 +711,12 @@ def _select_on(contour: Contour, tree: graded.Quadtree, exterior: bool, size) ->
     in_domain = shapely.contains_xy(dom, points[:, 0], points[:, 1])
     if exterior:
         inside, in_domain = ~inside, ~in_domain
-    banned = np.zeros(len(tri), dtype=bool)
+    # triangles across a thin gap of the outside never join the region
+    banned = across_gaps(contour, points, tri, cell, pairs, dom, exterior)
+    p = contour.points
+    segments = shapely.STRtree(
+        shapely.linestrings(np.stack([p, p[next_on_ring(contour.ring)]], axis=1))
+    )
     for _ in range(PINCH_ROUNDS):
         try:
             kept, nxt = region(tri, inside & ~banned, n, fixed, banned, in_domain)
@@ -530,6 +725,10 @@ def _select_on(contour: Contour, tree: graded.Quadtree, exterior: bool, size) ->
 
             _, near = cKDTree(contour.points).query(points[exc.nodes])
             raise _Crowded(np.unique(near)) from None
+        bridge = bridges(tri, kept, ~in_domain, segments, points)
+        if bridge.any():
+            banned |= bridge
+            continue
         try:
             path = _assign(contour, grid, nxt, exterior, size)
         except _Stray as exc:
@@ -538,8 +737,9 @@ def _select_on(contour: Contour, tree: graded.Quadtree, exterior: bool, size) ->
                 poly = shapely.Polygon(points[loop])
                 enclosed = shapely.contains_xy(poly, cen[:, 0], cen[:, 1])
                 island = shapely.is_ccw(shapely.LinearRing(points[loop]))
-                if island:
+                if island:  # (for good: a pinch beside it may not take it back)
                     inside &= ~enclosed
+                    banned |= enclosed
                 else:
                     inside |= enclosed & ~banned
             continue
