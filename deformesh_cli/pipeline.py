@@ -94,15 +94,21 @@ class Laid:
 
     def chords(self) -> set[tuple[int, int]]:
         """The pairs of ``grid`` points joined by an edge of ``grid`` that is not one of
-        ``fine``'s: the chords the cut ears stand on."""
+        ``fine``'s: the chords the cut ears stand on (a cut tip's: between its two
+        points)."""
         if self.kept is None:
             return set()
-        g = self.grid
+        g, m = self.grid, self.fine.n
         a = np.arange(g.n)
         b = next_on_ring(g.ring)
-        fine_next = next_on_ring(self.fine.ring)
+        fine_next = np.append(next_on_ring(self.fine.ring), -1)  # (-1: an added point's)
         ka, kb = self.kept[a], self.kept[b]
-        chord = (fine_next[ka] != kb) & (fine_next[kb] != ka)
+        fa, fb = np.where(ka < m, ka, m), np.where(kb < m, kb, m)
+        chord = np.where(
+            (ka >= m) | (kb >= m),
+            (ka >= m) & (kb >= m),
+            (fine_next[fa] != kb) & (fine_next[fb] != ka),
+        )
         return set(zip(a[chord].tolist(), b[chord].tolist()))
 
 
@@ -349,6 +355,9 @@ def run_triangulate(
     if len(laid.ears):
         mesh = _construct.restore_ears(mesh, laid.fine, laid.kept, laid.ears, o.exterior)
         edges = None
+        if mesh.n_extra and _recovers(o):  # (the points of the tips cut)
+            mesh, more = _recover.recover(mesh)
+            recovered += more
     better = None
     if o.improve:
         before = mesh

@@ -192,22 +192,45 @@ def test_a_needle_is_one_ear_triangle():
     assert (np.sort(mesh.triangles, axis=1) == [3, 4, 5]).all(axis=1).any()
 
 
+def test_no_cut_where_no_corner_is_sharp():
+    c = make_contour(np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float), source="square")
+    grid_contour, kept, ears = construct.cut_ears(c)
+    assert len(ears) == 0 and grid_contour is c
+
+
 @pytest.mark.parametrize(
     "pts",
     [
-        [[0, 0], [1, 0], [1, 1], [0, 1]],  # right angles
         [[0, 0], [10, 0], [0.1, 0.2]],  # a triangle keeps its three points
         # the sharp corner's ear holds a hole
         [[0, 0], [2, 0.05], [0, 0.1], [-0.1, 0.1], [-0.1, 0], [1, 0.045], [1, 0.055], [1.1, 0.05]],
     ],
 )
-def test_ears_that_stay(pts):
-    """No cut where the corner is not sharp, where a ring would drop under three
-    points, or where another point lies in the ear."""
+def test_a_sharp_corner_whose_ear_stays_has_its_tip_cut(pts):
+    """Where a ring would drop under three points, or another point lies in the ear,
+    the sharp corner's tip is cut instead: two points on its sides, a third of its
+    reach (its shorter side, its distance to the rest) from it; they come back as
+    extra boundary nodes, which the mesh takes out."""
+    pts = np.array(pts, float)
     starts = [0, 5] if len(pts) == 8 else None
-    c = make_contour(np.array(pts, float), source="x", ring_starts=starts)
+    c = make_contour(pts, source="x", ring_starts=starts)
     grid_contour, kept, ears = construct.cut_ears(c)
-    assert len(ears) == 0 and grid_contour is c
+    assert len(ears) == 1
+    a, tip, b = ears[0]
+    assert tip == 1 and a >= c.n and b >= c.n  # (the two added points)
+    assert grid_contour.n == c.n + 1
+    xa, xb = grid_contour.points[kept == a][0], grid_contour.points[kept == b][0]
+    p = c.points
+    rest = [np.linalg.norm(p[1] - p[0]), np.linalg.norm(p[1] - p[2])]
+    if len(pts) == 8:  # (the hole's nearest point)
+        rest.append(np.linalg.norm(p[1] - p[7]))
+    d = min(rest) / 3
+    assert np.linalg.norm(xa - p[1]) == pytest.approx(d)
+    assert np.linalg.norm(xb - p[1]) == pytest.approx(d)
+    assert _area(np.array([xa, p[1], xb])) > 0  # (counter-clockwise, in the domain)
+    res = pipeline.mesh_contour(c)  # (it checks the contract)
+    assert np.array_equal(res.mesh.points[: c.n], c.points)
+    assert res.mesh.n_extra == 0 and res.report["extra_boundary_nodes"] == 0
 
 
 def test_an_ear_within_a_third_of_its_bound_is_cut():

@@ -657,7 +657,8 @@ class _Pinch(SelectionError):
 
 
 class _Crowded(SelectionError):
-    """Points that took one node, or nodes out of their ring's order."""
+    """Points that took one node, or nodes out of their ring's order, or the first
+    points of the edges nearest to a pinch the region could not mend."""
 
     def __init__(self, points: np.ndarray):
         super().__init__("crowded")
@@ -720,10 +721,8 @@ def _select_on(contour: Contour, tree: graded.Quadtree, exterior: bool, size) ->
     for _ in range(PINCH_ROUNDS):
         try:
             kept, nxt = region(tri, inside & ~banned, n, fixed, banned, in_domain)
-        except _Pinch as exc:  # (cells too coarse there: finer ones at the nearest points)
-            from scipy.spatial import cKDTree
-
-            _, near = cKDTree(contour.points).query(points[exc.nodes])
+        except _Pinch as exc:  # (cells too coarse there: finer ones along the nearest edges)
+            _, near = segments.query_nearest(shapely.points(points[exc.nodes]), all_matches=False)
             raise _Crowded(np.unique(near)) from None
         bridge = bridges(tri, kept, ~in_domain, segments, points)
         if bridge.any():
@@ -855,12 +854,17 @@ def _between_costs(loop: np.ndarray, cand: np.ndarray, q: np.ndarray, s: np.ndar
     summed squared distances, in units of the first point's size ``s``, from the loop
     nodes strictly between them (going forward) that lie past an end of the edge
     joining the two points to that end; inf where the second is more than half the
-    loop ahead (a contour edge is never longer than the rest of its ring, and the
-    loop follows the ring).  Every node between every pair at once, in chunks."""
+    loop's length ahead (a contour edge is never longer than the rest of its ring,
+    and the loop follows the ring; its nodes may crowd at one end of an edge, so
+    their count would not tell).  Every node between every pair at once, in chunks."""
     nl, (m, k) = len(loop), cand.shape
     prev = np.roll(np.arange(m), 1)
     gap = (cand[:, None, :] - cand[prev][:, :, None]) % nl  # (m, k from, k to)
-    ok = (gap >= 1) & (gap <= nl // 2)
+    seg = np.hypot(*(np.roll(loop, -1, axis=0) - loop).T)
+    at = np.concatenate([[0.0], np.cumsum(seg)[:-1]])  # (the loop's length to each node)
+    perimeter = float(seg.sum())
+    run = (at[cand][:, None, :] - at[cand[prev]][:, :, None]) % perimeter
+    ok = (gap >= 1) & (run <= 0.5 * perimeter)
     out = np.where(ok, 0.0, np.inf)
     pairs = np.flatnonzero(ok)
     count = gap.ravel()[pairs] - 1
@@ -1096,14 +1100,31 @@ def cut_ears(contour: Contour, exterior: bool = False):
             c = candidate(j)
             if c is not None:
                 heapq.heappush(heap, (c, j, int(version[j])))
+    tips, d = _tips(p, np.flatnonzero(alive), nxt, prv, *_domain_walk(contour, exterior))
+    if not len(tips) and alive.all():
+        return contour, np.arange(m), np.zeros((0, 3), dtype=np.int64)
+    # a cut tip k gives way to two points at d from it: on its edge from prv[k]
+    # (numbered m + 2 j) and on its edge to nxt[k] (m + 2 j + 1)
+    on_prev = p[tips] + d[:, None] * _unit(p[prv[tips]] - p[tips])
+    on_next = p[tips] + d[:, None] * _unit(p[nxt[tips]] - p[tips])
+    first = m + 2 * np.arange(len(tips))
+    ears += list(zip(first.tolist(), tips.tolist(), (first + 1).tolist()))
+    xy = np.concatenate([p, np.stack([on_prev, on_next], axis=1).reshape(-1, 2)])
+    lines = np.concatenate([contour.lines, np.repeat(contour.lines[tips], 2)])
+    ring_of = np.concatenate([contour.ring, np.repeat(contour.ring[tips], 2)])
+    # in the contour's stored order, the two points where the tip was (the one on
+    # the edge from the stored predecessor first)
+    alive[tips] = False
     kept = np.flatnonzero(alive)
-    if len(kept) == m:
-        return contour, kept, np.zeros((0, 3), dtype=np.int64)
-    ring = contour.ring[kept]
+    stored_prev = prev_on_ring(contour.ring)[tips] == prv[tips]
+    pair = np.where(stored_prev[:, None], np.column_stack([first, first + 1]),
+                    np.column_stack([first + 1, first]))  # fmt: skip
+    kept = np.insert(kept, np.repeat(np.searchsorted(kept, tips), 2), pair.ravel())
+    ring = ring_of[kept]
     starts = tuple(np.searchsorted(ring, np.arange(contour.n_rings + 1)).tolist())
     grid_contour = Contour(
-        p[kept],
-        contour.lines[kept],
+        xy[kept],
+        lines[kept],
         contour.source,
         starts=starts,
         ring_clockwise=contour.ring_clockwise,
@@ -1113,19 +1134,63 @@ def cut_ears(contour: Contour, exterior: bool = False):
     return grid_contour, kept, np.array(ears, dtype=np.int64)
 
 
+#: A sharp corner whose ear is not cut is cut this fraction of its reach from its
+#: point: the shorter of its sides and its distance to the rest of the contour.
+TIP_SHARE = 1.0 / 3.0
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.hypot(*v.T)[:, None]
+
+
+def _tips(p, alive: np.ndarray, nxt: np.ndarray, prv: np.ndarray, nxt0, prv0):
+    """``(tips, d)``: the points of ``alive`` (the contour walked by ``nxt`` and
+    ``prv``, domain on the left) whose angle on the domain's side is under
+    :data:`EAR_ANGLE` and whose sides are edges of the contour (``nxt0``, ``prv0``: no
+    cut ear's chord), and how far from each its tip is cut: :data:`TIP_SHARE` of the
+    least of its sides and its distance to every other edge.  The triangle cut
+    lies within that distance of its point, so it holds no other part of the
+    contour, and two tips' triangles are apart."""
+    a, b = p[prv[alive]] - p[alive], p[nxt[alive]] - p[alive]
+    cross = a[:, 1] * b[:, 0] - a[:, 0] * b[:, 1]
+    ang = np.degrees(np.arctan2(cross, np.einsum("ij,ij->i", a, b))) % 360.0
+    sharp = (ang > 0.0) & (ang < EAR_ANGLE)
+    sharp &= (nxt[alive] == nxt0[alive]) & (prv[alive] == prv0[alive])  # (no chord side)
+    tips = alive[sharp]
+    if not len(tips):
+        return tips, np.zeros(0)
+    reach = np.minimum(np.hypot(*a[sharp].T), np.hypot(*b[sharp].T))
+    segs = shapely.linestrings(np.stack([p[alive], p[nxt[alive]]], axis=1))
+    qi, si = shapely.STRtree(segs).query(
+        shapely.points(p[tips]), predicate="dwithin", distance=reach
+    )
+    own = (alive[si] == tips[qi]) | (nxt[alive[si]] == tips[qi])
+    qi, si = qi[~own], si[~own]
+    dist = shapely.distance(shapely.points(p[tips[qi]]), segs[si])
+    np.minimum.at(reach, qi, dist)
+    return tips, TIP_SHARE * reach
+
+
 def restore_ears(mesh, contour: Contour, kept: np.ndarray, ears: np.ndarray, exterior=False):
     """The mesh of the grid contour (:func:`cut_ears`) with the ears added back: node
-    k is contour point k again, the boundary is the contour's."""
+    k is contour point k again, the boundary is the contour's.  The two points of a
+    cut tip are extra boundary nodes, on its sides (numbered first among the extra
+    ones), for :func:`..recover.recover` to take out."""
     from ..mesh import Mesh
 
     if not len(ears):
         return mesh
     mk, m = len(kept), contour.n
     n = len(mesh.points)
-    new = np.concatenate([kept, m + np.arange(n - mk)])
-    points = np.concatenate([contour.points, mesh.points[mk:]])
+    added = int(np.count_nonzero(kept >= m))
+    new = np.concatenate([kept, m + added + np.arange(n - mk)])
+    at = np.zeros((added, 2))
+    at[kept[kept >= m] - m] = mesh.points[:mk][kept >= m]
+    points = np.concatenate([contour.points, at, mesh.points[mk:]])
     tri = np.concatenate([new[mesh.triangles], ears])
     nxt, _ = _domain_walk(contour, exterior)
+    tip_of = {(int(a), int(b)): int(k) for a, k, b in ears if a >= m}
+    tip_of.update({(b, a): k for (a, b), k in list(tip_of.items())})
     lines, groups = [], []
     for (u, v), g in zip(new[mesh.lines].tolist(), mesh.line_group.tolist()):
         if u < m and v < m:
@@ -1133,6 +1198,10 @@ def restore_ears(mesh, contour: Contour, kept: np.ndarray, ears: np.ndarray, ext
                 lines.append((u, int(nxt[u])))
                 groups.append(g)
                 u = int(nxt[u])
+        elif (u, v) in tip_of:  # (a cut tip's chord: its sides)
+            lines.append((u, tip_of[u, v]))
+            groups.append(g)
+            u = tip_of[u, v]
         lines.append((u, v))
         groups.append(g)
     return Mesh(
@@ -1140,7 +1209,7 @@ def restore_ears(mesh, contour: Contour, kept: np.ndarray, ears: np.ndarray, ext
         triangles=tri,
         lines=np.array(lines, dtype=np.int64),
         n_contour=m,
-        n_extra=mesh.n_extra,
+        n_extra=mesh.n_extra + added,
         line_group=np.array(groups, dtype=np.int64),
         groups=mesh.groups,
         n_box=mesh.n_box,
