@@ -192,7 +192,9 @@ CONSTRUCTED = "graded-loop"
 #: Cells next to a contour point measure at most this times its size (its shorter
 #: edge, or its distance to another part of the contour): a loop step, a cell's side
 #: or diagonal, is then no longer than the points' spacing, so each point has a loop
-#: node of its own without halving.
+#: node of its own without halving.  With a size function ``f``, cells elsewhere are
+#: at most ``lambda sqrt(f)``, ``lambda`` the median over the points of this times
+#: their size over ``sqrt(f)``.
 CELL_FACTOR = 2.0**-0.5
 
 #: Cells along an edge measure about this times the clearance there (the distance to
@@ -410,8 +412,7 @@ def select_constructed(
     """The graded grid laid for ``contour`` and each ring's loop fitted to its points
     (the module's steps).  ``size_function`` (a :class:`~..size.SizeFunction`): the
     cells also follow it, at most ``lambda sqrt(f)`` wide, ``lambda`` the median over
-    the contour's points of their cell size over ``sqrt(f)`` (so the cells along the
-    contour keep the points' spacing on average)."""
+    the contour's points of :data:`CELL_FACTOR` times their size over ``sqrt(f)``."""
     xy, size, s, edge = feature_samples(contour, max_nodes or DEFAULT_MAX_NODES, exterior)
     field = None
     if size_function is not None:
@@ -853,10 +854,12 @@ def _between_costs(loop: np.ndarray, cand: np.ndarray, q: np.ndarray, s: np.ndar
     closing one from ``m - 1``) and each pair of their candidate loop positions, the
     summed squared distances, in units of the first point's size ``s``, from the loop
     nodes strictly between them (going forward) that lie past an end of the edge
-    joining the two points to that end; inf where the second is more than half the
-    loop's length ahead (a contour edge is never longer than the rest of its ring,
-    and the loop follows the ring; its nodes may crowd at one end of an edge, so
-    their count would not tell).  Every node between every pair at once, in chunks."""
+    joining the two points to that end; inf where the second is further ahead, in
+    the loop's length, than halfway between the edge's share of its ring and the
+    whole loop (the loop follows the ring, and a contour edge is never longer than
+    the rest of its ring: a step that far would be one back; the loop's nodes may
+    crowd at one end of an edge, so their count would not tell).  Every node between
+    every pair at once, in chunks."""
     nl, (m, k) = len(loop), cand.shape
     prev = np.roll(np.arange(m), 1)
     gap = (cand[:, None, :] - cand[prev][:, :, None]) % nl  # (m, k from, k to)
@@ -864,7 +867,9 @@ def _between_costs(loop: np.ndarray, cand: np.ndarray, q: np.ndarray, s: np.ndar
     at = np.concatenate([[0.0], np.cumsum(seg)[:-1]])  # (the loop's length to each node)
     perimeter = float(seg.sum())
     run = (at[cand][:, None, :] - at[cand[prev]][:, :, None]) % perimeter
-    ok = (gap >= 1) & (run <= 0.5 * perimeter)
+    edge = np.hypot(*(q - q[prev]).T)
+    share = edge / edge.sum()  # (each edge's share of its ring, at most a half)
+    ok = (gap >= 1) & (run <= 0.5 * (1.0 + share[:, None, None]) * perimeter)
     out = np.where(ok, 0.0, np.inf)
     pairs = np.flatnonzero(ok)
     count = gap.ravel()[pairs] - 1
