@@ -858,8 +858,10 @@ def _between_costs(loop: np.ndarray, cand: np.ndarray, q: np.ndarray, s: np.ndar
     the loop's length, than halfway between the edge's share of its ring and the
     whole loop (the loop follows the ring, and a contour edge is never longer than
     the rest of its ring: a step that far would be one back; the loop's nodes may
-    crowd at one end of an edge, so their count would not tell).  Every node between
-    every pair at once, in chunks."""
+    crowd at one end of an edge, so their count would not tell).
+    Each step's edge is measured once from each of its first point's candidates,
+    forward as far as its furthest allowed pair reaches; each pair reads its sum off
+    that row's running sum.  Rows of about one width at a time, in chunks."""
     nl, (m, k) = len(loop), cand.shape
     prev = np.roll(np.arange(m), 1)
     gap = (cand[:, None, :] - cand[prev][:, :, None]) % nl  # (m, k from, k to)
@@ -870,33 +872,32 @@ def _between_costs(loop: np.ndarray, cand: np.ndarray, q: np.ndarray, s: np.ndar
     edge = np.hypot(*(q - q[prev]).T)
     share = edge / edge.sum()  # (each edge's share of its ring, at most a half)
     ok = (gap >= 1) & (run <= 0.5 * (1.0 + share[:, None, None]) * perimeter)
-    out = np.where(ok, 0.0, np.inf)
-    pairs = np.flatnonzero(ok)
-    count = gap.ravel()[pairs] - 1
-    pairs, count = pairs[count > 0], count[count > 0]
-    step = pairs // (k * k)
-    start = cand[prev][step, (pairs // k) % k]
-    a, b, size = q[prev][step], q[step], s[prev][step]
-    ab = b - a
+    out = np.where(ok, 0.0, np.inf).reshape(m * k, k)  # (rows: a step and its start)
+    count = np.where(ok, gap - 1, 0).reshape(m * k, k)  # (nodes strictly between)
+    reach = count.max(axis=1)
+    rows = np.flatnonzero(reach > 0)
+    step = rows // k
+    start = cand[prev].ravel()[rows]
+    a, ab, size = q[prev][step], (q - q[prev])[step], s[prev][step]
     length2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
-    flat = out.ravel()
-    # the pairs in chunks of about CHUNK nodes: pairs cut[i] to cut[i + 1]
-    cum = np.cumsum(count)
-    starts = np.searchsorted(cum, np.arange(0, int(cum[-1]) if len(cum) else 0, CHUNK), "right")
-    cut = np.unique(np.append(starts, len(pairs)))
-    for lo, hi in zip(cut[:-1], cut[1:]):
-        cnt = count[lo:hi]
-        owner = np.repeat(np.arange(lo, hi), cnt)
-        offset = np.arange(len(owner)) - np.repeat(np.cumsum(cnt) - cnt, cnt) + 1
-        xy = loop[(start[owner] + offset) % nl]
-        rel = xy - a[owner]
-        t = np.einsum("ij,ij->i", rel, ab[owner]) / length2[owner]
-        end = np.where(t < 0.0, 0.0, 1.0)
-        past = (t < 0.0) | (t > 1.0)
-        d = rel - end[:, None] * ab[owner]
-        d2 = np.where(past, np.einsum("ij,ij->i", d, d) / size[owner] ** 2, 0.0)
-        flat[pairs[lo:hi]] = np.bincount(owner - lo, d2, minlength=hi - lo)
-    return out
+    # rows grouped by their reach rounded up to a power of two: a block of width w
+    width = 1 << np.ceil(np.log2(reach[rows])).astype(np.int64)
+    for w in np.unique(width):
+        group = np.flatnonzero(width == w)
+        for lo in range(0, len(group), max(1, CHUNK // int(w))):
+            g = group[lo : lo + max(1, CHUNK // int(w))]
+            xy = loop[(start[g, None] + np.arange(1, w + 1)) % nl]  # (rows, w, 2)
+            rel = xy - a[g, None, :]
+            t = np.einsum("rwi,ri->rw", rel, ab[g]) / length2[g, None]
+            d = rel - np.where(t < 0.0, 0.0, 1.0)[..., None] * ab[g, None, :]
+            past = (t < 0.0) | (t > 1.0)
+            d2 = np.where(past, np.einsum("rwi,rwi->rw", d, d) / size[g, None] ** 2, 0.0)
+            total = np.concatenate([np.zeros((len(g), 1)), np.cumsum(d2, axis=1)], axis=1)
+            row = rows[g]
+            finite = np.isfinite(out[row])
+            picked = np.take_along_axis(total, count[row], axis=1)
+            out[row] = np.where(finite, picked, out[row])
+    return out.reshape(m, k, k)
 
 
 def _owners(contour: Contour, p: np.ndarray, loops: list[np.ndarray]) -> np.ndarray:
