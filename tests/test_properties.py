@@ -126,8 +126,8 @@ def test_every_valid_star_polygon_meets_the_contract(pts, log_scale, shift):
     )
 
 
-#: Found by hypothesis: a symmetric U-turn whose split round-off decided after a
-#: translation by -0.25 in y (select.UTURN_TIE now makes it a tie, going to '/').
+#: Found by hypothesis: a symmetric U-turn where a cell's diagonal is a tie up to
+#: round-off (translated by -0.25 in y it must mesh the same way).
 UTURN_TIE_EXAMPLE = np.array(
     [
         (0.49173085081687107, 0.09055810485492786),
@@ -159,10 +159,8 @@ UTURN_TIE_EXAMPLE = np.array(
 )
 
 
-#: Found by hypothesis: the graded deformations of this polygon fold in their first
-#: step; carried the whole way, a third of the triangles are folded, and mending that
-#: much gave different meshes after a translation (untangle.MAX_TANGLED_SHARE now
-#: refuses it, and the adapted grid meshes it).
+#: Found by hypothesis: a polygon whose deformation folds in its first step where
+#: the loop is far from its points; it must mesh, and the same after a translation.
 FIRST_STEP_FOLD_EXAMPLE = np.array(
     [
         (0.8907401756824413, -2.1816842100429058e-16),
@@ -193,11 +191,9 @@ FIRST_STEP_FOLD_EXAMPLE = np.array(
 )
 
 
-#: Found by hypothesis: its fitted graded grid carries a free node onto the line
-#: through two path nodes, a triangle of area 1e-16 times the mean whose sign was
-#: round-off: the polygon as drawn was refused (its centroid outside the domain), the
-#: same polygon moved meshed.  Now a triangle flat before the end of a graded
-#: deformation is a fold whatever its sign (deform.FLAT), and both fall back alike.
+#: Found by hypothesis: a polygon whose deformation can carry a free node onto the
+#: line through two path nodes (a triangle of area 1e-16 times the mean, its sign
+#: round-off); the mesh must not hang on that sign, drawn or moved.
 FLAT_TRIANGLE_EXAMPLE = np.array(
     [
         (0.6448992238680096, 0.15279822442904017),
@@ -294,9 +290,8 @@ def polygons_with_holes(draw):
     return [r * scale + shift for r in rings]
 
 
-# 250 examples, not the ci profile's 1,000: a ring that no graded path keeps whole
-# tries the three ways with extra nodes, their cavities filled with new points, and
-# 400 took 113 s of the suite's 10 minutes on 2 cores
+# 250 examples, not the ci profile's 1,000: a ring with holes is the slowest kind to
+# mesh, and the suite has 10 minutes on 2 cores
 @settings(max_examples=250, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(polygons_with_holes())
 def test_every_valid_polygon_with_holes_meets_the_contract(rings):
