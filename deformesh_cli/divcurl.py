@@ -34,12 +34,19 @@ def gradients(points: np.ndarray, tri: np.ndarray):
     return b / a2[:, None], c / a2[:, None], a2
 
 
-def stiffness_entries(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    """P1 Laplace element matrices, flattened row-major to (t, 9)."""
+def stiffness_entries(points: np.ndarray, tri: np.ndarray, out: np.ndarray | None = None):
+    """P1 Laplace element matrices, flattened row-major to (t, 9) (into ``out`` if
+    given: a caller assembling many times keeps one buffer, rather than faulting a
+    fresh one in every time).  A row of three at a time, each entry
+    ``(gx_i gx_j + gy_i gy_j) |T|``."""
     gx, gy, a2 = gradients(points, tri)
-    area = 0.5 * a2
-    ke = gx[:, :, None] * gx[:, None, :] + gy[:, :, None] * gy[:, None, :]
-    return (ke * area[:, None, None]).reshape(-1, 9)
+    area = (0.5 * a2)[:, None]
+    ke = np.empty((len(tri), 9)) if out is None else out
+    for i in range(3):
+        row = gx[:, i, None] * gx
+        row += gy[:, i, None] * gy
+        np.multiply(row, area, out=ke[:, 3 * i : 3 * i + 3])
+    return ke
 
 
 def assemble_coupled(points: np.ndarray, tri: np.ndarray, rhs: np.ndarray | None = None):
@@ -151,6 +158,7 @@ class Assembler:
         self._fd = np.flatnonzero(fd)
         self._fd_row = fr[fd]
         self._fd_col = c[fd]
+        self._ke = self._ke_ff = None
 
     def load(self, points: np.ndarray, r: np.ndarray) -> np.ndarray:
         """The divergence load ``sum_T |T| r_T (gx, gy)`` on the free dofs, (n_free, 2)."""
@@ -170,8 +178,12 @@ class Assembler:
 
         ``u_dirichlet`` is (N, 2); only its rows at Dirichlet nodes are read.
         """
-        ke = stiffness_entries(points, self.tri).ravel()
-        data = np.bincount(self._slot, weights=ke[self._ff], minlength=self._nnz)
+        if self._ke is None:  # (buffers kept for the next step)
+            self._ke = np.empty((len(self.tri), 9))
+            self._ke_ff = np.empty(len(self._ff))
+        ke = stiffness_entries(points, self.tri, out=self._ke).ravel()
+        np.take(ke, self._ff, out=self._ke_ff)
+        data = np.bincount(self._slot, weights=self._ke_ff, minlength=self._nnz)
         K = SymmetricCSR(
             data,
             self._indices,

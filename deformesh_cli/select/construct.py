@@ -845,8 +845,10 @@ def _monotone(q: np.ndarray, loop: np.ndarray, s: np.ndarray) -> np.ndarray | No
     return out
 
 
-#: Loop nodes whose distances :func:`_between_costs` measures at once (memory).
-CHUNK = 1 << 22
+#: Loop nodes whose distances :func:`_between_costs` measures at once: its arrays stay
+#: a few MB, under the C library's threshold for mapping fresh pages (32 MB), so they
+#: reuse memory instead of faulting new pages in (``benchmarks/MEASURED.md``).
+CHUNK = 1 << 18
 
 
 def _between_costs(loop: np.ndarray, cand: np.ndarray, q: np.ndarray, s: np.ndarray) -> np.ndarray:
