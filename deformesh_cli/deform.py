@@ -74,7 +74,7 @@ AUTO_DIRECT_MAX = 60_000
 STEP_RTOL = 1e-6
 
 #: ``--solve`` choices: ``band`` deforms only the cells near the path
-#: (:func:`deformesh_cli.pipeline.band_nodes`), ``full`` the whole background grid
+#: (the selection's ``band_nodes``), ``full`` the whole background grid
 #: (the paper's form).
 SOLVES = ("band", "full")
 

@@ -32,7 +32,6 @@ from .mesh import Mesh
 from .options import MeshOptions
 from .select import GRIDS, Selection, select
 from .select import construct as _construct
-from .select.construct import GradedSelection
 from .size import SizeFunction
 
 #: ``callback(done, stats)``: pseudo-time done (0 to 1) and the deformation's statistics.
@@ -168,43 +167,6 @@ def run_select(
         ) from None
 
 
-#: The narrow band reaches this many cells (grid steps, in i or j) past the
-#: nearest path node, and at least :data:`BAND_REACH` times the largest distance a
-#: path node travels.  With the quality stage a band of 4 cells gives the same
-#: smallest angles as the whole grid (tests/test_band.py allows 0.05 degrees) at
-#: about half the cost of 8 (``benchmarks/MEASURED.md``).
-BAND_CELLS = 4
-BAND_REACH = 3.0
-
-
-def band_nodes(sel: Selection) -> np.ndarray | None:
-    """Boolean node mask of the narrow band, or None when it would not save much."""
-    if isinstance(sel, GradedSelection):
-        return sel.band_nodes()
-    g = sel.grid
-    h = min(g.hx, g.hy)
-    travel = np.hypot(*(sel.path_targets - g.coords(sel.path_nodes)).T).max(initial=0.0)
-    reach = max(BAND_CELLS, int(np.ceil(BAND_REACH * travel / h)))
-    on = np.zeros((g.ny + 1, g.nx + 1), dtype=bool)
-    i, j = g.node_ij(sel.path_nodes)
-    on[j, i] = True
-    band = _dilate(_dilate(on, reach, 0), reach, 1).ravel()
-    return band if band.sum() < 0.5 * g.n_nodes else None
-
-
-def _dilate(on: np.ndarray, reach: int, axis: int) -> np.ndarray:
-    """True where ``on`` has a True within ``reach`` places along ``axis``.
-
-    (``scipy.ndimage.maximum_filter`` does this too, but its import is slow.)
-    """
-    c = np.cumsum(on, axis=axis, dtype=np.int64)
-    c = np.concatenate([np.zeros_like(c.take([0], axis=axis)), c], axis=axis)
-    n = on.shape[axis]
-    hi = np.minimum(np.arange(n) + reach + 1, n)
-    lo = np.maximum(np.arange(n) - reach, 0)
-    return c.take(hi, axis=axis) > c.take(lo, axis=axis)
-
-
 def run_deform(
     contour: Contour,
     sel: Selection,
@@ -219,7 +181,7 @@ def run_deform(
     the one the options' ``size`` or ``size_field`` give; normalised here over the
     grid's box) shapes the cells.
 
-    ``solve="band"`` moves only the cells near the path (:func:`band_nodes`),
+    ``solve="band"`` moves only the cells near the path (the selection's ``band_nodes``),
     unless a size function is given (it shapes every cell) or the band would
     cover half the grid; ``"full"`` solves on the whole grid.  On the graded grid
     only the domain's side of the path is solved for (:func:`.deform.deform_band`'s
@@ -246,7 +208,7 @@ def run_deform(
     tri = sel.triangles()
     if size is not None:
         size.normalise(grid.box)
-    band = band_nodes(sel) if o.solve == "band" and size is None else None
+    band = sel.band_nodes() if o.solve == "band" and size is None else None
     kwargs = {
         "steps": o.steps,
         "callback": callback,

@@ -10,7 +10,7 @@ from deformesh_cli.geometry import signed_areas
 from deformesh_cli.options import MeshOptions
 from deformesh_cli.quality import check_contract
 from deformesh_cli.readers import load_contour
-from deformesh_cli.select import Grid, grid_triangles
+from deformesh_cli.select import Grid, grid_triangles, uniform
 
 from .conftest import SAMPLES, contour_file
 
@@ -129,12 +129,12 @@ def test_direct_and_multigrid_solves_give_the_same_mesh(path):
 
 @pytest.mark.parametrize("reach", [0, 1, 3, 8, 40])
 def test_band_dilation_is_the_maximum_filter(reach):
-    # pipeline._dilate replaces scipy.ndimage.maximum_filter (slow to import): same mask
+    # uniform._dilate replaces scipy.ndimage.maximum_filter (slow to import): same mask
     from scipy import ndimage
 
     rng = np.random.default_rng(reach)
     for shape, density in (((57, 83), 0.01), ((9, 200), 0.05), ((1, 1), 1.0)):
         on = rng.random(shape) < density
         want = ndimage.maximum_filter(on, size=2 * reach + 1, mode="constant")
-        got = pipeline._dilate(pipeline._dilate(on, reach, 0), reach, 1)
+        got = uniform._dilate(uniform._dilate(on, reach, 0), reach, 1)
         assert np.array_equal(got, want)

@@ -29,7 +29,7 @@ def _two_ways(sel):
     """The band deformation of ``sel`` on both sides of the path, and on the kept side."""
     g = sel.grid
     args = (g.coords(), sel.triangles(), sel.path_nodes, sel.path_targets, g.boundary_nodes())
-    band = pipeline.band_nodes(sel)
+    band = sel.band_nodes()
     return args, band
 
 
