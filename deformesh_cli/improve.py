@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .cavity import outline
 from .forced import corner_angles
 from .geometry import node_stars, touching
 from .mesh import Mesh
@@ -199,7 +200,7 @@ def _insert(
     owner, cavities, loops, ears, hubs = [], [], [], [], []
 
     def consider(key, cav, ear=None):
-        got = _outline(tri, nb, cav, ear)
+        got = _outline(tri, cav, ear)
         if got is not None:
             owner.append(key)
             cavities.append(cav)
@@ -291,36 +292,23 @@ def _insert(
     return pts, np.concatenate(extra), len(new_pts), len(chosen)
 
 
-def _outline(tri: np.ndarray, nb: np.ndarray, cav: list[int], ear=None):
-    """The outline of the triangles ``cav`` as a counter-clockwise node loop, and the
-    one node inside it (-1 if none); None unless the outline is one simple loop
-    and at most one node is inside.  With an ``ear`` (p, next, previous), p must
-    be on the loop between the other two, and is left out of it."""
-    inside = set(cav)
-    nxt = {}
-    for t in cav:
-        for k in range(3):
-            if nb[t, k] not in inside:
-                a, b = int(tri[t, k]), int(tri[t, (k + 1) % 3])
-                if a in nxt:
-                    return None
-                nxt[a] = b
-    start = next(iter(nxt))
-    loop = [start]
-    while nxt[loop[-1]] != start:
-        loop.append(nxt[loop[-1]])
-        if len(loop) > len(nxt):
-            return None
-    if len(loop) != len(nxt):
+def _outline(tri: np.ndarray, cav: list[int], ear=None):
+    """The outline of the triangles ``cav`` as a counter-clockwise node loop
+    (:func:`.cavity.outline`), and the one node inside it (-1 if none); None unless
+    the outline is one simple loop and at most one node is inside.  With an ``ear``
+    (p, next, previous), p must be on the loop between the other two, and is left
+    out of it."""
+    found = outline(tri[cav].tolist())
+    if found is None:
         return None
-    inner = set(tri[cav].ravel().tolist()) - set(loop)
+    loop, inner = found
     if len(inner) > 1 or len(cav) != len(loop) - 2 + 2 * len(inner):
         return None  # (the count fails if the cavity has a hole)
     if ear is not None:
         p, after, before = ear
-        if nxt.get(p) != after:
+        k = loop.index(p) if p in loop else -1
+        if k < 0 or loop[(k + 1) % len(loop)] != after:
             return None
-        k = loop.index(p)
         loop = loop[k + 1 :] + loop[:k]
         if loop[-1] != before:
             return None
