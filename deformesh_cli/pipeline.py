@@ -91,6 +91,11 @@ class Laid:
     kept: np.ndarray | None = None
     ears: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), dtype=np.int64))
 
+    @classmethod
+    def as_is(cls, contour: Contour) -> Laid:
+        """A contour the grid is laid for as it is: no edge split, no ear cut."""
+        return cls(contour, contour, None, contour)
+
     def chords(self) -> set[tuple[int, int]]:
         """The pairs of ``grid`` points joined by an edge of ``grid`` that is not one of
         ``fine``'s: the chords the cut ears stand on (a cut tip's: between its two
@@ -266,7 +271,7 @@ def _describer(contour: Contour, sel: Selection):
 
 
 def run_triangulate(
-    laid: Laid | Contour,
+    laid: Laid,
     d: Deformed,
     options: MeshOptions | None = None,
     *,
@@ -279,13 +284,11 @@ def run_triangulate(
     graded grid's), the extra boundary nodes taken out (:mod:`.recover`, unless
     ``merge_extra`` keeps them), the ears cut before the grid was laid added back,
     the quality stage once (the options' ``improve``), the contract checked, the
-    given points numbered first (with ``--max-h``).  ``laid``: a :class:`Laid`, or
-    a contour the grid was laid for as it is (no edge split, no ear cut).  ``cut``:
+    given points numbered first (with ``--max-h``).  ``laid``: from :func:`lay`, or
+    :meth:`Laid.as_is` for a contour the grid was laid for as it is.  ``cut``:
     :func:`.triangulate.cut` of this selection, if already made."""
     o = _options(options, changes)
     sel = d.selection
-    if isinstance(laid, Contour):  # (a contour the grid was laid for as it is)
-        laid = Laid(laid, laid, None, laid)
     size = size_function
     if size is None:
         size = _size.make(o.size, o.size_field, laid.contour)

@@ -220,3 +220,15 @@ def test_the_package_imports_one_way():
     for m in sorted(modules):
         visit(m)
     assert cycle == [], cycle[:3]
+
+
+def test_the_pipeline_asks_its_selections_rather_than_their_types():
+    """``pipeline.py`` runs the stages through what a selection says of itself
+    (triangles, band, kept side, whether folds are mended), not by its class."""
+    tree = ast.parse((ROOT / "deformesh_cli" / "pipeline.py").read_text())
+    calls = [
+        node.lineno
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "isinstance"
+    ]
+    assert calls == []

@@ -90,7 +90,7 @@ def test_thin_wedge_is_traced_where_appendix_a_fails(h):
     sel = select(c, h=h)
     assert sel.path_rule == "traced"
     d = pipeline.run_deform(c, sel)
-    mesh, _ = pipeline.run_triangulate(c, d)
+    mesh, _ = pipeline.run_triangulate(pipeline.Laid.as_is(c), d)
     check_contract(mesh, c)
 
 
@@ -111,7 +111,7 @@ def test_traced_paths_mesh_with_the_contract(pts, rel_h):
         d = pipeline.run_deform(c, sel)
     except FoldError:
         return
-    mesh, _ = pipeline.run_triangulate(c, d)
+    mesh, _ = pipeline.run_triangulate(pipeline.Laid.as_is(c), d)
     check_contract(mesh, c)
 
 
@@ -141,7 +141,8 @@ def test_random_star_polygons_all_mesh_at_the_default_h():
         sel = select(c, max_nodes=60_000)
         # (the quality stage has tests of its own; here the path, the deformation and
         # the contract)
-        mesh, _ = pipeline.run_triangulate(c, pipeline.run_deform(c, sel), improve=False)
+        d = pipeline.run_deform(c, sel)
+        mesh, _ = pipeline.run_triangulate(pipeline.Laid.as_is(c), d, improve=False)
         check_contract(mesh, c)
         rules.add(sel.path_rule)
     assert "traced" in rules
@@ -215,7 +216,7 @@ def test_comb_is_traced_only_with_the_thin_rule(monkeypatch, w, h):
         select(c, h=h, methods=("trace",))
     monkeypatch.undo()
     sel = select(c, h=h, methods=("trace",))
-    mesh, _ = pipeline.run_triangulate(c, pipeline.run_deform(c, sel))
+    mesh, _ = pipeline.run_triangulate(pipeline.Laid.as_is(c), pipeline.run_deform(c, sel))
     check_contract(mesh, c)
 
 
