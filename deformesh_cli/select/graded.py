@@ -129,6 +129,25 @@ def graded_sizes(points: np.ndarray, s: np.ndarray, growth: float) -> np.ndarray
     return np.minimum(s, alpha * dist)
 
 
+def _morton(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Morton (Z-order) codes of lattice cells ``(x, y)``, each below 2**28
+    (:data:`MAX_CELLS_ACROSS`): their bits interleaved, x's in the even places."""
+
+    def spread(v):
+        v = np.asarray(v, dtype=np.int64) & 0xFFFFFFFF
+        for shift, mask in (
+            (16, 0x0000FFFF0000FFFF),
+            (8, 0x00FF00FF00FF00FF),
+            (4, 0x0F0F0F0F0F0F0F0F),
+            (2, 0x3333333333333333),
+            (1, 0x5555555555555555),
+        ):
+            v = (v | (v << shift)) & mask
+        return v
+
+    return spread(x) | (spread(y) << 1)
+
+
 @dataclass
 class Quadtree:
     """The leaves of a balanced quadtree over a box.
@@ -171,32 +190,28 @@ class Quadtree:
         """Each leaf's side (its width)."""
         return self.hx * 2.0**self.level
 
-    def _keys(self, level: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
-        """One integer per (level, i, j) cell, unique over all levels."""
-        width = self.nx * 2**self.top  # cells of level 0 along x
-        return (level.astype(np.int64) * (width + 1) + i) * (self.ny * 2**self.top + 1) + j
-
     def leaf_index(self, level: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
         """The leaf that holds cell ``(level, i, j)`` (the cell itself or an ancestor),
-        or -1 where the cell is split into finer leaves or lies outside the box."""
-        if self._sorted is None:  # the leaves do not change: sort their keys once
-            keys = self._keys(self.level, self.i, self.j)
-            order = np.argsort(keys)
-            self._sorted = (order, keys[order])
-        order, skeys = self._sorted
+        or -1 where the cell is split into finer leaves or lies outside the box.
+
+        The leaves tile the lattice and each is an aligned block, so in Morton order
+        each covers one run of finest cells: the leaf holding the cell's first finest
+        cell is the last leaf starting at or before it (one binary search), and it
+        holds the whole cell when it is at least as coarse."""
+        if self._sorted is None:  # the leaves do not change: sort their starts once
+            start = _morton(self.i << self.level, self.j << self.level)
+            order = np.argsort(start, kind="stable")
+            self._sorted = (order, start[order])
+        order, starts = self._sorted
         out = np.full(len(level), -1, dtype=np.int64)
         width, height = self.nx * 2**self.top, self.ny * 2**self.top
         inside = (i >= 0) & (j >= 0) & (i * 2**level < width) & (j * 2**level < height)
-        for up in range(0, self.top + 1):
-            lv = level + up
-            ok = inside & (out < 0) & (lv <= self.top)
-            if not ok.any():
-                continue
-            k = self._keys(lv[ok], i[ok] >> up, j[ok] >> up)
-            pos = np.clip(np.searchsorted(skeys, k), 0, len(skeys) - 1)
-            hit = skeys[pos] == k
-            idx = np.flatnonzero(ok)
-            out[idx[hit]] = order[pos[hit]]
+        idx = np.flatnonzero(inside & (level <= self.top))
+        lv = level[idx]
+        at = np.searchsorted(starts, _morton(i[idx] << lv, j[idx] << lv), "right") - 1
+        leaf = order[at]
+        hit = self.level[leaf] >= lv
+        out[idx[hit]] = leaf[hit]
         return out
 
     def layout(self) -> Layout:
@@ -389,8 +404,8 @@ def _lay(points, s, box, growth, max_h, box_given, max_nodes, roots, field) -> Q
     return balance(tree)
 
 
-#: The most finest cells across the box: cell and lattice keys (``Quadtree._keys``,
-#: ``Layout.key``) are whole numbers below 2**63 for at most 28 levels of 2**28 cells.
+#: The most finest cells across the box: Morton codes (:func:`_morton`) and lattice keys
+#: (``Layout.key``) are whole numbers below 2**63 for at most 28 levels of 2**28 cells.
 MAX_CELLS_ACROSS = 2**28
 
 #: Root cells along the box's shorter side: at least this many, so that the finest
