@@ -53,6 +53,9 @@ SPLIT_ABOVE = 1.4142135623730951
 #: Neighbouring contour points considered when a cell's size is decided.
 NEAREST = 16
 
+#: Cells whose sizes :func:`refine` decides at once (``benchmarks/MEASURED.md``).
+REFINE_CHUNK = 1 << 15
+
 #: Points this many places apart along a ring or more count as "other parts" of the
 #: contour for the local feature size.
 APART = 3
@@ -472,12 +475,15 @@ def refine(
         x0 = tree.x0 + i * w
         y0 = tree.y0 + j * hgt
         cx, cy = x0 + w / 2, y0 + hgt / 2
-        _, idx = kd.query(np.column_stack([cx, cy]), k=k)
-        idx = idx.reshape(len(lv), -1)
-        q = points[idx]  # (c, k, 2)
-        dx = np.maximum(np.abs(q[..., 0] - cx[:, None]) - w[:, None] / 2, 0.0)
-        dy = np.maximum(np.abs(q[..., 1] - cy[:, None]) - hgt[:, None] / 2, 0.0)
-        need = np.min(s[idx] + alpha * np.hypot(dx, dy), axis=1)
+        need = np.empty(len(lv))
+        for a in range(0, len(lv), REFINE_CHUNK):  # (arrays of a few MB: reused memory)
+            b = a + REFINE_CHUNK
+            _, idx = kd.query(np.column_stack([cx[a:b], cy[a:b]]), k=k)
+            idx = idx.reshape(len(cx[a:b]), -1)
+            q = points[idx]  # (c, k, 2)
+            dx = np.maximum(np.abs(q[..., 0] - cx[a:b, None]) - w[a:b, None] / 2, 0.0)
+            dy = np.maximum(np.abs(q[..., 1] - cy[a:b, None]) - hgt[a:b, None] / 2, 0.0)
+            need[a:b] = np.min(s[idx] + alpha * np.hypot(dx, dy), axis=1)
         if field is not None:
             need = np.minimum(need, field(np.column_stack([cx, cy])))
         split = (np.maximum(w, hgt) > SPLIT_ABOVE * need) & (lv > 0)
