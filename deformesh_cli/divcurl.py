@@ -158,7 +158,9 @@ class Assembler:
         self._fd = np.flatnonzero(fd)
         self._fd_row = fr[fd]
         self._fd_col = c[fd]
-        self._ke = self._ke_ff = None
+        # buffers every call of :meth:`system` fills (not faulted in fresh each step)
+        self._ke = np.empty((len(tri), 9))
+        self._ke_ff = np.empty(len(self._ff))
 
     def load(self, points: np.ndarray, r: np.ndarray) -> np.ndarray:
         """The divergence load ``sum_T |T| r_T (gx, gy)`` on the free dofs, (n_free, 2)."""
@@ -178,9 +180,6 @@ class Assembler:
 
         ``u_dirichlet`` is (N, 2); only its rows at Dirichlet nodes are read.
         """
-        if self._ke is None:  # (buffers kept for the next step)
-            self._ke = np.empty((len(self.tri), 9))
-            self._ke_ff = np.empty(len(self._ff))
         ke = stiffness_entries(points, self.tri, out=self._ke).ravel()
         np.take(ke, self._ff, out=self._ke_ff)
         data = np.bincount(self._slot, weights=self._ke_ff, minlength=self._nnz)

@@ -306,8 +306,10 @@ def _outline(tri: np.ndarray, cav: list[int], ear=None):
         return None  # (the count fails if the cavity has a hole)
     if ear is not None:
         p, after, before = ear
-        k = loop.index(p) if p in loop else -1
-        if k < 0 or loop[(k + 1) % len(loop)] != after:
+        if p not in loop:
+            return None
+        k = loop.index(p)
+        if loop[(k + 1) % len(loop)] != after:
             return None
         loop = loop[k + 1 :] + loop[:k]
         if loop[-1] != before:

@@ -30,7 +30,7 @@ from .options import fields as option_fields
 from .pipeline import Laid, lay
 from .select import DEFAULT_MAX_NODES, Grid, Selection
 from .select.construct import GradedGrid, GradedSelection
-from .select.graded import MAX_CELLS_ACROSS, Quadtree, _morton
+from .select.graded import MAX_CELLS_ACROSS, Quadtree
 from .size import MAX_FIELD_ROWS, from_rows
 
 FORMAT = "deformesh-state"
@@ -617,12 +617,7 @@ def _graded_grid(g: dict, a: dict) -> GradedGrid:
         float(g["x0"]), float(g["y0"]), float(g["hx"]), float(g["hy"]), top, nx, ny,
         level.astype(np.int64), i.astype(np.int64), j.astype(np.int64),
     )  # fmt: skip
-    # leaves that cover the box's area and are disjoint tile it.  An aligned block is a
-    # run of Morton codes, and two blocks are disjoint or nested: in the order of their
-    # first cells, none may start before the one before it ends
-    start = _morton(tree.i << tree.level, tree.j << tree.level)
-    order = np.argsort(start, kind="stable")
-    first, size = start[order], 4 ** tree.level[order]
-    if (first[1:] < first[:-1] + size[:-1]).any():
+    # leaves that cover the box's area and do not overlap tile it
+    if tree.overlapping():
         raise _Damaged("the graded grid's leaves do not tile its box (leaves overlap)")
     return GradedGrid(tree, tree.triangulate()[0])

@@ -202,3 +202,22 @@ def test_limits_corpus_numbers_are_the_benchmark_file():
     assert (
         f"at most {slowest.group(1)} s" in text and f"{fast} of the {meshed} take under 1 s" in text
     )
+
+
+def test_limits_random_set_numbers_are_the_benchmark_file():
+    """docs/limits.md's random-set claims (how many under 1 s, the slowest, the most
+    extra boundary nodes) are the numbers ``make bench`` last wrote in RESULTS.md."""
+    results = (ROOT / "benchmarks" / "RESULTS.md").read_text()
+    part = results.split("<!-- section:construct -->")[1].split("<!-- end:construct -->")[0]
+    count = re.search(r"the first (\d+) polygons", part).group(1)
+    slowest, fast, most = re.search(
+        r"slowest ([\d.]+) s, (\d+) under 1 s; extra boundary nodes taken out: median \d+, "
+        r"most (\d+)",
+        part,
+    ).groups()
+    text = " ".join(DOCS["limits.md"].split())
+    assert (
+        f'of the {count} random polygons (`benchmarks/RESULTS.md`, "construct") {fast} take '
+        f"under 1 s in process and the slowest {round(float(slowest))} s; one had "
+        f"{int(most):,} extra boundary nodes"
+    ) in text

@@ -886,8 +886,9 @@ def _between_costs(loop: np.ndarray, cand: np.ndarray, q: np.ndarray, s: np.ndar
     width = 1 << np.ceil(np.log2(reach[rows])).astype(np.int64)
     for w in np.unique(width):
         group = np.flatnonzero(width == w)
-        for lo in range(0, len(group), max(1, CHUNK // int(w))):
-            g = group[lo : lo + max(1, CHUNK // int(w))]
+        per = max(1, CHUNK // int(w))
+        for lo in range(0, len(group), per):
+            g = group[lo : lo + per]
             xy = loop[(start[g, None] + np.arange(1, w + 1)) % nl]  # (rows, w, 2)
             rel = xy - a[g, None, :]
             t = np.einsum("rwi,ri->rw", rel, ab[g]) / length2[g, None]
@@ -895,10 +896,9 @@ def _between_costs(loop: np.ndarray, cand: np.ndarray, q: np.ndarray, s: np.ndar
             past = (t < 0.0) | (t > 1.0)
             d2 = np.where(past, np.einsum("rwi,rwi->rw", d, d) / size[g, None] ** 2, 0.0)
             total = np.concatenate([np.zeros((len(g), 1)), np.cumsum(d2, axis=1)], axis=1)
-            row = rows[g]
-            finite = np.isfinite(out[row])
-            picked = np.take_along_axis(total, count[row], axis=1)
-            out[row] = np.where(finite, picked, out[row])
+            # (an allowed pair's 0 takes its sum; a pair not allowed counts 0 nodes and
+            # stays inf)
+            out[rows[g]] += np.take_along_axis(total, count[rows[g]], axis=1)
     return out.reshape(m, k, k)
 
 

@@ -193,6 +193,22 @@ class Quadtree:
         """Each leaf's side (its width)."""
         return self.hx * 2.0**self.level
 
+    def _morton_order(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(order, starts)``: the leaves sorted by the Morton code of their first
+        finest cell, and those codes (sorted once: the leaves do not change)."""
+        if self._sorted is None:
+            start = _morton(self.i << self.level, self.j << self.level)
+            order = np.argsort(start, kind="stable")
+            self._sorted = (order, start[order])
+        return self._sorted
+
+    def overlapping(self) -> bool:
+        """Some two leaves share a cell.  An aligned block is a run of Morton codes and
+        two blocks are disjoint or nested, so in the order of their first cells one
+        starting before the one before it ends is the only way."""
+        order, starts = self._morton_order()
+        return bool((starts[1:] < starts[:-1] + 4 ** self.level[order][:-1]).any())
+
     def leaf_index(self, level: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
         """The leaf that holds cell ``(level, i, j)`` (the cell itself or an ancestor),
         or -1 where the cell is split into finer leaves or lies outside the box.
@@ -201,11 +217,7 @@ class Quadtree:
         each covers one run of finest cells: the leaf holding the cell's first finest
         cell is the last leaf starting at or before it (one binary search), and it
         holds the whole cell when it is at least as coarse."""
-        if self._sorted is None:  # the leaves do not change: sort their starts once
-            start = _morton(self.i << self.level, self.j << self.level)
-            order = np.argsort(start, kind="stable")
-            self._sorted = (order, start[order])
-        order, starts = self._sorted
+        order, starts = self._morton_order()
         out = np.full(len(level), -1, dtype=np.int64)
         width, height = self.nx * 2**self.top, self.ny * 2**self.top
         inside = (i >= 0) & (j >= 0) & (i * 2**level < width) & (j * 2**level < height)
