@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import coarsen as _coarsen
 from . import deadline, forced, geometry, quality, triangulate, untangle
 from . import deform as _deform
 from . import improve as _improve
@@ -323,6 +324,14 @@ def run_triangulate(
         if mesh.n_extra and _recovers(o):  # (the points of the tips cut)
             mesh, more = _recover.recover(mesh)
             recovered += more
+    # the interior taken to the size field the grid was laid for (none on the uniform
+    # grid; none with a size function, which the deformation follows)
+    sizes = None if size is not None else sel.size_field(contour, o.growth, o.max_h, o.max_nodes)
+    coarsened = 0
+    if sizes is not None:
+        mesh, done = _coarsen.coarsen(mesh, sizes)
+        coarsened = done.removed
+        edges = None if coarsened else edges
     better = None
     if o.improve:
         before = mesh
@@ -346,6 +355,7 @@ def run_triangulate(
     report["contract"] = "ok"
     report["recovered_extra_nodes"] = int(recovered)
     report["ears"] = int(len(laid.ears))
+    report["coarsened_nodes"] = int(coarsened)
     report["improve"] = (
         None
         if better is None

@@ -139,6 +139,15 @@ class GradedSelection:
     mends_folds: ClassVar[bool] = True
     _triangles: np.ndarray | None = field(default=None, init=False, repr=False)
     _kept: np.ndarray | None = field(default=None, init=False, repr=False)
+    _sizes: graded.SizeField | None = field(default=None, init=False, repr=False)
+
+    def size_field(self, contour: Contour, growth: float, max_h, max_nodes):
+        """The size field the grid was laid for without a size function
+        (:func:`size_field` of the contour it was laid for and these options): stage 3
+        coarsens the interior to it."""
+        if self._sizes is None:
+            self._sizes = size_field(contour, self.exterior, growth, max_h, max_nodes)
+        return self._sizes
 
     @property
     def extra_nodes(self) -> int:
@@ -413,12 +422,7 @@ def select_constructed(
     (the module's steps).  ``size_function`` (a :class:`~..size.SizeFunction`): the
     cells also follow it, at most ``lambda sqrt(f)`` wide, ``lambda`` the median over
     the contour's points of :data:`CELL_FACTOR` times their size over ``sqrt(f)``."""
-    xy, size, s, edge = feature_samples(contour, max_nodes or DEFAULT_MAX_NODES, exterior)
-    field = None
-    if size_function is not None:
-        at = np.sqrt(size_function.values(contour.points))
-        scale = float(np.median(CELL_FACTOR * s / at))
-        field = lambda q: scale * np.sqrt(size_function.values(q))  # noqa: E731
+    xy, size, s, edge, field = _wanted(contour, exterior, max_nodes, size_function)
     prv = prev_on_ring(contour.ring)
     lo, hi = contour.points.min(axis=0), contour.points.max(axis=0)
     given = box is not None
@@ -434,12 +438,16 @@ def select_constructed(
                    max(box[2], hi[0] + room), max(box[3], hi[1] + room))  # fmt: skip
     factor = np.full(len(xy), CELL_FACTOR)
     crowded = None
+    sizes = None  # (the coarsening's, with no size function)
     for _ in range(REFINE_ROUNDS + 1):
-        tree = graded.build_from(
+        tree, laid_for = graded.build_from(
             xy, size * factor, box, growth, max_h, given, max_nodes, field=field
         )
+        sizes = sizes or laid_for  # (the first: every point at CELL_FACTOR)
         try:
-            return _select_on(contour, tree, exterior, s)
+            sel = _select_on(contour, tree, exterior, s)
+            sel._sizes = sizes if size_function is None else None
+            return sel
         except _Crowded as exc:
             crowded = exc.points
             # the points' cells, and the cells along their edges
@@ -448,6 +456,33 @@ def select_constructed(
         f"{contour.source}: contour points still share grid nodes after halving their "
         f"cells {REFINE_ROUNDS} times, near {contour.where(int(crowded[0]))}"
     )
+
+
+def _wanted(contour: Contour, exterior: bool, max_nodes: int | None, size_function):
+    """:func:`feature_samples` of ``contour``, and the cells' size field of the size
+    function (None without one)."""
+    xy, size, s, edge = feature_samples(contour, max_nodes or DEFAULT_MAX_NODES, exterior)
+    field = None
+    if size_function is not None:
+        at = np.sqrt(size_function.values(contour.points))
+        scale = float(np.median(CELL_FACTOR * s / at))
+        field = lambda q: scale * np.sqrt(size_function.values(q))  # noqa: E731
+    return xy, size, s, edge, field
+
+
+def size_field(
+    contour: Contour,
+    exterior: bool = False,
+    growth: float = graded.DEFAULT_GROWTH,
+    max_h: float | None = None,
+    max_nodes: int | None = None,
+) -> graded.SizeField:
+    """The size field :func:`select_constructed` lays the grid for with no size
+    function, every point's cells at :data:`CELL_FACTOR` times its size (before any is
+    halved for a crowded point)."""
+    xy, size, _, _, _ = _wanted(contour, exterior, max_nodes, None)
+    s = graded.graded_sizes(xy, size * CELL_FACTOR, growth)
+    return graded.SizeField(xy, s, growth, max_h)
 
 
 def _checked_box(contour: Contour, box, exterior: bool) -> tuple[float, float, float, float]:

@@ -382,14 +382,41 @@ def build_from(
     max_nodes: int | None = None,
     roots: int | None = None,
     field=None,
-) -> Quadtree:
+) -> tuple[Quadtree, SizeField]:
     """The balanced quadtree over ``box`` whose cells near each of ``points`` are
     about its size (``sizes``, made consistent with the growth by
-    :func:`graded_sizes`): :func:`build` for sizes given point by point."""
+    :func:`graded_sizes`): :func:`build` for sizes given point by point; and the size
+    field it was refined to, but ``field``."""
     if not growth > 1.0:
         raise OptionError(f"--growth must be > 1 (cells grow away from the contour), got {growth}")
     s = graded_sizes(points, sizes, growth)
-    return _lay(points, s, box, growth, max_h, box_given, max_nodes, roots, field)
+    tree = _lay(points, s, box, growth, max_h, box_given, max_nodes, roots, field)
+    return tree, SizeField(points, s, growth, max_h)
+
+
+@dataclass
+class SizeField:
+    """The size a quadtree was refined to with no further field, at any point ``q``:
+    the least over the :data:`NEAREST` ``points`` nearest it of ``s_p + (growth - 1)
+    |q - p|``, and half ``max_h`` where given (:func:`refine` measures from the cell
+    instead of its centre).  Stage 3 coarsens the interior to it
+    (:mod:`~deformesh_cli.coarsen`: no edge longer than twice it)."""
+
+    points: np.ndarray
+    s: np.ndarray
+    growth: float
+    max_h: float | None = None
+
+    def __call__(self, q: np.ndarray) -> np.ndarray:
+        from scipy.spatial import cKDTree
+
+        k = min(NEAREST, len(self.points))
+        dist, idx = cKDTree(self.points).query(q, k=k)
+        dist, idx = dist.reshape(len(q), -1), idx.reshape(len(q), -1)
+        out = np.min(self.s[idx] + (self.growth - 1.0) * dist, axis=1)
+        if self.max_h is not None:  # (no edge a collapse makes longer than max_h)
+            out = np.minimum(out, self.max_h / 2.0)
+        return out
 
 
 def _lay(points, s, box, growth, max_h, box_given, max_nodes, roots, field) -> Quadtree:

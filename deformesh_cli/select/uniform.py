@@ -343,6 +343,11 @@ class Selection:
         inside = self.inside_triangles()
         return ~inside if self.exterior else inside
 
+    def size_field(self, contour, growth, max_h, max_nodes) -> None:
+        """None: Appendix A's grid is uniform, and its mesh stays as the paper builds it
+        (stage 3 coarsens nothing)."""
+        return None
+
     def band_nodes(self) -> np.ndarray | None:
         """Boolean node mask of the narrow band (:data:`BAND_CELLS`), or None when it
         would cover half the grid."""

@@ -1,0 +1,281 @@
+"""Stage 3: the interior taken to the size field the grid was laid for.
+
+A balanced quadtree lets a cell be at most twice its neighbour, so away from the
+contour its cells are smaller than the size field asks (the field may grow
+faster than one level per cell): a graded grid's mesh has about twice the nodes
+it needs there.  This stage removes interior nodes by edge collapse: an interior
+node ``a`` goes into a neighbour ``b`` (``a``'s triangles take ``b`` in its place;
+the two on the edge ``ab`` go) only if
+
+- every edge the collapse makes is at most :data:`LONGEST` times the size field
+  (the mean of its ends' values): no longer than the diagonal of the largest cell
+  the quadtree admits there;
+- ``a`` and ``b`` have no common neighbour but the two across the edge ``ab`` (the
+  link condition): the mesh stays a triangulation of the same domain;
+- every triangle it makes is counter-clockwise with its smallest angle at least
+  :data:`ANGLE` degrees.
+
+Each node tries its shortest such edge (relative to the size field); collapses are
+made in rounds of ones whose nodes and neighbours do not meet, the shortest first,
+until none is allowed.  Every round makes at least one (the shortest of all), so it
+ends; no round reads the clock.  Boundary nodes never move or go: every contour
+point stays a node, every boundary edge an edge, and the area is unchanged.  Nothing
+here prints or exits.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .cavity import renumber
+from .mesh import Mesh
+from .smoothing import _tan_all as _tan_min
+
+#: A collapse makes no edge longer than this times the size field: the diagonal of a
+#: quadtree cell at the largest it may be (:data:`.graded.SPLIT_ABOVE` times the field).
+LONGEST = 2.0
+
+#: A collapse makes no triangle whose smallest angle is under this (degrees): the
+#: bound Triangle is run with (``q30``); the quality stage works above it afterwards.
+ANGLE = 30.0
+
+#: Edges within this many halvings (log2 of length over the size field) go in the same
+#: class when collapses are ordered (:func:`_independent`).
+STEP = 0.25
+
+#: Candidate nodes whose collapses are weighed at once.
+CHUNK = 1 << 11
+
+
+@dataclass
+class CoarsenStats:
+    removed: int = 0  # interior nodes taken out
+    rounds: int = 0
+
+
+def coarsen(mesh: Mesh, size: Callable[[np.ndarray], np.ndarray]) -> tuple[Mesh, CoarsenStats]:
+    """``mesh`` with interior nodes collapsed where its edges are shorter than the size
+    field ``size`` (points (k, 2) -> sizes (k,)) allows (the module's rules)."""
+    pts = mesh.points
+    n = len(pts)
+    tri = np.array(mesh.triangles, dtype=np.int64, copy=True)
+    stats = CoarsenStats()
+    free = np.ones(n, dtype=bool)
+    free[mesh.lines.ravel()] = False
+    free[: mesh.n_contour + mesh.n_extra + mesh.n_box] = False
+    # the quality stage's: the corners of triangles under ANGLE, and their neighbours
+    weak = tri[_tan_min(mesh.points, tri) < np.tan(np.radians(ANGLE))]
+    if len(weak):
+        near = np.zeros(n, dtype=bool)
+        near[weak.ravel()] = True
+        near[tri[near[tri].any(axis=1)].ravel()] = True
+        free &= ~near
+    if not free.any() or len(tri) == 0:
+        return mesh, stats
+    need = np.asarray(size(pts), dtype=np.float64)
+    stars, deg = _stars(tri, n)
+    alive = np.ones(len(tri), dtype=bool)
+    gone = np.zeros(n, dtype=bool)
+    tan_floor = np.tan(np.radians(ANGLE))
+    active = np.flatnonzero(free)
+    while len(active):
+        found = [
+            _weigh(pts, tri, stars, deg, need, active[k : k + CHUNK], tan_floor)
+            for k in range(0, len(active), CHUNK)
+        ]
+        a = np.concatenate([f[0] for f in found])
+        if len(a) == 0:
+            break
+        b = np.concatenate([f[1] for f in found])
+        key = np.concatenate([f[2] for f in found])
+        ring = [f[3] for f in found]  # per chunk: (rows, neighbours, triangles)
+        rows = np.concatenate([r[0] + off for r, off in zip(ring, _offsets(found))])
+        nbr = np.concatenate([r[1] for r in ring])
+        star = np.concatenate([r[2] for r in ring])
+        won = _independent(a, b, key, rows, nbr, star, n, len(tri))
+        lost = ~won
+        wa, wb = a[~lost], b[~lost]
+        changed = _collapse(tri, stars, deg, alive, wa, wb)
+        stars = changed[0]
+        gone[wa] = True
+        stats.removed += len(wa)
+        stats.rounds += 1
+        # next: the ones not taken, and every node whose triangles changed
+        touched = nbr[won[rows]]
+        active = np.union1d(a[lost], touched)
+        active = active[free[active] & ~gone[active]]
+    if stats.removed == 0:
+        return mesh, stats
+    out = renumber(mesh, tri[alive], gone)
+    return out, stats
+
+
+def _independent(a, b, key, rows, nbr, star, n: int, m: int) -> np.ndarray:
+    """Per candidate (``a`` into ``b``; ``rows``: its entries in ``nbr``, ``a``'s
+    neighbours, and ``star``, ``a``'s triangles): taken in this round.  Two collapses
+    taken share no triangle, no ``b``, and neither's ``b`` is a neighbour of the
+    other's ``a`` (so each one's new edges are new after the other too); every
+    candidate not taken conflicts with one taken (a maximal set).  Shorter edges (by
+    :data:`STEP` classes of their length over the size field) go first, and within a
+    class an order fixed by the node's number but scattered over the mesh, so that
+    most of a crowd of equal edges goes at once."""
+    c = len(a)
+    scatter = (a.astype(np.uint64) * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(11)
+    rank = np.empty(c, dtype=np.int64)
+    rank[np.lexsort((a, scatter, np.floor(np.log2(key) / STEP)))] = np.arange(c)
+    own = np.arange(c)
+    open_ = np.ones(c, dtype=bool)
+    won = np.zeros(c, dtype=bool)
+    tri_taken = np.zeros(m, dtype=bool)
+    nbr_taken = np.zeros(n, dtype=bool)  # a neighbour of a taken collapse's a
+    into_taken = np.zeros(n, dtype=bool)  # a taken collapse's b
+    while open_.any():
+        o_rows = open_[rows]
+        r_open = rank[open_]
+        least_tri = np.full(m, c, dtype=np.int64)
+        np.minimum.at(least_tri, star[o_rows], rank[rows[o_rows]])
+        least_into = np.full(n, c, dtype=np.int64)
+        np.minimum.at(least_into, b[open_], r_open)
+        least_nbr = np.full(n, c, dtype=np.int64)
+        np.minimum.at(least_nbr, nbr[o_rows], rank[rows[o_rows]])
+        win = open_ & (least_into[b] == rank) & (least_nbr[b] == rank)
+        bad = (least_tri[star] != rank[rows]) | (least_into[nbr] < rank[rows])
+        win[rows[bad]] = False
+        won |= win
+        tri_taken[star[win[rows]]] = True
+        nbr_taken[nbr[win[rows]]] = True
+        into_taken[b[win]] = True
+        blocked = into_taken[b] | nbr_taken[b]
+        blocked[rows[tri_taken[star] | into_taken[nbr]]] = True
+        open_ &= ~blocked & ~won
+    del own
+    return won
+
+
+def _offsets(found) -> list[int]:
+    sizes = [len(f[0]) for f in found]
+    return list(np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64))
+
+
+def _stars(tri: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per node: its triangles' ids (padded with -1) and how many."""
+    flat = tri.ravel()
+    order = np.argsort(flat, kind="stable")
+    deg = np.bincount(flat, minlength=n)
+    width = int(deg.max())
+    start = np.concatenate([[0], np.cumsum(deg)[:-1]])
+    col = np.arange(len(flat)) - np.repeat(start, deg)
+    stars = np.full((n, width), -1, dtype=np.int64)
+    stars[flat[order], col] = order // 3
+    return stars, deg
+
+
+def _weigh(pts, tri, stars, deg, need, nodes, tan_floor):
+    """For the candidate ``nodes``: those with an allowed collapse, the neighbour each
+    goes into (its shortest allowed edge), that edge's length over the size field,
+    and (rows, neighbours): each such node's neighbours."""
+    w = int(deg[nodes].max())
+    valid = np.arange(w) < deg[nodes, None]
+    t = tri[np.where(valid, stars[nodes, :w], 0)]  # (c, w, 3)
+    at = np.argmax(t == nodes[:, None, None], axis=2)
+    u = np.take_along_axis(t, ((at + 1) % 3)[..., None], axis=2)[..., 0]  # next ccw
+    v = np.take_along_axis(t, ((at + 2) % 3)[..., None], axis=2)[..., 0]
+    # candidate k goes into b = u_k: triangle j becomes (b, u_j, v_j) unless it holds
+    # b; the new edges are b - u_j for those, but the one across ab (v_k, already one).
+    # Sides and areas from the neighbours' pairwise squared distances and cross
+    # products, about a (v_j is the neighbour u_p, p = nxt[j])
+    dead = (u[:, None, :] == u[:, :, None]) | (v[:, None, :] == u[:, :, None])  # (c, k, j)
+    new = valid[:, None, :] & ~dead & (u[:, None, :] != v[:, :, None])
+    keep = valid[:, None, :] & ~dead
+    pa = pts[nodes]
+    x = pts[u, 0] - pa[:, None, 0]
+    y = pts[u, 1] - pa[:, None, 1]
+    dx = x[:, :, None] - x[:, None, :]
+    dy = y[:, :, None] - y[:, None, :]
+    d2 = dx * dx + dy * dy  # |u_k - u_j|^2
+    cr = x[:, :, None] * y[:, None, :] - y[:, :, None] * x[:, None, :]  # u_k x u_j
+    nxt = np.argmax(u[:, None, :] == v[:, :, None], axis=2)  # (c, j)
+    at_p = (np.arange(len(nodes))[:, None, None] * w + np.arange(w)[:, None]) * w + nxt[:, None]
+    at_j = np.arange(len(nodes))[:, None] * w * w + np.arange(w) * w + nxt
+    side_j = d2.ravel()[at_j][:, None, :]  # |u_j - u_p|^2
+    side_k = d2.ravel()[at_p]  # |u_k - u_p|^2
+    cross = cr.ravel()[at_j][:, None, :] - cr.ravel()[at_p] + cr  # 2 area of (u_k, u_j, u_p)
+    total = side_j + side_k + d2
+    shortest = np.minimum(np.minimum(side_j, side_k), d2)
+    good = (cross > 0) & (2 * cross >= tan_floor * (total - 2 * shortest))
+    half = 0.5 * LONGEST * (need[u][:, :, None] + need[u][:, None, :])
+    ok = valid & np.all((~keep | good) & (~new | (d2 <= half * half)), axis=2)
+    key = np.sqrt(x * x + y * y) / (0.5 * (need[nodes][:, None] + need[u]))
+    key = np.where(ok, key, np.inf)
+    best = np.argmin(key, axis=1)
+    rows = np.flatnonzero(np.isfinite(key[np.arange(len(nodes)), best]))
+    k = best[rows]
+    bb = u[rows, k]
+    # the link condition for the chosen edge: no new neighbour of b is one already
+    nb = _neighbours(tri, stars, deg, bb)  # (r, 3w)
+    shared = (u[rows][:, :, None] == nb[:, None, :]).any(axis=2) & new[rows, k]
+    link = ~shared.any(axis=1)
+    rows, k, bb = rows[link], k[link], bb[link]
+    nbr_valid = valid[rows]
+    r_idx = np.repeat(np.arange(len(rows)), nbr_valid.sum(axis=1))
+    star = stars[nodes[rows], :w][nbr_valid]
+    return nodes[rows], bb, key[rows, k], (r_idx, u[rows][nbr_valid], star)
+
+
+def _neighbours(tri, stars, deg, nodes) -> np.ndarray:
+    """Per node: its neighbours (the other corners of its triangles; -1 pads)."""
+    w = stars.shape[1]
+    s = stars[nodes]
+    valid = np.arange(w) < deg[nodes, None]
+    t = tri[np.where(valid, s, 0)]
+    t = np.where(valid[..., None] & (t != nodes[:, None, None]), t, -1)
+    return t.reshape(len(nodes), 3 * w)
+
+
+def _collapse(tri, stars, deg, alive, wa, wb):
+    """Collapse each ``wa`` into its ``wb`` (their stars apart): the triangles renamed,
+    the two on each edge dead, the stars of ``wb`` and of the two across mended."""
+    w = stars.shape[1]
+    sa = stars[wa]
+    va = np.arange(w) < deg[wa, None]
+    ids = sa[va]
+    t = tri[ids]
+    owner = np.repeat(wa, va.sum(axis=1))
+    into = np.repeat(wb, va.sum(axis=1))
+    holds_b = (t == into[:, None]).any(axis=1)
+    t = np.where(t == owner[:, None], into[:, None], t)
+    tri[ids] = t
+    dead = ids[holds_b]
+    alive[dead] = False
+    is_dead = np.zeros(len(tri), dtype=bool)
+    is_dead[dead] = True
+    # b's star: its own and a's, without the dead; the two across lose theirs
+    sb = stars[wb]
+    vb = np.arange(w) < deg[wb, None]
+    merged = np.concatenate([np.where(vb, sb, -1), np.where(va, sa, -1)], axis=1)
+    across = np.unique(tri[dead].ravel())
+    across = across[~np.isin(across, wb)]
+    rows_nodes = np.concatenate([wb, across])
+    blocks = [merged]
+    sx = stars[across]
+    vx = np.arange(w) < deg[across, None]
+    blocks.append(np.concatenate([np.where(vx, sx, -1), np.full((len(across), w), -1)], axis=1))
+    block = np.concatenate(blocks)
+    keep = block >= 0
+    keep[keep] = ~is_dead[block[keep]]
+    count = keep.sum(axis=1)
+    order = np.argsort(~keep, axis=1, kind="stable")
+    packed = np.take_along_axis(block, order, axis=1)
+    width = max(w, int(count.max()) if len(count) else w)
+    if width > w:
+        stars = np.concatenate([stars, np.full((len(stars), width - w), -1)], axis=1)
+    packed = np.where(np.arange(packed.shape[1]) < count[:, None], packed, -1)[:, :width]
+    stars[rows_nodes] = np.pad(
+        packed, ((0, 0), (0, max(0, width - packed.shape[1]))), constant_values=-1
+    )
+    deg[rows_nodes] = count
+    deg[wa] = 0
+    return (stars,)

@@ -1,0 +1,92 @@
+"""The coarsening of stage 3: what it removes, and what it may never change."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from deformesh_cli import coarsen, pipeline
+from deformesh_cli.geometry import signed_areas
+from deformesh_cli.quality import measures
+from deformesh_cli.readers import load_contour
+
+SAMPLES = Path(__file__).resolve().parents[1] / "samples"
+CASES = ["circle.csv", "peanut.csv", "bracket.svg", "naca0012.csv"]
+
+
+def _captured(monkeypatch, path, **options):
+    """The mesh handed to the coarsening, its size field, and what came back."""
+    seen = {}
+    real = coarsen.coarsen
+
+    def spy(mesh, size):
+        out, stats = real(mesh, size)
+        seen.update(before=mesh, size=size, after=out, stats=stats)
+        return out, stats
+
+    monkeypatch.setattr(pipeline._coarsen, "coarsen", spy)
+    res = pipeline.mesh_contour(load_contour(SAMPLES / path), **options)
+    return seen, res
+
+
+def _edges(tri):
+    e = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
+    return np.unique(e, axis=0, return_counts=True)
+
+
+@pytest.mark.parametrize("path", CASES)
+def test_coarsening_keeps_the_boundary_and_makes_only_allowed_triangles(monkeypatch, path):
+    seen, res = _captured(monkeypatch, path, exterior=path.startswith("naca"))
+    before, after, size = seen["before"], seen["after"], seen["size"]
+    assert seen["stats"].removed > 0 and res.report["coarsened_nodes"] == seen["stats"].removed
+    assert len(after.points) == len(before.points) - seen["stats"].removed
+    # boundary nodes, their numbers and the boundary edges: the same
+    nb = before.n_contour + before.n_extra + before.n_box
+    assert np.array_equal(after.points[:nb], before.points[:nb])
+    assert np.array_equal(after.lines, before.lines)
+    # a triangulation of the same domain: counter-clockwise, same area, every inner
+    # edge in two triangles and every boundary edge in one
+    area = signed_areas(after.points, after.triangles)
+    assert (area > 0).all()
+    assert np.isclose(area.sum(), signed_areas(before.points, before.triangles).sum(), rtol=1e-12)
+    edges, uses = _edges(after.triangles)
+    boundary = {tuple(sorted(e)) for e in after.lines.tolist()}
+    on_boundary = np.array([tuple(e) in boundary for e in edges.tolist()])
+    assert (uses[on_boundary] == 1).all() and (uses[~on_boundary] == 2).all()
+    assert on_boundary.sum() == len(after.lines)
+    # (node k of the result is node old[k] before: nodes only go, in order)
+    lookup = {p: k for k, p in enumerate(map(tuple, before.points.tolist()))}
+    old = np.array([lookup[p] for p in map(tuple, after.points.tolist())])
+    assert (np.diff(old) > 0).all()
+    # the triangles it made: smallest angle at least ANGLE, and their new edges at
+    # most LONGEST times the size field (the mean of their ends')
+    kept = {tuple(t) for t in np.sort(before.triangles, axis=1).tolist()}
+    made = np.array([tuple(t) not in kept for t in np.sort(old[after.triangles], axis=1).tolist()])
+    assert made.any()
+    assert measures(after.points, after.triangles[made])[0].min() >= coarsen.ANGLE - 1e-9
+    had = {tuple(e) for e in _edges(before.triangles)[0].tolist()}
+    e = _edges(after.triangles[made])[0]
+    new = np.array([tuple(sorted(x)) not in had for x in old[e].tolist()])
+    assert new.any()
+    e = e[new]
+    need = size(after.points)
+    length = np.hypot(*(after.points[e[:, 0]] - after.points[e[:, 1]]).T)
+    bound = coarsen.LONGEST * 0.5 * (need[e[:, 0]] + need[e[:, 1]])
+    assert (length <= bound * (1 + 1e-12)).all()
+
+
+def test_coarsening_ends_with_no_collapse_left_and_is_repeatable(monkeypatch):
+    seen, _ = _captured(monkeypatch, "peanut.csv")
+    again, stats = coarsen.coarsen(seen["before"], seen["size"])
+    assert np.array_equal(again.points, seen["after"].points)
+    assert np.array_equal(again.triangles, seen["after"].triangles)
+    # run on its own result, it finds nothing more to take
+    twice, more = coarsen.coarsen(seen["after"], seen["size"])
+    assert more.removed == 0 and twice is seen["after"]
+
+
+def test_the_paper_grid_and_size_functions_are_not_coarsened():
+    c = load_contour(SAMPLES / "peanut.csv")
+    assert pipeline.mesh_contour(c, grid="uniform").report["coarsened_nodes"] == 0
+    assert pipeline.mesh_contour(c, size="0.05 + d").report["coarsened_nodes"] == 0
+    assert pipeline.mesh_contour(c).report["coarsened_nodes"] > 0
