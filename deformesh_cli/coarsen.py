@@ -13,12 +13,14 @@ the two on the edge ``ab`` go) only if
 - ``a`` and ``b`` have no common neighbour but the two across the edge ``ab`` (the
   link condition): the mesh stays a triangulation of the same domain;
 - every triangle it makes is counter-clockwise with its smallest angle at least
-  :data:`ANGLE` degrees.
+  :data:`ANGLE` degrees, or :data:`EDGE_ANGLE` (the quality stage's target) where
+  it has a boundary node.
 
 Each node tries its shortest such edge (relative to the size field); collapses are
-made in rounds of ones whose nodes and neighbours do not meet, the shortest first,
-until none is allowed.  Every round makes at least one (the shortest of all), so it
-ends; no round reads the clock.  Boundary nodes never move or go: every contour
+made in rounds of ones that share no triangle and do not meet at their ``b``
+(:func:`_independent`), the shorter first, until none is allowed.  Every round
+makes at least one (the first in that order), so it ends; no round reads the
+clock.  Boundary nodes never move or go: every contour
 point stays a node, every boundary edge an edge, and the area is unchanged.  Nothing
 here prints or exits.
 """
@@ -31,8 +33,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .cavity import renumber
+from .improve import TARGET
 from .mesh import Mesh
-from .smoothing import _tan_all as _tan_min
 
 #: A collapse makes no edge longer than this times the size field: the diagonal of a
 #: quadtree cell at the largest it may be (:data:`.graded.SPLIT_ABOVE` times the field).
@@ -41,6 +43,10 @@ LONGEST = 2.0
 #: A collapse makes no triangle whose smallest angle is under this (degrees): the
 #: bound Triangle is run with (``q30``); the quality stage works above it afterwards.
 ANGLE = 30.0
+
+#: ... and none with a boundary node under the quality stage's target (degrees): it
+#: cannot move that node, and works on every triangle under its target.
+EDGE_ANGLE = TARGET
 
 #: Edges within this many halvings (log2 of length over the size field) go in the same
 #: class when collapses are ordered (:func:`_independent`).
@@ -66,24 +72,19 @@ def coarsen(mesh: Mesh, size: Callable[[np.ndarray], np.ndarray]) -> tuple[Mesh,
     free = np.ones(n, dtype=bool)
     free[mesh.lines.ravel()] = False
     free[: mesh.n_contour + mesh.n_extra + mesh.n_box] = False
-    # the quality stage's: the corners of triangles under ANGLE, and their neighbours
-    weak = tri[_tan_min(mesh.points, tri) < np.tan(np.radians(ANGLE))]
-    if len(weak):
-        near = np.zeros(n, dtype=bool)
-        near[weak.ravel()] = True
-        near[tri[near[tri].any(axis=1)].ravel()] = True
-        free &= ~near
     if not free.any() or len(tri) == 0:
         return mesh, stats
     need = np.asarray(size(pts), dtype=np.float64)
     stars, deg = _stars(tri, n)
     alive = np.ones(len(tri), dtype=bool)
     gone = np.zeros(n, dtype=bool)
-    tan_floor = np.tan(np.radians(ANGLE))
+    tan_floor = np.tan(np.radians([ANGLE, EDGE_ANGLE]))  # (inside; at the boundary)
+    edge = ~free
     active = np.flatnonzero(free)
     while len(active):
+        active = active[np.argsort(deg[active], kind="stable")]  # (chunks of one width)
         found = [
-            _weigh(pts, tri, stars, deg, need, active[k : k + CHUNK], tan_floor)
+            _weigh(pts, tri, stars, deg, need, active[k : k + CHUNK], tan_floor, edge)
             for k in range(0, len(active), CHUNK)
         ]
         a = np.concatenate([f[0] for f in found])
@@ -95,7 +96,7 @@ def coarsen(mesh: Mesh, size: Callable[[np.ndarray], np.ndarray]) -> tuple[Mesh,
         rows = np.concatenate([r[0] + off for r, off in zip(ring, _offsets(found))])
         nbr = np.concatenate([r[1] for r in ring])
         star = np.concatenate([r[2] for r in ring])
-        won = _independent(a, b, key, rows, nbr, star, n, len(tri))
+        won = _independent(a, b, key, rows, nbr, star)
         lost = ~won
         wa, wb = a[~lost], b[~lost]
         changed = _collapse(tri, stars, deg, alive, wa, wb)
@@ -113,7 +114,7 @@ def coarsen(mesh: Mesh, size: Callable[[np.ndarray], np.ndarray]) -> tuple[Mesh,
     return out, stats
 
 
-def _independent(a, b, key, rows, nbr, star, n: int, m: int) -> np.ndarray:
+def _independent(a, b, key, rows, nbr, star) -> np.ndarray:
     """Per candidate (``a`` into ``b``; ``rows``: its entries in ``nbr``, ``a``'s
     neighbours, and ``star``, ``a``'s triangles): taken in this round.  Two collapses
     taken share no triangle, no ``b``, and neither's ``b`` is a neighbour of the
@@ -126,7 +127,11 @@ def _independent(a, b, key, rows, nbr, star, n: int, m: int) -> np.ndarray:
     scatter = (a.astype(np.uint64) * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(11)
     rank = np.empty(c, dtype=np.int64)
     rank[np.lexsort((a, scatter, np.floor(np.log2(key) / STEP)))] = np.arange(c)
-    own = np.arange(c)
+    # (nodes and triangles numbered among these candidates' only)
+    _, tri_at = np.unique(star, return_inverse=True)
+    nodes, at = np.unique(np.concatenate([b, nbr]), return_inverse=True)
+    b_at, nbr_at = at[:c], at[c:]
+    m, n = int(tri_at.max()) + 1, len(nodes)
     open_ = np.ones(c, dtype=bool)
     won = np.zeros(c, dtype=bool)
     tri_taken = np.zeros(m, dtype=bool)
@@ -134,24 +139,22 @@ def _independent(a, b, key, rows, nbr, star, n: int, m: int) -> np.ndarray:
     into_taken = np.zeros(n, dtype=bool)  # a taken collapse's b
     while open_.any():
         o_rows = open_[rows]
-        r_open = rank[open_]
         least_tri = np.full(m, c, dtype=np.int64)
-        np.minimum.at(least_tri, star[o_rows], rank[rows[o_rows]])
+        np.minimum.at(least_tri, tri_at[o_rows], rank[rows[o_rows]])
         least_into = np.full(n, c, dtype=np.int64)
-        np.minimum.at(least_into, b[open_], r_open)
+        np.minimum.at(least_into, b_at[open_], rank[open_])
         least_nbr = np.full(n, c, dtype=np.int64)
-        np.minimum.at(least_nbr, nbr[o_rows], rank[rows[o_rows]])
-        win = open_ & (least_into[b] == rank) & (least_nbr[b] == rank)
-        bad = (least_tri[star] != rank[rows]) | (least_into[nbr] < rank[rows])
+        np.minimum.at(least_nbr, nbr_at[o_rows], rank[rows[o_rows]])
+        win = open_ & (least_into[b_at] == rank) & (least_nbr[b_at] == rank)
+        bad = (least_tri[tri_at] != rank[rows]) | (least_into[nbr_at] < rank[rows])
         win[rows[bad]] = False
         won |= win
-        tri_taken[star[win[rows]]] = True
-        nbr_taken[nbr[win[rows]]] = True
-        into_taken[b[win]] = True
-        blocked = into_taken[b] | nbr_taken[b]
-        blocked[rows[tri_taken[star] | into_taken[nbr]]] = True
+        tri_taken[tri_at[win[rows]]] = True
+        nbr_taken[nbr_at[win[rows]]] = True
+        into_taken[b_at[win]] = True
+        blocked = into_taken[b_at] | nbr_taken[b_at]
+        blocked[rows[tri_taken[tri_at] | into_taken[nbr_at]]] = True
         open_ &= ~blocked & ~won
-    del own
     return won
 
 
@@ -173,7 +176,7 @@ def _stars(tri: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     return stars, deg
 
 
-def _weigh(pts, tri, stars, deg, need, nodes, tan_floor):
+def _weigh(pts, tri, stars, deg, need, nodes, tan_floor, edge):
     """For the candidate ``nodes``: those with an allowed collapse, the neighbour each
     goes into (its shortest allowed edge), that edge's length over the size field,
     and (rows, neighbours): each such node's neighbours."""
@@ -205,7 +208,9 @@ def _weigh(pts, tri, stars, deg, need, nodes, tan_floor):
     cross = cr.ravel()[at_j][:, None, :] - cr.ravel()[at_p] + cr  # 2 area of (u_k, u_j, u_p)
     total = side_j + side_k + d2
     shortest = np.minimum(np.minimum(side_j, side_k), d2)
-    good = (cross > 0) & (2 * cross >= tan_floor * (total - 2 * shortest))
+    at_edge = edge[u][:, :, None] | (edge[u] | edge[v])[:, None, :]
+    floor = np.where(at_edge, tan_floor[1], tan_floor[0])
+    good = (cross > 0) & (2 * cross >= floor * (total - 2 * shortest))
     half = 0.5 * LONGEST * (need[u][:, :, None] + need[u][:, None, :])
     ok = valid & np.all((~keep | good) & (~new | (d2 <= half * half)), axis=2)
     key = np.sqrt(x * x + y * y) / (0.5 * (need[nodes][:, None] + need[u]))
@@ -250,8 +255,6 @@ def _collapse(tri, stars, deg, alive, wa, wb):
     tri[ids] = t
     dead = ids[holds_b]
     alive[dead] = False
-    is_dead = np.zeros(len(tri), dtype=bool)
-    is_dead[dead] = True
     # b's star: its own and a's, without the dead; the two across lose theirs
     sb = stars[wb]
     vb = np.arange(w) < deg[wb, None]
@@ -265,7 +268,7 @@ def _collapse(tri, stars, deg, alive, wa, wb):
     blocks.append(np.concatenate([np.where(vx, sx, -1), np.full((len(across), w), -1)], axis=1))
     block = np.concatenate(blocks)
     keep = block >= 0
-    keep[keep] = ~is_dead[block[keep]]
+    keep[keep] = ~np.isin(block[keep], dead)
     count = keep.sum(axis=1)
     order = np.argsort(~keep, axis=1, kind="stable")
     packed = np.take_along_axis(block, order, axis=1)

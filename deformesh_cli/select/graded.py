@@ -411,7 +411,7 @@ class SizeField:
         from scipy.spatial import cKDTree
 
         k = min(NEAREST, len(self.points))
-        dist, idx = cKDTree(self.points).query(q, k=k)
+        dist, idx = cKDTree(self.points).query(q, k=k, workers=-1)
         dist, idx = dist.reshape(len(q), -1), idx.reshape(len(q), -1)
         out = np.min(self.s[idx] + (self.growth - 1.0) * dist, axis=1)
         if self.max_h is not None:  # (no edge a collapse makes longer than max_h)
