@@ -164,6 +164,10 @@ def test_readme_speed_numbers_are_the_benchmark_files():
     slowest = re.search(r"\| all \| \d+ \| \d+ \(\d+%\) \| \d+ \| [\d.]+ \| ([\d.]+) \|", corpus)
     said = re.search(r"as one batch \(none over (\d+\.\d) s\)", README)
     assert said is not None and float(said.group(1)) == round(float(slowest.group(1)), 1)
+    ratio = re.search(r"triangles ([\d.]+) times Triangle's at the median", corpus).group(1)
+    assert f"with {ratio} times Triangle `pq30Y`'s triangles at the median" in " ".join(
+        README.split()
+    )
     # the time ratios of the million-triangle runs ("Speed against peers")
     peers = results.split("<!-- section:peers-triangle -->")[1].split("<!-- end:")[0]
     ratio = {}
