@@ -16,16 +16,6 @@ Public API::
 
 __version__ = "0.1.0"
 
-import os as _os
-import sys as _sys
-
-if "numpy" not in _sys.modules:
-    # numpy asks the kernel for huge pages on its large arrays; where the kernel then
-    # compacts memory at the page fault (transparent huge pages on "madvise"), that costs
-    # more than it saves, and the bytes are the same either way (benchmarks/MEASURED.md).
-    # numpy reads this once, when first imported.
-    _os.environ.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")
-
 from .contour import Contour
 from .errors import (
     ContractError,

@@ -99,8 +99,7 @@ def coarsen(mesh: Mesh, size: Callable[[np.ndarray], np.ndarray]) -> tuple[Mesh,
         won = _independent(a, b, key, rows, nbr, star)
         lost = ~won
         wa, wb = a[~lost], b[~lost]
-        changed = _collapse(tri, stars, deg, alive, wa, wb)
-        stars = changed[0]
+        stars = _collapse(tri, stars, deg, alive, wa, wb)
         gone[wa] = True
         stats.removed += len(wa)
         stats.rounds += 1
@@ -201,6 +200,8 @@ def _weigh(pts, tri, stars, deg, need, nodes, tan_floor, edge):
     d2 = dx * dx + dy * dy  # |u_k - u_j|^2
     cr = x[:, :, None] * y[:, None, :] - y[:, :, None] * x[:, None, :]  # u_k x u_j
     nxt = np.argmax(u[:, None, :] == v[:, :, None], axis=2)  # (c, j)
+    # (a star that is no closed fan, in a mesh that is no manifold, is not weighed)
+    closed = np.all(~valid | (np.take_along_axis(u, nxt, axis=1) == v), axis=1)
     at_p = (np.arange(len(nodes))[:, None, None] * w + np.arange(w)[:, None]) * w + nxt[:, None]
     at_j = np.arange(len(nodes))[:, None] * w * w + np.arange(w) * w + nxt
     side_j = d2.ravel()[at_j][:, None, :]  # |u_j - u_p|^2
@@ -212,7 +213,7 @@ def _weigh(pts, tri, stars, deg, need, nodes, tan_floor, edge):
     floor = np.where(at_edge, tan_floor[1], tan_floor[0])
     good = (cross > 0) & (2 * cross >= floor * (total - 2 * shortest))
     half = 0.5 * LONGEST * (need[u][:, :, None] + need[u][:, None, :])
-    ok = valid & np.all((~keep | good) & (~new | (d2 <= half * half)), axis=2)
+    ok = valid & closed[:, None] & np.all((~keep | good) & (~new | (d2 <= half * half)), axis=2)
     key = np.sqrt(x * x + y * y) / (0.5 * (need[nodes][:, None] + need[u]))
     key = np.where(ok, key, np.inf)
     best = np.argmin(key, axis=1)
@@ -242,7 +243,8 @@ def _neighbours(tri, stars, deg, nodes) -> np.ndarray:
 
 def _collapse(tri, stars, deg, alive, wa, wb):
     """Collapse each ``wa`` into its ``wb`` (their stars apart): the triangles renamed,
-    the two on each edge dead, the stars of ``wb`` and of the two across mended."""
+    the two on each edge dead, the stars of ``wb`` and of the two across mended (the
+    star array, widened if a star outgrew it)."""
     w = stars.shape[1]
     sa = stars[wa]
     va = np.arange(w) < deg[wa, None]
@@ -281,4 +283,4 @@ def _collapse(tri, stars, deg, alive, wa, wb):
     )
     deg[rows_nodes] = count
     deg[wa] = 0
-    return (stars,)
+    return stars

@@ -34,6 +34,24 @@ for _module in (select, deform, triangulate, all_command, move, quality, plot):
     cli.add_command(_module.command)
 
 
+def _no_huge_pages() -> None:
+    """numpy's huge-page advice off for this process, unless ``NUMPY_MADVISE_HUGEPAGE``
+    says otherwise: where the kernel compacts memory at the page fault (transparent huge
+    pages on "madvise"), it costs more than it saves, and the bytes are the same either
+    way (benchmarks/MEASURED.md).  The command's own process only: importing the
+    package changes nothing (batch workers are forked from it and inherit it)."""
+    if "NUMPY_MADVISE_HUGEPAGE" in os.environ:
+        return
+    try:
+        from numpy._core import multiarray
+    except ImportError:  # (numpy before 2)
+        from numpy.core import multiarray
+
+    setter = getattr(multiarray, "_set_madvise_hugepage", None)
+    if setter is not None:
+        setter(False)
+
+
 def main() -> None:
     """Entry point: run the CLI; a closed downstream pipe ends quietly.
 
@@ -47,6 +65,7 @@ def main() -> None:
     # lines) is never printed (the hostile-input tests run the commands in-process with
     # warnings as errors, so none hides there)
     warnings.simplefilter("ignore")
+    _no_huge_pages()
     try:
         cli.main(prog_name="deformesh", standalone_mode=True)
     except BrokenPipeError:
