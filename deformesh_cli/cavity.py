@@ -193,25 +193,37 @@ def delaunay_polygon(p: np.ndarray) -> np.ndarray | None:
     k = len(p)
     if k < 3:
         return None
-    tris = shapely.get_parts(shapely.constrained_delaunay_triangles(shapely.Polygon(p)))
-    if len(tris) != k - 2:
+    # each triangle's ring (four points, the first repeated), in one array
+    xy = shapely.get_coordinates(shapely.constrained_delaunay_triangles(shapely.Polygon(p)))
+    if len(xy) != 4 * (k - 2):
         return None
-    xy = shapely.get_coordinates(shapely.get_exterior_ring(tris)).reshape(len(tris), 4, 2)[:, :3]
-    key = p[:, 0] + 1j * p[:, 1]  # (complex numbers sort by x, then y)
-    order = np.argsort(key)
-    flat = xy[..., 0].ravel() + 1j * xy[..., 1].ravel()
-    at = np.minimum(np.searchsorted(key[order], flat), k - 1)
-    # exact coordinates: GEOS hands back the polygon's own vertices
-    if (key[order][at] != flat).any():
+    # exact coordinates: GEOS hands back the polygon's own vertices (the first of equal
+    # ones).  A polygon has few vertices: plain Python, the arithmetic of signed_areas
+    pl = p.tolist()
+    index: dict[tuple[float, float], int] = {}
+    for i, q in enumerate(map(tuple, pl)):
+        index.setdefault(q, i)
+    try:
+        idx = [index[q] for q in map(tuple, xy.tolist())]
+    except KeyError:
         return None
-    idx = order[at]
-    local = idx.reshape(-1, 3)
-    area = signed_areas(p, local)
-    local[area < 0] = local[area < 0][:, ::-1]
-    if (signed_areas(p, local) <= 0).any():
-        return None
-    # each triangle from its least vertex, rows sorted: the same triangles give the same
-    # array wherever the polygon lies (GEOS starts them where its coordinates lead it)
-    first = np.argmin(local, axis=1)
-    local = np.take_along_axis(local, (first[:, None] + np.arange(3)) % 3, axis=1)
-    return local[np.lexsort(local.T[::-1])]
+    rows = []
+    for t in range(0, len(idx), 4):
+        tri = (idx[t], idx[t + 1], idx[t + 2])
+        if _area(pl, tri) < 0:
+            tri = tri[::-1]
+            if _area(pl, tri) <= 0:
+                return None
+        elif _area(pl, tri) <= 0:
+            return None
+        # from its least vertex, rows sorted: the same triangles give the same array
+        # wherever the polygon lies (GEOS starts them where its coordinates lead it)
+        f = tri.index(min(tri))
+        rows.append(tri[f:] + tri[:f])
+    return np.array(sorted(rows), dtype=np.int64)
+
+
+def _area(p: list, t: tuple[int, int, int]) -> float:
+    """:func:`.geometry.signed_areas` of one triangle, the same operations in order."""
+    (x0, y0), (x1, y1), (x2, y2) = p[t[0]], p[t[1]], p[t[2]]
+    return 0.5 * ((x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0))
