@@ -852,12 +852,18 @@ def _monotone(q: np.ndarray, loop: np.ndarray, s: np.ndarray) -> np.ndarray | No
     back = np.zeros((m, k), dtype=np.int64)
     failed = []  # (where no choice exists: the programme starts again after it)
     between = _between_costs(loop, cand, q[order], s[order])
+    # the steps' costs, infinite where the step is not allowed (before the loop: it
+    # holds only the minimum-plus products, one step after the other)
+    for a in range(1, m, CHUNK // (k * k)):
+        b = min(m, a + CHUNK // (k * k))
+        gap = (cand[a:b, None, :] - cand[a - 1 : b - 1, :, None]) % nl
+        between[a:b][(gap < 1) | (gap > widest)] = np.inf
+    cols = np.arange(k)
     for t in range(1, m):
-        gap = (cand[t][None, :] - cand[t - 1][:, None]) % nl
-        step = np.where((gap >= 1) & (gap <= widest), total[:, None] + between[t], np.inf)
-        back[t] = np.argmin(step, axis=0)
-        total = step[back[t], np.arange(k)] + cost[t]
-        if not np.isfinite(total).any():
+        step = total[:, None] + between[t]
+        back[t] = pick = np.argmin(step, axis=0)
+        total = step[pick, cols] + cost[t]
+        if total.min() == np.inf:
             failed += [t - 2, t - 1, t]
             total = cost[t].copy()
     if failed:
