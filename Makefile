@@ -11,8 +11,11 @@ $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
+# (bytecode written once: where PYTHONDONTWRITEBYTECODE is set, every run would
+# otherwise compile the package again, about 0.1 s)
 $(VENV)/.installed: pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e '.[all]'
+	$(BIN)/python -m compileall -q deformesh_cli
 	touch $@
 
 $(VENV)/.installed-test: pyproject.toml $(VENV)/.installed
@@ -40,6 +43,7 @@ clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache .hypothesis
 
 bench: $(VENV)/.installed-bench
+	$(BIN)/python -m compileall -q deformesh_cli
 	$(BIN)/python benchmarks/run_contours.py --repeat 3
 	$(BIN)/python benchmarks/run_batch.py --repeat 3
 	$(BIN)/python benchmarks/run_corpus.py
