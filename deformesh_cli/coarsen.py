@@ -81,31 +81,31 @@ def coarsen(mesh: Mesh, size: Callable[[np.ndarray], np.ndarray]) -> tuple[Mesh,
     tan_floor = np.tan(np.radians([ANGLE, EDGE_ANGLE]))  # (inside; at the boundary)
     edge = ~free
     active = np.flatnonzero(free)
-    while len(active):
+    kept = _Candidates.none()  # (weighed before, and nothing they read has changed)
+    while True:
         active = active[np.argsort(deg[active], kind="stable")]  # (chunks of one width)
-        found = [
-            _weigh(pts, tri, stars, deg, need, active[k : k + CHUNK], tan_floor, edge)
-            for k in range(0, len(active), CHUNK)
-        ]
-        a = np.concatenate([f[0] for f in found])
-        if len(a) == 0:
+        c = _Candidates.join(
+            [kept]
+            + [
+                _weigh(pts, tri, stars, deg, need, active[k : k + CHUNK], tan_floor, edge)
+                for k in range(0, len(active), CHUNK)
+            ]
+        )
+        if len(c.a) == 0:
             break
-        b = np.concatenate([f[1] for f in found])
-        key = np.concatenate([f[2] for f in found])
-        ring = [f[3] for f in found]  # per chunk: (rows, neighbours, triangles)
-        rows = np.concatenate([r[0] + off for r, off in zip(ring, _offsets(found))])
-        nbr = np.concatenate([r[1] for r in ring])
-        star = np.concatenate([r[2] for r in ring])
-        won = _independent(a, b, key, rows, nbr, star)
-        lost = ~won
-        wa, wb = a[~lost], b[~lost]
+        won = _independent(c.a, c.b, c.key, c.rows, c.nbr, c.star)
+        wa, wb = c.a[won], c.b[won]
         stars = _collapse(tri, stars, deg, alive, wa, wb)
         gone[wa] = True
         stats.removed += len(wa)
         stats.rounds += 1
-        # next: the ones not taken, and every node whose triangles changed
-        touched = nbr[won[rows]]
-        active = np.union1d(a[lost], touched)
+        # next: every node whose triangles changed, weighed again; the ones not taken
+        # are kept as they are unless their triangles or their b's neighbours changed
+        touched = np.zeros(n, dtype=bool)
+        touched[c.nbr[won[c.rows]]] = True
+        same = ~won & ~touched[c.a] & ~touched[c.b]
+        kept = c.subset(same)
+        active = np.union1d(c.a[~won & ~same], np.flatnonzero(touched))
         active = active[free[active] & ~gone[active]]
     if stats.removed == 0:
         return mesh, stats
@@ -157,9 +157,40 @@ def _independent(a, b, key, rows, nbr, star) -> np.ndarray:
     return won
 
 
-def _offsets(found) -> list[int]:
-    sizes = [len(f[0]) for f in found]
-    return list(np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64))
+@dataclass
+class _Candidates:
+    """Collapses allowed: ``a`` into ``b`` (``key``: the edge's length over the size
+    field); ``a``'s neighbours ``nbr`` and triangles ``star``, candidate ``rows[i]``'s."""
+
+    a: np.ndarray
+    b: np.ndarray
+    key: np.ndarray
+    rows: np.ndarray
+    nbr: np.ndarray
+    star: np.ndarray
+
+    @classmethod
+    def none(cls) -> _Candidates:
+        i, f = np.zeros(0, dtype=np.int64), np.zeros(0)
+        return cls(i, i, f, i, i, i)
+
+    @classmethod
+    def join(cls, parts: list[_Candidates]) -> _Candidates:
+        off = np.cumsum([0] + [len(p.a) for p in parts[:-1]])
+        return cls(
+            *(np.concatenate([getattr(p, f) for p in parts]) for f in ("a", "b", "key")),
+            np.concatenate([p.rows + o for p, o in zip(parts, off)]),
+            np.concatenate([p.nbr for p in parts]),
+            np.concatenate([p.star for p in parts]),
+        )
+
+    def subset(self, mask: np.ndarray) -> _Candidates:
+        at = np.cumsum(mask) - 1
+        keep = mask[self.rows]
+        return _Candidates(
+            self.a[mask], self.b[mask], self.key[mask],
+            at[self.rows[keep]], self.nbr[keep], self.star[keep],
+        )  # fmt: skip
 
 
 def _stars(tri: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -176,9 +207,8 @@ def _stars(tri: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _weigh(pts, tri, stars, deg, need, nodes, tan_floor, edge):
-    """For the candidate ``nodes``: those with an allowed collapse, the neighbour each
-    goes into (its shortest allowed edge), that edge's length over the size field,
-    and (rows, neighbours): each such node's neighbours."""
+    """:class:`_Candidates` of the ``nodes`` with an allowed collapse: each into its
+    shortest allowed edge's other end."""
     w = int(deg[nodes].max())
     valid = np.arange(w) < deg[nodes, None]
     t = tri[np.where(valid, stars[nodes, :w], 0)]  # (c, w, 3)
@@ -228,7 +258,7 @@ def _weigh(pts, tri, stars, deg, need, nodes, tan_floor, edge):
     nbr_valid = valid[rows]
     r_idx = np.repeat(np.arange(len(rows)), nbr_valid.sum(axis=1))
     star = stars[nodes[rows], :w][nbr_valid]
-    return nodes[rows], bb, key[rows, k], (r_idx, u[rows][nbr_valid], star)
+    return _Candidates(nodes[rows], bb, key[rows, k], r_idx, u[rows][nbr_valid], star)
 
 
 def _neighbours(tri, stars, deg, nodes) -> np.ndarray:
