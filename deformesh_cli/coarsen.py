@@ -56,30 +56,24 @@ STEP = 0.25
 CHUNK = 1 << 11
 
 
-@dataclass
-class CoarsenStats:
-    removed: int = 0  # interior nodes taken out
-    rounds: int = 0
-
-
-def coarsen(mesh: Mesh, size: Callable[[np.ndarray], np.ndarray]) -> tuple[Mesh, CoarsenStats]:
+def coarsen(mesh: Mesh, size: Callable[[np.ndarray], np.ndarray]) -> tuple[Mesh, int]:
     """``mesh`` with interior nodes collapsed where its edges are shorter than the size
-    field ``size`` (points (k, 2) -> sizes (k,)) allows (the module's rules)."""
+    field ``size`` (points (k, 2) -> sizes (k,)) allows (the module's rules), and how
+    many nodes went."""
     pts = mesh.points
     n = len(pts)
     tri = np.array(mesh.triangles, dtype=np.int64, copy=True)
-    stats = CoarsenStats()
     free = np.ones(n, dtype=bool)
     free[mesh.lines.ravel()] = False
     free[: mesh.n_contour + mesh.n_extra + mesh.n_box] = False
     if not free.any() or len(tri) == 0:
-        return mesh, stats
+        return mesh, 0
     need = np.asarray(size(pts), dtype=np.float64)
     stars, deg = _stars(tri, n)
     alive = np.ones(len(tri), dtype=bool)
     gone = np.zeros(n, dtype=bool)
     tan_floor = np.tan(np.radians([ANGLE, EDGE_ANGLE]))  # (inside; at the boundary)
-    edge = ~free
+    boundary = ~free
     active = np.flatnonzero(free)
     kept = _Candidates.none()  # (weighed before, and nothing they read has changed)
     while True:
@@ -87,18 +81,16 @@ def coarsen(mesh: Mesh, size: Callable[[np.ndarray], np.ndarray]) -> tuple[Mesh,
         c = _Candidates.join(
             [kept]
             + [
-                _weigh(pts, tri, stars, deg, need, active[k : k + CHUNK], tan_floor, edge)
+                _weigh(pts, tri, stars, deg, need, active[k : k + CHUNK], tan_floor, boundary)
                 for k in range(0, len(active), CHUNK)
             ]
         )
         if len(c.a) == 0:
             break
-        won = _independent(c.a, c.b, c.key, c.rows, c.nbr, c.star)
+        won = _independent(c)
         wa, wb = c.a[won], c.b[won]
         stars = _collapse(tri, stars, deg, alive, wa, wb)
         gone[wa] = True
-        stats.removed += len(wa)
-        stats.rounds += 1
         # next: every node whose triangles changed, weighed again; the ones not taken
         # are kept as they are unless their triangles or their b's neighbours changed
         touched = np.zeros(n, dtype=bool)
@@ -107,13 +99,11 @@ def coarsen(mesh: Mesh, size: Callable[[np.ndarray], np.ndarray]) -> tuple[Mesh,
         kept = c.subset(same)
         active = np.union1d(c.a[~won & ~same], np.flatnonzero(touched))
         active = active[free[active] & ~gone[active]]
-    if stats.removed == 0:
-        return mesh, stats
-    out = renumber(mesh, tri[alive], gone)
-    return out, stats
+    removed = int(gone.sum())
+    return (renumber(mesh, tri[alive], gone), removed) if removed else (mesh, 0)
 
 
-def _independent(a, b, key, rows, nbr, star) -> np.ndarray:
+def _independent(cands: _Candidates) -> np.ndarray:
     """Per candidate (``a`` into ``b``; ``rows``: its entries in ``nbr``, ``a``'s
     neighbours, and ``star``, ``a``'s triangles): taken in this round.  Two collapses
     taken share no triangle, no ``b``, and neither's ``b`` is a neighbour of the
@@ -122,6 +112,9 @@ def _independent(a, b, key, rows, nbr, star) -> np.ndarray:
     :data:`STEP` classes of their length over the size field) go first, and within a
     class an order fixed by the node's number but scattered over the mesh, so that
     most of a crowd of equal edges goes at once."""
+    a, b, key, rows, nbr, star = (
+        cands.a, cands.b, cands.key, cands.rows, cands.nbr, cands.star
+    )  # fmt: skip
     c = len(a)
     scatter = (a.astype(np.uint64) * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(11)
     rank = np.empty(c, dtype=np.int64)
@@ -206,7 +199,7 @@ def _stars(tri: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     return stars, deg
 
 
-def _weigh(pts, tri, stars, deg, need, nodes, tan_floor, edge):
+def _weigh(pts, tri, stars, deg, need, nodes, tan_floor, boundary):
     """:class:`_Candidates` of the ``nodes`` with an allowed collapse: each into its
     shortest allowed edge's other end."""
     w = int(deg[nodes].max())
@@ -239,8 +232,8 @@ def _weigh(pts, tri, stars, deg, need, nodes, tan_floor, edge):
     cross = cr.ravel()[at_j][:, None, :] - cr.ravel()[at_p] + cr  # 2 area of (u_k, u_j, u_p)
     total = side_j + side_k + d2
     shortest = np.minimum(np.minimum(side_j, side_k), d2)
-    at_edge = edge[u][:, :, None] | (edge[u] | edge[v])[:, None, :]
-    floor = np.where(at_edge, tan_floor[1], tan_floor[0])
+    at_boundary = boundary[u][:, :, None] | (boundary[u] | boundary[v])[:, None, :]
+    floor = np.where(at_boundary, tan_floor[1], tan_floor[0])
     good = (cross > 0) & (2 * cross >= floor * (total - 2 * shortest))
     half = 0.5 * LONGEST * (need[u][:, :, None] + need[u][:, None, :])
     ok = valid & closed[:, None] & np.all((~keep | good) & (~new | (d2 <= half * half)), axis=2)

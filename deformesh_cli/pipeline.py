@@ -329,8 +329,7 @@ def run_triangulate(
     sizes = None if size is not None else sel.size_field(contour, o.growth, o.max_h, o.max_nodes)
     coarsened = 0
     if sizes is not None:
-        mesh, done = _coarsen.coarsen(mesh, sizes)
-        coarsened = done.removed
+        mesh, coarsened = _coarsen.coarsen(mesh, sizes)
         edges = None if coarsened else edges
     better = None
     if o.improve:

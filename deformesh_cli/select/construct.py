@@ -443,7 +443,8 @@ def select_constructed(
         tree, laid_for = graded.build_from(
             xy, size * factor, box, growth, max_h, given, max_nodes, field=field
         )
-        sizes = sizes or laid_for  # (the first: every point at CELL_FACTOR)
+        if sizes is None:  # (the first: every point at CELL_FACTOR)
+            sizes = laid_for
         try:
             sel = _select_on(contour, tree, exterior, s)
             sel._sizes = sizes if size_function is None else None
@@ -851,13 +852,9 @@ def _monotone(q: np.ndarray, loop: np.ndarray, s: np.ndarray) -> np.ndarray | No
     total[0] = cost[0, 0]
     back = np.zeros((m, k), dtype=np.int64)
     failed = []  # (where no choice exists: the programme starts again after it)
-    between = _between_costs(loop, cand, q[order], s[order])
-    # the steps' costs, infinite where the step is not allowed (before the loop: it
-    # holds only the minimum-plus products, one step after the other)
-    for a in range(1, m, CHUNK // (k * k)):
-        b = min(m, a + CHUNK // (k * k))
-        gap = (cand[a:b, None, :] - cand[a - 1 : b - 1, :, None]) % nl
-        between[a:b][(gap < 1) | (gap > widest)] = np.inf
+    # (infinite where a step is not allowed: the loop holds only the minimum-plus
+    # products, one step after the other)
+    between = _between_costs(loop, cand, q[order], s[order], widest)
     cols = np.arange(k)
     for t in range(1, m):
         step = total[:, None] + between[t]
@@ -868,8 +865,7 @@ def _monotone(q: np.ndarray, loop: np.ndarray, s: np.ndarray) -> np.ndarray | No
             total = cost[t].copy()
     if failed:
         return order[np.clip(failed, 0, m - 1)]
-    gap = (cand[0, 0] - cand[m - 1]) % nl
-    total = np.where((gap >= 1) & (gap <= widest), total + between[0][:, 0], np.inf)
+    total = total + between[0][:, 0]
     if not np.isfinite(total).any():
         return order[[m - 2, m - 1, 0]] if m > 2 else None
     pick = np.empty(m, dtype=np.int64)
@@ -892,14 +888,17 @@ def _monotone(q: np.ndarray, loop: np.ndarray, s: np.ndarray) -> np.ndarray | No
 CHUNK = 1 << 18
 
 
-def _between_costs(loop: np.ndarray, cand: np.ndarray, q: np.ndarray, s: np.ndarray) -> np.ndarray:
+def _between_costs(
+    loop: np.ndarray, cand: np.ndarray, q: np.ndarray, s: np.ndarray, widest: int
+) -> np.ndarray:
     """``(m, k, k)``: for each step ``t`` (from point ``t - 1`` to ``t``, ``t = 0`` the
     closing one from ``m - 1``) and each pair of their candidate loop positions, the
     summed squared distances, in units of the first point's size ``s``, from the loop
     nodes strictly between them (going forward) that lie past an end of the edge
-    joining the two points to that end; inf where the second is further ahead, in
-    the loop's length, than halfway between the edge's share of its ring and the
-    whole loop (the loop follows the ring, and a contour edge is never longer than
+    joining the two points to that end.  Inf where the step is not allowed: the
+    second not ahead of the first, more than ``widest`` loop nodes ahead, or further
+    ahead, in the loop's length, than halfway between the edge's share of its ring and
+    the whole loop (the loop follows the ring, and a contour edge is never longer than
     the rest of its ring: a step that far would be one back; the loop's nodes may
     crowd at one end of an edge, so their count would not tell).
     Each step's edge is measured once from each of its first point's candidates,
@@ -914,7 +913,7 @@ def _between_costs(loop: np.ndarray, cand: np.ndarray, q: np.ndarray, s: np.ndar
     run = (at[cand][:, None, :] - at[cand[prev]][:, :, None]) % perimeter
     edge = np.hypot(*(q - q[prev]).T)
     share = edge / edge.sum()  # (each edge's share of its ring, at most a half)
-    ok = (gap >= 1) & (run <= 0.5 * (1.0 + share[:, None, None]) * perimeter)
+    ok = (gap >= 1) & (gap <= widest) & (run <= 0.5 * (1.0 + share[:, None, None]) * perimeter)
     out = np.where(ok, 0.0, np.inf).reshape(m * k, k)  # (rows: a step and its start)
     count = np.where(ok, gap - 1, 0).reshape(m * k, k)  # (nodes strictly between)
     reach = count.max(axis=1)

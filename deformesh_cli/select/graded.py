@@ -410,13 +410,32 @@ class SizeField:
     def __call__(self, q: np.ndarray) -> np.ndarray:
         from scipy.spatial import cKDTree
 
-        k = min(NEAREST, len(self.points))
-        dist, idx = cKDTree(self.points).query(q, k=k, workers=-1)
-        dist, idx = dist.reshape(len(q), -1), idx.reshape(len(q), -1)
-        out = np.min(self.s[idx] + (self.growth - 1.0) * dist, axis=1)
+        kd = cKDTree(self.points)
+        out = _nearest_cone(kd, self.points, self.s, self.growth - 1.0, q, 0.0, 0.0)
         if self.max_h is not None:  # (no edge a collapse makes longer than max_h)
             out = np.minimum(out, self.max_h / 2.0)
         return out
+
+
+def _nearest_cone(kd, points, s, alpha, centre, half_w, half_h) -> np.ndarray:
+    """Per box (``centre``, half sides ``half_w``, ``half_h``: arrays, or 0 for
+    points): the least over the :data:`NEAREST` of ``points`` nearest its centre (in
+    ``kd``) of ``s_p + alpha d``, ``d`` the distance from ``p`` to the box;
+    :data:`REFINE_CHUNK` boxes at a time (arrays of a few MB: reused memory)."""
+    k = min(NEAREST, len(points))
+    n = len(centre)
+    half_w = np.broadcast_to(half_w, (n,))
+    half_h = np.broadcast_to(half_h, (n,))
+    need = np.empty(n)
+    for a in range(0, n, REFINE_CHUNK):
+        b = a + REFINE_CHUNK
+        _, idx = kd.query(centre[a:b], k=k, workers=-1)
+        idx = idx.reshape(len(centre[a:b]), -1)
+        q = points[idx]  # (c, k, 2)
+        dx = np.maximum(np.abs(q[..., 0] - centre[a:b, 0, None]) - half_w[a:b, None], 0.0)
+        dy = np.maximum(np.abs(q[..., 1] - centre[a:b, 1, None]) - half_h[a:b, None], 0.0)
+        need[a:b] = np.min(s[idx] + alpha * np.hypot(dx, dy), axis=1)
+    return need
 
 
 def _lay(points, s, box, growth, max_h, box_given, max_nodes, roots, field) -> Quadtree:
@@ -505,7 +524,6 @@ def refine(
 
     alpha = growth - 1.0
     kd = cKDTree(points)
-    k = min(NEAREST, len(points))
     lv, i, j = tree.level, tree.i, tree.j
     keep_l, keep_i, keep_j = [], [], []
     while len(lv):
@@ -514,15 +532,7 @@ def refine(
         x0 = tree.x0 + i * w
         y0 = tree.y0 + j * hgt
         cx, cy = x0 + w / 2, y0 + hgt / 2
-        need = np.empty(len(lv))
-        for a in range(0, len(lv), REFINE_CHUNK):  # (arrays of a few MB: reused memory)
-            b = a + REFINE_CHUNK
-            _, idx = kd.query(np.column_stack([cx[a:b], cy[a:b]]), k=k)
-            idx = idx.reshape(len(cx[a:b]), -1)
-            q = points[idx]  # (c, k, 2)
-            dx = np.maximum(np.abs(q[..., 0] - cx[a:b, None]) - w[a:b, None] / 2, 0.0)
-            dy = np.maximum(np.abs(q[..., 1] - cy[a:b, None]) - hgt[a:b, None] / 2, 0.0)
-            need[a:b] = np.min(s[idx] + alpha * np.hypot(dx, dy), axis=1)
+        need = _nearest_cone(kd, points, s, alpha, np.column_stack([cx, cy]), w / 2, hgt / 2)
         if field is not None:
             need = np.minimum(need, field(np.column_stack([cx, cy])))
         split = (np.maximum(w, hgt) > SPLIT_ABOVE * need) & (lv > 0)
