@@ -61,9 +61,11 @@ class DeformStats:
     fold: str | None = None  # with ``keep_folds``: what would have been raised, or None
 
 
-#: Solvers offered by ``--solver``.  "auto" picks "direct" on a narrow band (its
-#: factor stays sparse) and, on a whole grid, up to this many free nodes, where
-#: the direct solve stopped being the faster one (``benchmarks/MEASURED.md``).
+#: Solvers offered by ``--solver``.  "auto" picks "direct" on a narrow band and on
+#: the graded grid's side of the path (their nodes crowd along the path and thin out
+#: away from it: the factor stays sparse) and, on a whole uniform grid, up to this
+#: many free nodes, where the direct solve stopped being the faster one
+#: (``benchmarks/MEASURED.md``).
 SOLVERS = ("auto", "direct", "amg")
 AUTO_DIRECT_MAX = 60_000
 
@@ -249,8 +251,8 @@ def deform_band(
     remap = np.full(len(points), -1, dtype=np.int64)
     remap[nodes] = np.arange(len(nodes))
     sub_describe = None if describe is None else (lambda t: describe(nodes[t]))
-    if active is not None and kwargs.get("solver", "auto") == "auto":
-        kwargs["solver"] = "direct"  # a band: see SOLVERS
+    if (active is not None or kept is not None) and kwargs.get("solver", "auto") == "auto":
+        kwargs["solver"] = "direct"  # a band, or the graded grid's side: see SOLVERS
     sub, st = deform(
         points[nodes],
         remap[sub_tri],

@@ -39,7 +39,8 @@ def _opt(default: Any, help: str, kind: str = "text", **meta: Any) -> Any:
 _STEPS_HELP = "Pseudo-time steps of the deformation."
 _SOLVER_HELP = (
     "Linear solver per step: sparse LDL^T ('direct'), multigrid-preconditioned CG ('amg'), "
-    "or 'auto' (direct on the band, and up to 60,000 free nodes on a whole grid)."
+    "or 'auto' (direct on the band and the graded grid, and up to 60,000 free nodes on a "
+    "whole uniform grid)."
 )
 #: ``merge_extra`` choices (:mod:`.merge`).
 MERGE_EXTRA = ("auto", "merge", "keep")
