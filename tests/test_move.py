@@ -292,12 +292,8 @@ def motions(draw):
 def test_random_motions_keep_the_contract_or_say_which_frame_folds(case, exterior):
     base, frames = case
     c = make_contour(base, source="base")
-    try:
-        res = pipeline.mesh_contour(
-            c, max_nodes=40_000, exterior=exterior, box=(-3, -3, 3, 3) if exterior else None
-        )
-    except DeformeshError:  # refused, as meshing says why
-        return
+    # (a valid contour: the graded grid meshes it)
+    res = pipeline.mesh_contour(c, exterior=exterior, box=(-3, -3, 3, 3) if exterior else None)
     m = res.mesh
     motion = move.prepare(m.points, m.triangles, c, "mesh")
     pts = m.points
