@@ -23,8 +23,10 @@ from .errors import OUT_OF_MEMORY, DeformeshError, OptionError
 from .options import MeshOptions
 from .readers import load_contour
 
-#: What a folder given as input contributes: files with these extensions.
-CONTOUR_SUFFIXES = (".csv", ".txt", ".svg", ".svgz")
+#: What a folder given as input contributes: files with these extensions (every contour
+#: format :func:`.readers.load_contour` reads).  Its other files (but hidden ones) are
+#: listed as not meshed, and with ``strict_inputs`` fail the batch.
+CONTOUR_SUFFIXES = (".csv", ".txt", ".svg", ".svgz", ".geojson", ".json")
 
 #: Keys of every batch record (``--json`` prints one per input, in input order).
 RECORD_KEYS = (
@@ -51,61 +53,93 @@ class Task:
     data: bytes | None = None
     error: str | None = None  # reading failed: nothing to run
     options: MeshOptions = field(default_factory=MeshOptions)
+    passed: str | None = None  # a folder's file that is no contour file: not run, and why
 
 
-def expand_inputs(args: list[str]) -> list[str]:
-    """Files as given, folders' contour files (sorted), and glob patterns (sorted).
+def expand_inputs(args: list[str]) -> list[tuple[str, str | None]]:
+    """``(file, why it is passed over or None)``: files as given, folders' files (sorted;
+    those without a contour extension, :data:`CONTOUR_SUFFIXES`, passed over, hidden
+    ones left out), and glob patterns (sorted).
 
     A pattern that matches nothing is kept, so that it is reported as missing.
     """
-    out: list[str] = []
+    out: list[tuple[str, str | None]] = []
     for a in args:
         p = Path(a)
         if a != "-" and p.is_dir():
-            found = sorted(
-                str(q)
-                for q in p.iterdir()
-                if q.is_file()
-                and q.suffix.lower() in CONTOUR_SUFFIXES
-                and not q.name.startswith(".")
-            )
-            if not found:
+            found = sorted(q for q in p.iterdir() if q.is_file() and not q.name.startswith("."))
+            if not any(q.suffix.lower() in CONTOUR_SUFFIXES for q in found):
                 raise OptionError(
                     f"{a}: folder holds no contour files ({', '.join(CONTOUR_SUFFIXES)})"
                 )
-            out += found
+            out += [(str(q), _passed_over(q)) for q in found]
         elif a != "-" and not p.exists() and any(ch in a for ch in "*?["):
-            out += sorted(glob.glob(a)) or [a]
+            out += [(f, None) for f in sorted(glob.glob(a)) or [a]]
         else:
-            out.append(a)
+            out.append((a, None))
     return out
 
 
+def _passed_over(path: Path) -> str | None:
+    """Why a folder's file is not meshed (no contour extension), or None."""
+    if path.suffix.lower() in CONTOUR_SUFFIXES:
+        return None
+    kind = f"its extension {path.suffix}" if path.suffix else "it has no extension"
+    return f"{path}: not meshed: {kind} is not a contour format's ({', '.join(CONTOUR_SUFFIXES)})"
+
+
 def prepare(
-    inputs: list[str], out_dir: str, options: MeshOptions, force: bool = False
+    inputs: list[str],
+    out_dir: str,
+    options: MeshOptions,
+    force: bool = False,
+    strict_inputs: bool = False,
 ) -> list[Task]:
     """Everything before the work: the inputs expanded and read, the output format and
     size function checked (usage errors before any work, not once per input), the
     outputs checked (none is an input, a link, or a sidecar deformesh did not write,
-    unless ``force``), then the output folder created."""
+    unless ``force``), then the output folder created.  A folder's file that is no
+    contour file is passed over, or with ``strict_inputs`` fails."""
     fmt = formats.format_for(f"x.{options.fmt or 'msh'}", None)
     _size.check_options(options.size, options.size_field)
-    tasks = make_tasks(expand_inputs(inputs), out_dir, options.replace(fmt=fmt))
+    found = expand_inputs(inputs)
+    if strict_inputs:  # (each is then a failed input, not one passed over)
+        passed = {}
+        errors = {f: why.replace(": not meshed: ", ": ") for f, why in found if why}
+    else:
+        passed = {f: why for f, why in found if why}
+        errors = {}
+    tasks = make_tasks([f for f, _ in found], out_dir, options.replace(fmt=fmt), passed, errors)
+    run = [t for t in tasks if t.passed is None]
     inputs = [t.source for t in tasks] + [options.size_field]
-    formats.check_outputs([t.output for t in tasks], fmt, inputs, typed=False, force=force)
+    formats.check_outputs([t.output for t in run], fmt, inputs, typed=False, force=force)
     files.make_folder(out_dir)
     return tasks
 
 
-def make_tasks(inputs: list[str], out_dir: str, options: MeshOptions) -> list[Task]:
+def make_tasks(
+    inputs: list[str],
+    out_dir: str,
+    options: MeshOptions,
+    passed: dict[str, str] | None = None,
+    errors: dict[str, str] | None = None,
+) -> list[Task]:
     """Read every input (a failure becomes the task's error) and name its output
-    ``out_dir/NAME.FORMAT`` (``options.fmt``).
+    ``out_dir/NAME.FORMAT`` (``options.fmt``); ``passed``: inputs not to mesh, and
+    why (they read nothing and name no output); ``errors``: inputs that fail, and why.
 
     Two inputs that would write the same output file are a usage error.
     """
+    passed, errors = passed or {}, errors or {}
     outputs: dict[str, str] = {}
     tasks = []
     for k, src in enumerate(inputs):
+        if src in passed:
+            tasks.append(Task(k, src, "", passed=passed[src], options=options))
+            continue
+        if src in errors:
+            tasks.append(Task(k, src, "", error=errors[src], options=options))
+            continue
         stem = "stdin" if src == "-" else Path(src).name.split(".")[0] or f"input_{k}"
         out = str(Path(out_dir) / f"{stem}.{options.fmt}")
         if out in outputs:
@@ -183,8 +217,13 @@ def run(
 
     ``jobs`` > 1 uses a process pool; ``scheduler`` a Dask distributed cluster.
     With ``fail_fast`` the first failure stops the rest: tasks not finished
-    are yielded as ``skipped``.
+    are yielded as ``skipped``.  Tasks passed over (``Task.passed``) come first, as
+    ``skipped``, with why.
     """
+    for t in tasks:
+        if t.passed is not None:
+            yield t, _record(t, "skipped", t.passed), []
+    tasks = [t for t in tasks if t.passed is None]
     if scheduler is not None:
         yield from _run_dask(tasks, scheduler, fail_fast)
         return
@@ -268,7 +307,7 @@ def _skipped(tasks: list[Task]) -> Iterator:
 def _record(t: Task, status: str, error: str | None = None) -> dict:
     """A record with every key of :data:`RECORD_KEYS`, the mesh numbers still empty."""
     rec = dict.fromkeys(RECORD_KEYS)
-    rec.update(input=t.source, output=t.output, status=status, error=error, seconds=0.0)
+    rec.update(input=t.source, output=t.output or None, status=status, error=error, seconds=0.0)
     return rec
 
 

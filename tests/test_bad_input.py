@@ -319,6 +319,41 @@ def test_batch_inputs_globs_and_collisions(run, tmp_path):
     assert r.exit_code == 2 and "holds no contour files" in r.stderr
 
 
+PLATE = {
+    "type": "Polygon",
+    "coordinates": [[[0, 0], [4, 0], [4, 3], [0, 3], [0, 0]], [[1, 1], [1, 2], [2, 2], [1, 1]]],
+}
+
+
+def test_a_folder_batch_meshes_every_contour_format_and_lists_what_it_passed_over(run, tmp_path):
+    src = tmp_path / "in"
+    src.mkdir()
+    (src / "closed.csv").write_bytes((SAMPLES / "circle.csv").read_bytes())
+    (src / "plate.geojson").write_text(json.dumps(PLATE))
+    (src / "README.md").write_text("contours for the wing\n")
+    (src / ".hidden").write_text("x")
+    out = tmp_path / "out"
+    r = run("all", src, "--out-dir", out, "--json", "-q")
+    assert r.exit_code == 0, r.stderr
+    recs = {Path(x["input"]).name: x for x in map(json.loads, r.stdout.splitlines())}
+    assert set(recs) == {"closed.csv", "plate.geojson", "README.md"}  # hidden: left out
+    assert recs["closed.csv"]["status"] == recs["plate.geojson"]["status"] == "ok"
+    assert sorted(p.name for p in out.iterdir()) == ["closed.msh", "plate.msh"]
+    note = recs["README.md"]
+    assert note["status"] == "skipped" and note["output"] is None
+    assert ".md" in note["error"] and ".geojson" in note["error"]
+    assert f"deformesh: {note['error']}" in r.stderr  # said on stderr, even with -q
+    # --strict-inputs: the same file fails the batch (the contours are still meshed)
+    r = run("all", src, "--out-dir", tmp_path / "out2", "--json", "-q", "--strict-inputs")
+    assert r.exit_code == 1
+    recs = {Path(x["input"]).name: x for x in map(json.loads, r.stdout.splitlines())}
+    assert recs["README.md"]["status"] == "failed"
+    assert "deformesh: error: " in r.stderr and ".md" in r.stderr
+    assert sorted(p.name for p in (tmp_path / "out2").iterdir()) == ["closed.msh", "plate.msh"]
+    r = run("all", src / "closed.csv", "-o", tmp_path / "one.msh", "--strict-inputs")
+    assert r.exit_code == 2 and "apply to batches" in r.stderr
+
+
 def test_batch_on_a_dask_cluster_gives_the_same_files(run, tmp_path):
     distributed = pytest.importorskip("distributed")  # in the test extra: never skipped in CI
     src = tmp_path / "in"
@@ -423,7 +458,7 @@ def test_a_dying_worker_fails_its_input_only(tmp_path, monkeypatch):
     src.mkdir()
     for name in ("a.csv", "b.csv"):
         (src / name).write_bytes((SAMPLES / "circle.csv").read_bytes())
-    inputs = batch.expand_inputs([str(src)])
+    inputs = [f for f, _ in batch.expand_inputs([str(src)])]
     tasks = batch.make_tasks(inputs, str(tmp_path / "o"), MeshOptions(fmt="msh"))
     monkeypatch.setattr(batch, "run_task", _die_on_b)
     recs = {Path(t.source).name: r for t, r, _ in batch.run(tasks, jobs=2)}

@@ -55,6 +55,12 @@ from .report import check_mesh_output, check_outputs, finish
     help="Batch: run on a Dask distributed cluster (e.g. tcp://host:8786); needs deformesh[dask].",
 )
 @click.option("--fail-fast", is_flag=True, help="Batch: stop at the first failure.")
+@click.option(
+    "--strict-inputs",
+    is_flag=True,
+    help="Batch: a folder's file that is no contour file (not .csv, .txt, .svg, .svgz, "
+    ".geojson or .json) fails the batch instead of being listed as not meshed.",
+)
 @stages("select", "read", "deform", "triangulate", "write")
 @png_option
 @force_option
@@ -62,7 +68,18 @@ from .report import check_mesh_output, check_outputs, finish
 @quiet_option
 @handle_errors
 def command(
-    contours, output, out_dir, jobs, scheduler, fail_fast, png, force, as_json, quiet, **kw
+    contours,
+    output,
+    out_dir,
+    jobs,
+    scheduler,
+    fail_fast,
+    strict_inputs,
+    png,
+    force,
+    as_json,
+    quiet,
+    **kw,
 ):
     """Run select, deform and triangulate in one process, for one contour or a batch."""
     t0 = time.perf_counter()
@@ -74,15 +91,17 @@ def command(
             )
         if png is not None:
             raise click.UsageError("--png names one file; it does not apply to a batch")
-        tasks = batch.prepare(list(contours), out_dir, o, force)
+        tasks = batch.prepare(list(contours), out_dir, o, force, strict_inputs)
         _batch(tasks, out_dir, jobs, scheduler, fail_fast, as_json, quiet, t0)
         return
     if output is None:
         raise click.UsageError("give -o FILE (one contour) or --out-dir DIR (a batch)")
     if len(contours) != 1 or (contours[0] != "-" and os.path.isdir(contours[0])):
         raise click.UsageError("several contours or a folder need --out-dir DIR instead of -o")
-    if jobs is not None or scheduler is not None or fail_fast:
-        raise click.UsageError("--jobs, --scheduler and --fail-fast apply to batches (--out-dir)")
+    if jobs is not None or scheduler is not None or fail_fast or strict_inputs:
+        raise click.UsageError(
+            "--jobs, --scheduler, --fail-fast and --strict-inputs apply to batches (--out-dir)"
+        )
     fmt = check_mesh_output(output, o.fmt, as_json)
     check_outputs(output, fmt, png, [contours[0], o.size_field], force)
     c = load_contour(contours[0], None, o.decimal, o.tolerance, o.element_id, o.resample, o.stroke)
@@ -114,9 +133,12 @@ def _batch(tasks, out_dir, jobs, scheduler, fail_fast, as_json, quiet, t0) -> No
     try:
         jobs = jobs or os.cpu_count() or 1
         for task, rec in batch.run_and_write(tasks, out_dir, jobs, scheduler, fail_fast):
-            if rec["status"] == "failed":  # over the progress bar's line, if one is drawn
-                clear = "\r\033[K" if bar is not None else ""
+            # over the progress bar's line, if one is drawn
+            clear = "\r\033[K" if bar is not None else ""
+            if rec["status"] == "failed":
                 click.echo(f"{clear}deformesh: error: {one_line(rec['error'])}", err=True)
+            elif task.passed is not None:
+                click.echo(f"{clear}deformesh: {one_line(rec['error'])}", err=True)
             records[task.index] = rec
             while printed < len(records) and records[printed] is not None:
                 if as_json:
@@ -129,7 +151,7 @@ def _batch(tasks, out_dir, jobs, scheduler, fail_fast, as_json, quiet, t0) -> No
             bar.__exit__(None, None, None)
     if not quiet:
         click.echo(batch_table(records, time.perf_counter() - t0), err=True)
-    if any(r["status"] != "ok" for r in records):
+    if any(r["status"] == "failed" for r in records):
         sys.exit(1)
 
 
@@ -139,7 +161,7 @@ def batch_table(records: list[dict], seconds: float) -> str:
     failed = sum(r["status"] == "failed" for r in records)
     skipped = len(records) - ok - failed
     head = f"deformesh: {len(records)} contour(s): {ok} ok, {failed} failed"
-    head += f", {skipped} skipped" if skipped else ""
+    head += f", {skipped} not meshed" if skipped else ""
     rows = [
         head + f" ({seconds:.2f} s)",
         f"  {'status':8} {'nodes':>8} {'triangles':>9} {'min angle':>9} {'seconds':>8}  input",
