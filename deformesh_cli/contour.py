@@ -163,11 +163,14 @@ def make_contour(
     source: str = "<contour>",
     ring_starts: Sequence[int] | None = None,
     ring_labels: Sequence[str] | None = None,
+    clockwise_by_convention: Sequence[bool] | None = None,
 ) -> Contour:
     """Validate the points of one or more closed rings and return a :class:`Contour`.
 
     ``ring_starts`` gives the index where each ring starts (default: one ring);
-    ``ring_labels`` how messages name each ring (default ``ring 0``, ...).
+    ``ring_labels`` how messages name each ring (default ``ring 0``, ...);
+    ``clockwise_by_convention``: per ring, whether its format asks for it clockwise
+    (GeoJSON's holes): such a ring read clockwise gets no note.
     """
     p = np.array(points, dtype=np.float64, copy=True)
     if p.ndim != 2 or p.shape[1] != 2:
@@ -189,7 +192,8 @@ def make_contour(
             notes.append(f"{name}dropped the closing point (equal to the first)")
         ring = _check_ring(rp, rl, source, name, starts[-1])
         _check_resolution(rp, float(np.abs(p).max()), source, name, starts[-1])
-        if ring < 0:
+        usual = clockwise_by_convention is not None and clockwise_by_convention[r]
+        if ring < 0 and not usual:
             notes.append(f"{name}re-oriented clockwise input to counter-clockwise")
         pts.append(rp)
         lns.append(rl)

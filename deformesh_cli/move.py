@@ -99,6 +99,14 @@ def prepare(points: np.ndarray, tri: np.ndarray, first: Contour, source: str) ->
             f"{m} points?"
         ) from None
     edges = geometry.edge_uses(tri, len(points))
+    ring = first.starts[1] - first.starts[0]
+    held = _first_ring(edges)
+    if held is not None and held != ring:  # (the mesh's own first ring: the frame differs)
+        what = "" if first.n_rings == 1 else " on its first ring"
+        raise InputError(
+            f"{first.source}: has {ring} points{what}, but {source}'s contour has {held}"
+            f"{what} (point k of each frame follows contour point k)"
+        )
     try:
         mesh, box = quality.mesh_for_contour(points, tri, own)
         quality.check_contract(mesh, own, box, edges)
@@ -197,6 +205,21 @@ def carry(
         + w[:, None] * (cq - cp)
     )
     return out
+
+
+def _first_ring(edges) -> int | None:
+    """How many nodes the mesh's first contour ring has, read off its boundary: the
+    nodes ``0, 1, .., L - 1`` joined in turn by boundary edges (one triangle each),
+    ``L - 1`` back to 0; None where they are not (extra boundary nodes on a contour
+    edge, or not a deformesh mesh)."""
+    lo, hi, fwd, rev = edges
+    once = (fwd + rev) == 1
+    step = np.zeros(int(lo.max(initial=0)) + 2, dtype=bool)
+    chain = once & (hi == lo + 1)
+    step[lo[chain]] = True  # node i joined to i + 1 by a boundary edge
+    length = int(np.argmin(step)) + 1  # (the first i without: the run ends at node i)
+    closes = once & (lo == 0) & (hi == length - 1)
+    return length if length >= 3 and closes.any() else None
 
 
 def _same_rings(own: Contour, frame: Contour, source: str) -> None:

@@ -102,7 +102,8 @@ def check_contract(
     if not same.all():
         k = int(np.argmin(same))
         raise ContractError(
-            f"{src}: node {k} is at ({pts[k, 0]!r}, {pts[k, 1]!r}), not at {contour.where(k)}"
+            f"{src}: node {k} is at ({float(pts[k, 0])!r}, {float(pts[k, 1])!r}), "
+            f"not at {contour.where(k)}"
         )
     # 3. orientation / folding
     area = signed_areas(pts, tri)

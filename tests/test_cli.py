@@ -1,5 +1,6 @@
 import io
 import json
+import re
 import zipfile
 
 import meshio
@@ -236,3 +237,12 @@ def test_resample_meshes_an_uneven_contour_and_quality_follows(run, tmp_path):
     assert r.exit_code == 0 and r.stdout.endswith("contract: ok\n")
     r = run("quality", out, "--contour", src)
     assert r.exit_code == 1  # against the given points it is not their mesh
+
+
+def test_a_contract_message_writes_numbers_as_people_do(run, tmp_path):
+    out = tmp_path / "m.vtu"
+    assert run("all", SAMPLES / "peanut.csv", "-o", out, "-q").exit_code == 0
+    r = run("quality", out, "--contour", SAMPLES / "circle.csv")
+    assert r.exit_code == 1
+    assert re.search(r"node 0 is at \(-?[0-9.e+-]+, -?[0-9.e+-]+\), not at point 0", r.stderr)
+    assert "np." not in r.stdout + r.stderr and "float64" not in r.stdout + r.stderr

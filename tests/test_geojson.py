@@ -45,6 +45,15 @@ def test_every_container_gives_its_rings(tmp_path, kind):
     # the closing repeat is dropped without a note, every point kept in order
     assert np.array_equal(c.points[:4], np.array(SQUARE[:4], dtype=float))
     assert not any("closing point" in n for n in c.notes)
+    # RFC 7946's orientation (outer ring counter-clockwise, holes clockwise): no note
+    assert not any("re-oriented" in n for n in c.notes), c.notes
+
+
+def test_a_clockwise_outer_ring_is_noted_a_clockwise_hole_is_not(tmp_path):
+    f = tmp_path / "c.geojson"
+    f.write_text(json.dumps({"type": "Polygon", "coordinates": [SQUARE[::-1], HOLE]}))
+    notes = [n for n in load_contour(f).notes if "re-oriented" in n]
+    assert len(notes) == 1 and "outer ring" in notes[0]
 
 
 def test_a_geojson_meshes_with_its_hole_and_its_parts(run, tmp_path):

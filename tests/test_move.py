@@ -254,6 +254,11 @@ def test_bad_frames_are_refused_before_any_work(tmp_path):
     )
     r = _invoke("move", d / "m.vtu", d / "other.csv", "--out-dir", d / "out")
     assert r.exit_code == 1 and "m.vtu" in r.stderr
+    # a first frame of another count: the frame is blamed, the mesh's count said
+    np.savetxt(d / "f80.csv", c.points[::3][:80], delimiter=",", header="x,y", comments="")
+    r = _invoke("move", d / "m.vtu", d / "f80.csv", "--out-dir", d / "out")
+    assert r.exit_code == 1
+    assert "f80.csv: has 40 points, but " in r.stderr and "m.vtu's contour has 120" in r.stderr
     # usage errors: exit 2
     assert _invoke("move", d / "m.vtu", d / "ok.csv").exit_code == 2  # no --out-dir
     assert _invoke("move", d / "m.vtu", "--out-dir", d / "out").exit_code == 2  # no frame

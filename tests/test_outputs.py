@@ -465,6 +465,26 @@ def test_xdmf_onto_a_full_disk_is_one_line_and_no_crash(run, tmp_path, monkeypat
     assert list(out.iterdir()) == []
 
 
+@pytest.mark.parametrize("error", ["oserror", "other"])
+def test_a_failing_writer_names_the_users_file_not_the_staged_one(
+    run, tmp_path, monkeypatch, error
+):
+    import dataclasses
+
+    from deformesh_cli.formats import FORMATS
+
+    def failing(mesh, path, version=None):  # (writers get the staged file's path)
+        if error == "oserror":
+            raise OSError(5, f"Input/output error on {path}", path)
+        raise ValueError(f"cannot encode {path}")
+
+    monkeypatch.setitem(FORMATS, "vtk", dataclasses.replace(FORMATS["vtk"], write=failing))
+    r = run("all", SAMPLES / "circle.csv", "-o", tmp_path / "m.vtk")
+    assert r.exit_code == 1 and r.stderr.count("\n") == 1
+    assert "m.vtk: cannot write" in r.stderr and ".tmp" not in r.stderr, r.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_real_full_disk_on_a_small_tmpfs(tmp_path, sh):
     """Where this machine lets the test mount a 4 KiB tmpfs (root in a container):
     .xdmf, .vtk with --png and a state file, each onto the full disk, as a user runs

@@ -186,7 +186,9 @@ def _run(form: Format, mesh: Mesh, tmp: str, version, path: str) -> None:
             form.write(mesh, tmp, version)
     except DeformeshError:
         raise
-    except OSError as exc:
-        raise WriteError(f"{path}: cannot write: {exc}") from None
+    except OSError as exc:  # (its text without the staged file's name)
+        why = (exc.strerror or str(exc)).replace(tmp, path)
+        raise WriteError(f"{path}: cannot write: {why}") from None
     except Exception as exc:  # a writer's own error (meshio): one line, no traceback
-        raise WriteError(f"{path}: cannot write {form.name}: {exc}") from None
+        why = str(exc).replace(tmp, path)  # (the user's file, never the staged one)
+        raise WriteError(f"{path}: cannot write {form.name}: {why}") from None

@@ -8,7 +8,7 @@ from xml.sax.saxutils import quoteattr
 def pvd_bytes(entries: list[tuple[float, str]]) -> bytes:
     """A ``.pvd`` file listing ``(time, file name)``, the names relative to its folder."""
     rows = "".join(
-        f'    <DataSet timestep="{t!r}" group="" part="0" file={quoteattr(name)}/>\n'
+        f'    <DataSet timestep="{float(t)!r}" group="" part="0" file={quoteattr(name)}/>\n'
         for t, name in entries
     )
     return (

@@ -48,7 +48,15 @@ def read_geojson(data: bytes, source: str) -> Contour:
     if not rings:
         raise InputError(f"{source}: no Polygon or MultiPolygon in the GeoJSON")
     starts = np.cumsum([0] + [len(r) for r in rings])[:-1]
-    c = make_contour(np.concatenate(rings), None, source, ring_starts=starts, ring_labels=labels)
+    holes = [" hole " in label for label in labels]  # (RFC 7946: holes run clockwise)
+    c = make_contour(
+        np.concatenate(rings),
+        None,
+        source,
+        ring_starts=starts,
+        ring_labels=labels,
+        clockwise_by_convention=holes,
+    )
     note = f"read {len(rings)} ring(s) from GeoJSON"
     return Contour(
         c.points,
