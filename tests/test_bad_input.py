@@ -34,6 +34,12 @@ CASES = {
         r"thousands\.csv: line 3: 3 fields, but line 1 has 2",
     ),
     "word.csv": ("0,0\n1,one\n0,1\n", 1, r"word\.csv: line 2: y value 'one' is not a number"),
+    "comma.csv": (  # decimal commas, fields split by semicolons: the option is named
+        "x;y\n0,0;0,0\n1,5;0,0\n1,5;1,0\n",
+        1,
+        r"comma\.csv: line 2: x value '0,0' is not a number \(for decimal commas give "
+        r"--decimal ,\)",
+    ),
     "nan.csv": (
         "0,0\n1,0\nnan,1\n",
         1,
@@ -404,8 +410,9 @@ def test_scheduler_unreachable_is_one_line(run, tmp_path):
     assert r.stderr.count("\n") == 1
 
 
-def _on_a_terminal(args, cwd):
-    """Run deformesh with stderr on a pseudo-terminal; return what the terminal got."""
+def _on_a_terminal(args, cwd, stdout=False):
+    """Run deformesh with stderr (and with ``stdout``, stdout too) on a pseudo-terminal;
+    return what the terminal got."""
     import pty
     import subprocess
 
@@ -415,7 +422,7 @@ def _on_a_terminal(args, cwd):
     p = subprocess.Popen(
         [deformesh_exe(), *map(str, args)],
         cwd=cwd,
-        stdout=subprocess.PIPE,
+        stdout=sub if stdout else subprocess.PIPE,
         stderr=sub,
         stdin=subprocess.DEVNULL,
     )
@@ -432,6 +439,25 @@ def _on_a_terminal(args, cwd):
     p.wait()
     os.close(main)
     return p.returncode, b"".join(chunks).decode(errors="replace")
+
+
+def test_binary_output_is_never_written_to_a_terminal(run, tmp_path):
+    c = SAMPLES / "circle.csv"
+    assert run("select", c, "-o", tmp_path / "s.state").exit_code == 0
+    assert run("all", c, "-o", tmp_path / "m.vtu", "-q").exit_code == 0
+    for args in (
+        ["select", c, "-o", "-"],
+        ["all", c, "-o", "-", "--format", "vtk"],
+        ["all", c, "-o", "-", "--format", "ply"],
+        ["triangulate", tmp_path / "s.state", "-o", "-", "--format", "vtk"],
+        ["plot", tmp_path / "m.vtu", "-o", "-"],
+    ):
+        code, tty = _on_a_terminal(args, tmp_path, stdout=True)
+        assert code == 2, (args, tty)
+        assert "refusing to write binary data to a terminal" in tty and len(tty) < 400, tty
+    # a text format may go to the terminal
+    code, tty = _on_a_terminal(["all", c, "-o", "-", "--format", "su2", "-q"], tmp_path, True)
+    assert code == 0 and "NPOIN=" in tty
 
 
 def test_progress_bars_on_a_terminal_only(run, tmp_path):

@@ -246,3 +246,11 @@ def test_a_contract_message_writes_numbers_as_people_do(run, tmp_path):
     assert r.exit_code == 1
     assert re.search(r"node 0 is at \(-?[0-9.e+-]+, -?[0-9.e+-]+\), not at point 0", r.stderr)
     assert "np." not in r.stdout + r.stderr and "float64" not in r.stdout + r.stderr
+
+
+@pytest.mark.parametrize("command", ["quality", "plot"])
+def test_commands_that_only_measure_or_draw_describe_their_own_options(run, command):
+    text = " ".join(run(command, "--help").stdout.split())
+    assert "mesh only" not in text and "no longer all boundary nodes" not in text
+    assert "read only the element with this id, as the mesh was made" in text
+    assert "Re-space the contour at SPACING, as the mesh was made" in text

@@ -44,11 +44,11 @@ def _positive(ctx, param, value):
     return value
 
 
-def click_option(f: dataclasses.Field) -> Callable:
-    """The click option of one options field."""
+def click_option(f: dataclasses.Field, help: str | None = None) -> Callable:
+    """The click option of one options field (``help``: another text than the field's)."""
     meta = f.metadata
     kind = meta["kind"]
-    kw: dict[str, Any] = {"default": f.default, "help": meta["help"]}
+    kw: dict[str, Any] = {"default": f.default, "help": help or meta["help"]}
     if "metavar" in meta:
         kw["metavar"] = meta["metavar"]
     decls = [flag(f), f.name]
@@ -73,13 +73,15 @@ def click_option(f: dataclasses.Field) -> Callable:
     return click.option(*decls, **kw)
 
 
-def fields(cls: type, *names: str) -> Callable:
-    """Decorator: the click options of these fields of ``cls``, in this order."""
+def fields(cls: type, *names: str, helps: dict[str, str] | None = None) -> Callable:
+    """Decorator: the click options of these fields of ``cls``, in this order (``helps``:
+    other help texts, by field name)."""
     by_name = option_fields(cls)
+    helps = helps or {}
 
     def deco(fn):
         for name in reversed(names):
-            fn = click_option(by_name[name])(fn)
+            fn = click_option(by_name[name], helps.get(name))(fn)
         return fn
 
     return deco
@@ -88,6 +90,22 @@ def fields(cls: type, *names: str) -> Callable:
 def stages(*names: str) -> Callable:
     """Decorator: the click options of every :class:`MeshOptions` field these stages read."""
     return fields(MeshOptions, *(f for s in names for f in STAGES[s]))
+
+
+#: What the reading options do for a command that reads a contour only to compare a
+#: mesh with it (``quality``, ``plot``): read it as the mesh was made from it.
+_AS_MADE = {
+    "element_id": "SVG: read only the element with this id, as the mesh was made.",
+    "stroke": "SVG: read the outline of the stroked shapes, as the mesh was made.",
+    "resample": "Re-space the contour at SPACING, as the mesh was made, so that its "
+    "points are the mesh's contour nodes.",
+}
+
+
+def contour_reading() -> Callable:
+    """Decorator: the options that read a contour, for a command that compares a mesh
+    with the contour it was made from."""
+    return fields(MeshOptions, *STAGES["read"], helps=_AS_MADE)
 
 
 def take(cls: type, kwargs: dict) -> Any:

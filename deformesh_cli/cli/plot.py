@@ -8,7 +8,7 @@ from .. import files, formats
 from ..options import MeshOptions
 from ..readers import load_contour
 from .errors import handle_errors
-from .options import check_binary_stdout, output_option, quiet_option, stages, take
+from .options import check_binary_stdout, contour_reading, output_option, quiet_option, take
 
 
 @click.command("plot")
@@ -21,7 +21,7 @@ from .options import check_binary_stdout, output_option, quiet_option, stages, t
     default=None,
     help="Draw this contour's points over the mesh.",
 )
-@stages("read")
+@contour_reading()
 @quiet_option
 @handle_errors
 def command(mesh_path: str, output: str, contour_path: str | None, quiet: bool, **kwargs) -> None:

@@ -8,7 +8,7 @@ from .. import files, formats, quality
 from ..options import MeshOptions
 from ..readers import load_contour
 from .errors import fail, handle_errors
-from .options import json_option, quiet_option, stages, take
+from .options import contour_reading, json_option, quiet_option, take
 
 
 @click.command("quality")
@@ -20,7 +20,7 @@ from .options import json_option, quiet_option, stages, take
     default=None,
     help="Check the mesh contract against this contour (the file it was made from).",
 )
-@stages("read")
+@contour_reading()
 @json_option("Print the report as JSON.")
 @quiet_option
 @handle_errors

@@ -9,14 +9,18 @@ import click
 from .. import files, formats
 from ..contour import Contour
 from ..mesh import Mesh
-from .options import say
+from .options import check_binary_stdout, say
 
 
 def check_mesh_output(output: str, fmt: str | None, as_json: bool) -> str:
-    """The output's format; ``--json`` and a mesh on stdout cannot share stdout."""
+    """The output's format; ``--json`` and a mesh on stdout cannot share stdout, and a
+    binary format is not written to a terminal."""
     if as_json and output == "-":
         raise click.UsageError("--json and -o - both use stdout; write the mesh to a file")
-    return formats.format_for(output, fmt)  # an OptionError is a usage error
+    fmt = formats.format_for(output, fmt)  # an OptionError is a usage error
+    if formats.FORMATS[fmt].binary:
+        check_binary_stdout(output)
+    return fmt
 
 
 def check_outputs(

@@ -32,6 +32,7 @@ class Format:
         sidecar without them is a user's file (replaced only with ``--force``).
     meshio_format : the name meshio reads the file back by, or None if it cannot.
     versions : the file versions ``--msh-version`` offers, the default first.
+    binary : the file is binary (not text): never written to a terminal.
     """
 
     name: str
@@ -44,6 +45,7 @@ class Format:
     sidecar_mark: bytes = b""
     meshio_format: str | None = None
     versions: tuple[str, ...] = field(default=())
+    binary: bool = False
 
     @property
     def stdout(self) -> bool:

@@ -35,6 +35,7 @@ def write(mesh: Mesh, path: str, version: str | None = None) -> None:
 FORMAT = Format(
     name="ply",
     description="PLY binary (z = 0), triangles only",
+    binary=True,
     write=write,
     meshio_format="ply",
 )

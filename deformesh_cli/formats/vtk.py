@@ -61,6 +61,7 @@ def write(mesh: Mesh, path: str, version: str | None = None) -> None:
 FORMAT = Format(
     name="vtk",
     description="VTK legacy 4.2, binary",
+    binary=True,
     write=write,
     boundary_groups=True,
     point_data=True,

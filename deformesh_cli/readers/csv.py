@@ -105,7 +105,12 @@ def parse_csv(text: str, source: str = "<contour>", decimal: str = ".") -> Conto
         for c, key in enumerate(("x", "y")):
             f = fields[cols[key]]
             if not _NUMBER.match(f):
-                raise InputError(f"{source}: line {lineno}: {key} value {f!r} is not a number")
+                hint = ""  # (a number written with a decimal comma: say how to read it)
+                if decimal == "." and _NUMBER.match(f.replace(",", ".", 1)):
+                    hint = " (for decimal commas give --decimal ,)"
+                raise InputError(
+                    f"{source}: line {lineno}: {key} value {f!r} is not a number{hint}"
+                )
             xy[r, c] = float(f)
         if ring_col is not None:
             f = fields[ring_col]
