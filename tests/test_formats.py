@@ -125,3 +125,27 @@ def test_every_msh_reader_sees_node_k_as_point_k(tmp_path, version, case):
     order = np.argsort(tags)
     assert np.array_equal(tags[order], np.arange(1, mesh.n_nodes + 1))
     assert np.array_equal(xyz.reshape(-1, 3)[order, :2], mesh.points)
+
+
+def test_the_formats_page_table_says_what_the_registry_says():
+    """docs/formats.md's table of what each file carries, row by row against the
+    registry (a format's groups, point data, stdout, binary, read back)."""
+    from pathlib import Path
+
+    page = (Path(__file__).resolve().parents[1] / "docs" / "formats.md").read_text()
+    head = "| extension | boundary groups | point data | to stdout | read back by"
+    lines = page[page.index(head) :].splitlines()[2:]
+    rows = {}
+    for line in lines:
+        if not line.startswith("| `."):
+            break
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        rows[cells[0].strip("`.")] = cells[1:]
+    assert set(rows) == set(FORMATS)
+    for name, (groups, point_data, stdout, back) in rows.items():
+        f = FORMATS[name]
+        assert groups.startswith("yes") == f.boundary_groups, name
+        assert point_data.startswith("yes") == f.point_data, name
+        assert stdout.startswith("yes") == f.stdout, name
+        assert ("not to a terminal" in stdout) == f.binary, name
+        assert back.startswith("yes") == f.readable, name

@@ -285,9 +285,9 @@ def test_msh22_is_byte_identical_to_meshios_writer(tmp_path, exterior):
 
 
 @pytest.mark.parametrize("exterior", [False, True])
-def test_vtk_is_meshios_file_but_the_title(tmp_path, exterior):
+def test_vtk_is_meshios_file_but_the_title_and_the_group_names(tmp_path, exterior):
     # our writer skips meshio's import (0.15 s); the bytes are meshio's legacy 4.2
-    # writer's, title line aside
+    # writer's, the title line and the dataset's field data (the group names) aside
     from meshio.vtk import _vtk_42
 
     from deformesh_cli import formats, pipeline
@@ -297,7 +297,13 @@ def test_vtk_is_meshios_file_but_the_title(tmp_path, exterior):
     formats.write_mesh(mesh, str(tmp_path / "ours.vtk"))
     m = _common.meshio_mesh(mesh, dim3=True, cell_data={"group": _common.cell_groups(mesh)})
     _vtk_42.write(tmp_path / "meshio.vtk", m, binary=True)
-    ours = (tmp_path / "ours.vtk").read_bytes().split(b"\n", 2)
+    table = _common.group_table(mesh)
+    field = f"FIELD FieldData {len(table)}\n".encode() + b"".join(
+        f"{name} 2 1 int\n".encode() + tag.astype(">i4").tobytes() + b"\n" for name, tag in table
+    )
+    data = (tmp_path / "ours.vtk").read_bytes()
+    assert data.count(b"UNSTRUCTURED_GRID\n" + field) == 1
+    ours = data.replace(field, b"", 1).split(b"\n", 2)
     theirs = (tmp_path / "meshio.vtk").read_bytes().split(b"\n", 2)
     assert ours[1] == formats.vtk.TITLE.encode() and theirs[1].startswith(b"written by meshio")
     assert ours[0] == theirs[0] and ours[2] == theirs[2]
@@ -347,6 +353,12 @@ def test_vtk_reads_the_point_data_and_the_boundary_groups(tmp_path, fmt, exterio
     assert named["hole_1"][0] in tags[nt:]
     if exterior:
         assert {named[s][0] for s in ("bottom", "right", "top", "left")} <= set(tags[nt:].tolist())
+    # which tag is which boundary: the names in the dataset's field data (ParaView shows
+    # them; pyvista's field_data reads them), each with its (tag, dimension)
+    fd = g.GetFieldData()
+    names = {fd.GetArrayName(i): vtk_to_numpy(fd.GetArray(i)).ravel().tolist()
+             for i in range(fd.GetNumberOfArrays())}  # fmt: skip
+    assert names == {name: list(v) for name, v in named.items()}
 
 
 def test_edge_uses_counts_each_undirected_edge():

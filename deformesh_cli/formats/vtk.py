@@ -1,10 +1,12 @@
 """VTK legacy 4.2, binary (big-endian): triangles and boundary lines, point data, and
-each cell's physical group tag as in .msh (cell data ``group``).
+each cell's physical group tag as in .msh (cell data ``group``), the groups' names
+in the dataset's field data (per name, its ``(tag, dimension)``).
 
 Byte for byte what meshio's legacy 4.2 writer writes for the same mesh, but for
-the title line (tested), without importing meshio.  Version 4.2, not 5.1: VTK's
-own reader refuses 5.1's ``vtktypeint32`` in field data, and meshio's 5.1 reader
-reads ``int`` as 64 bits; in 4.2 both read ``int`` as 32 bits (tested with both).
+the title line and the dataset's field data (tested), without importing meshio.
+Version 4.2, not 5.1: VTK's own reader refuses 5.1's ``vtktypeint32`` in field
+data, and meshio's 5.1 reader reads ``int`` as 64 bits; in 4.2 both read ``int``
+as 32 bits (tested with both).
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..mesh import Mesh
-from ._common import GROUP_DATA, cell_groups, contour_point
+from ._common import GROUP_DATA, cell_groups, contour_point, group_table
 from .format import Format
 
 #: The second line of our .vtk files (a free-text title in the legacy format).
@@ -37,11 +39,15 @@ def write(mesh: Mesh, path: str, version: str | None = None) -> None:
         data = np.asarray(data, dtype=">f8")
         k = 1 if data.ndim == 1 else data.shape[1]
         fields.append((f"{name} {k} {n} double\n".encode(), data))
+    table = group_table(mesh)
     with open(path, "wb") as f:
         f.write(
             f"# vtk DataFile Version 4.2\n{TITLE}\nBINARY\n"
-            f"DATASET UNSTRUCTURED_GRID\nPOINTS {n} double\n".encode()
+            f"DATASET UNSTRUCTURED_GRID\nFIELD FieldData {len(table)}\n".encode()
         )
+        for name, tag in table:  # (the group names: VTK reads them as the dataset's)
+            f.write(f"{name} {len(tag)} 1 int\n".encode() + tag.astype(">i4").tobytes() + b"\n")
+        f.write(f"POINTS {n} double\n".encode())
         for head, data in (
             (b"", pts),
             (f"CELLS {nt + nl} {len(cells)}\n".encode(), cells),

@@ -1,10 +1,14 @@
 """VTK XML unstructured grid (meshio): triangles and boundary lines, point data, and
-each cell's physical group tag as in .msh (cell data ``group``)."""
+each cell's physical group tag as in .msh (cell data ``group``), the groups' names in
+the grid's field data (per name, its ``(tag, dimension)``; meshio writes no field
+data, so it is put in after)."""
 
 from __future__ import annotations
 
+from xml.sax.saxutils import quoteattr
+
 from ..mesh import Mesh
-from ._common import GROUP_DATA, cell_groups, meshio_mesh
+from ._common import GROUP_DATA, cell_groups, group_table, meshio_mesh
 from .format import Format
 
 
@@ -13,6 +17,19 @@ def write(mesh: Mesh, path: str, version: str | None = None) -> None:
 
     m = meshio_mesh(mesh, dim3=True, cell_data={GROUP_DATA: cell_groups(mesh)})
     meshio.write(path, m, file_format="vtu")
+    with open(path, "rb") as f:
+        data = f.read()
+    grid = b"<UnstructuredGrid>"
+    if data.count(grid) != 1:  # (meshio's layout changed: the names would go astray)
+        raise ValueError("unexpected VTU layout from meshio: no single <UnstructuredGrid>")
+    arrays = "".join(
+        f'<DataArray type="Int32" Name={quoteattr(name)} NumberOfComponents="{len(tag)}" '
+        f'NumberOfTuples="1" format="ascii">{" ".join(map(str, tag.tolist()))}</DataArray>\n'
+        for name, tag in group_table(mesh)
+    )
+    field = f"\n<FieldData>\n{arrays}</FieldData>".encode()
+    with open(path, "wb") as f:
+        f.write(data.replace(grid, grid + field, 1))
 
 
 FORMAT = Format(
