@@ -29,9 +29,32 @@ def _pyplot():
     return plt
 
 
+#: What ``--colour`` shades the triangles by: (measure, its range, histogram bins, label).
+COLOURS = {
+    "radius-ratio": ("radius ratio 2r/R", 1.0, quality.RR_BINS),
+    "angle": ("smallest angle (degrees)", 60.0, np.linspace(0.0, 60.0, 11)),
+}
+
+#: Pixels across a triangle in view that the resolution aims at (110 to 300 dpi), so
+#: that its edges can be told apart.
+PIXELS_ACROSS = 6.0
+
+#: ``--zoom contour``: the window is the contour's points' box grown by this share of its
+#: larger side on every side.
+ZOOM_MARGIN = 0.1
+
+
 def draw(points: np.ndarray, tri: np.ndarray, path: str, **kw) -> None:
     """Write :func:`render`'s PNG to ``path`` (``-`` = stdout), atomically."""
     files.write_bytes(render(points, tri, **kw), path)
+
+
+def zoom_window(xy: np.ndarray) -> tuple[float, float, float, float]:
+    """The window around the points ``xy``: their box grown by :data:`ZOOM_MARGIN` of its
+    larger side."""
+    lo, hi = xy.min(axis=0), xy.max(axis=0)
+    pad = ZOOM_MARGIN * float(max(hi - lo))
+    return (lo[0] - pad, lo[1] - pad, hi[0] + pad, hi[1] + pad)
 
 
 def render(
@@ -40,54 +63,94 @@ def render(
     boundary: np.ndarray | None = None,
     contour_points: np.ndarray | None = None,
     title: str = "",
+    window: tuple[float, float, float, float] | None = None,
+    colour: str = "radius-ratio",
 ) -> bytes:
     """PNG bytes of the mesh.
 
     ``boundary`` are edges (k, 2) drawn over the mesh (default: the mesh's own
-    boundary edges); ``contour_points`` are marked as dots.
+    boundary edges); ``contour_points`` are marked as dots.  ``window``
+    (x0, y0, x1, y1): the part drawn, with the whole mesh's outline in an inset where
+    the window leaves some out (default: the whole mesh).  Every triangle's edges
+    are drawn, thinner as more are in view (rasterised).  ``colour``: a key of
+    :data:`COLOURS`; the histogram counts every triangle of the mesh.
     """
     plt = _pyplot()
     from matplotlib.collections import LineCollection
+    from matplotlib.patches import Rectangle
 
+    label, top, bins = COLOURS[colour]
     smallest, largest, _, rr = quality.measures(points, tri)
+    value = rr if colour == "radius-ratio" else smallest
     if boundary is None:
         boundary = geometry.boundary_edges(tri, len(points))
-    span = np.ptp(points, axis=0)
-    height = float(np.clip(7.5 * span[1] / max(span[0], 1e-300), 3.5, 9.0))  # follow the shape
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    whole = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
+    view = whole if window is None else tuple(float(v) for v in window)
+    corners = points[tri]
+    tlo, thi = corners.min(axis=1), corners.max(axis=1)
+    shown = (
+        (thi[:, 0] >= view[0]) & (tlo[:, 0] <= view[2])
+        & (thi[:, 1] >= view[1]) & (tlo[:, 1] <= view[3])
+    )  # fmt: skip
+    part = view[0] > whole[0] or view[1] > whole[1] or view[2] < whole[2] or view[3] < whole[3]
+    wide, tall = view[2] - view[0], view[3] - view[1]
+    height = float(np.clip(7.5 * tall / max(wide, 1e-300), 3.5, 9.0))  # follow the shape
     fig, (ax, axh) = plt.subplots(
         1, 2, figsize=(9.6, height + 0.8), gridspec_kw={"width_ratios": [4.2, 1]}
     )
-    lw = 0.4 if len(tri) < 4000 else 0.15 if len(tri) < 40000 else 0.0
-    ax.tripcolor(
-        points[:, 0],
-        points[:, 1],
-        tri,
-        facecolors=rr,
-        cmap=CMAP,
-        vmin=0,
-        vmax=1,
-        edgecolors="k" if lw else "none",
-        linewidth=lw,
-    )
+    cmap = plt.get_cmap(CMAP)
+    t = tri[shown]
+    # a triangle in view about PIXELS_ACROSS pixels wide (the plot is some 800 at 110 dpi)
+    dpi = float(np.clip(110.0 * PIXELS_ACROSS * np.sqrt(len(t) / 2.0) / 800.0, 110.0, 300.0))
+    if len(t):
+        ax.tripcolor(
+            points[:, 0], points[:, 1], t, facecolors=value[shown], cmap=cmap, vmin=0,
+            vmax=top, edgecolors="none", rasterized=True,
+        )  # fmt: skip
+        edges = np.unique(
+            np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), 1), axis=0
+        )
+        # edges half a pixel wide at the least (about 72 points to the inch)
+        lw = float(np.clip(0.4 * np.sqrt(4000.0 / len(t)), 36.0 / dpi, 0.4))
+        ax.add_collection(
+            LineCollection(points[edges], colors="#202020", linewidths=lw, rasterized=True)
+        )
     ax.add_collection(LineCollection(points[boundary], colors=BOUNDARY_COLOUR, linewidths=1.2))
     if contour_points is not None and len(contour_points) <= 5000:
         ax.plot(contour_points[:, 0], contour_points[:, 1], ".", color=BOUNDARY_COLOUR, ms=2.5)
+    ax.set_xlim(view[0], view[2])
+    ax.set_ylim(view[1], view[3])
     ax.set_aspect("equal")
     ax.set_title(title, fontsize=9)
     ax.tick_params(labelsize=7)
+    if part:  # the whole mesh's outline, the window on it
+        inset = ax.inset_axes([0.74, 0.74, 0.25, 0.25])
+        inset.add_collection(
+            LineCollection(points[boundary], colors=BOUNDARY_COLOUR, linewidths=0.6)
+        )
+        inset.add_patch(
+            Rectangle((view[0], view[1]), wide, tall, fill=False, edgecolor="k", linewidth=0.8)
+        )
+        inset.set_xlim(whole[0], whole[2])
+        inset.set_ylim(whole[1], whole[3])
+        inset.set_aspect("equal")
+        inset.set_xticks([])
+        inset.set_yticks([])
+        inset.set_facecolor("white")
 
-    counts, edges = np.histogram(rr, bins=quality.RR_BINS)
-    mids = 0.5 * (edges[:-1] + edges[1:])
-    axh.barh(mids, counts, height=0.09, color=plt.get_cmap(CMAP)(mids))
+    counts, edges_ = np.histogram(value, bins=bins)
+    mids = 0.5 * (edges_[:-1] + edges_[1:])
+    axh.barh(mids, counts, height=0.9 * (bins[1] - bins[0]), color=cmap(mids / top))
     axh.set_xscale("log")  # the few poor triangles stay visible next to thousands of good ones
     axh.set_xlim(0.8, max(10, 2 * counts.max()))
-    axh.set_ylim(0, 1)
-    axh.set_ylabel("radius ratio 2r/R", fontsize=8)
+    axh.set_ylim(0, top)
+    axh.set_ylabel(label, fontsize=8)
     axh.set_xlabel("triangles", fontsize=8)
     axh.tick_params(labelsize=7)
     axh.set_title(f"angles {smallest.min():.1f}-{largest.max():.1f} deg", fontsize=8)
     fig.tight_layout()
     buf = _io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110, metadata={"Software": None})
+    fig.savefig(buf, format="png", dpi=dpi, metadata={"Software": None})
     plt.close(fig)
     return buf.getvalue()

@@ -234,6 +234,49 @@ def test_plot_and_png_draw_the_mesh(run, tmp_path, bracket):
     assert r.exit_code == 0 and _png(png).shape == img.shape
 
 
+def test_plot_frames_a_far_fields_body_and_takes_a_window(run, tmp_path):
+    mesh = tmp_path / "ff.vtu"
+    r = run("all", SAMPLES / "naca0012.csv", "--exterior", "-o", mesh, "-q")
+    assert r.exit_code == 0, r.stderr
+    shapes = {}
+    for name, extra in (
+        ("zoomed", []),  # the default: the airfoil (chord 1, thickness 0.12) fills the frame
+        ("whole", ["--zoom", "mesh"]),  # the box: about square
+        ("window", ["--window", "0.9,-0.05,1.1,0.05", "--colour", "angle"]),
+    ):
+        out = tmp_path / f"{name}.png"
+        r = run("plot", mesh, "-o", out, *extra)
+        assert r.exit_code == 0, r.stderr
+        shapes[name] = _png(out).shape
+    wide = {k: v[1] / v[0] for k, v in shapes.items()}
+    assert wide["zoomed"] > wide["whole"] + 0.5 and wide["window"] > wide["whole"] + 0.5
+    r = run("plot", mesh, "-o", tmp_path / "bad.png", "--window", "1,0,0,1")
+    assert r.exit_code == 2 and "X0 < X1" in r.stderr
+
+
+def test_plot_draws_edges_finer_the_more_triangles(tmp_path):
+    """Every triangle's edges are drawn; the resolution grows with the triangles in view,
+    so at 1e5 triangles a triangle is still several pixels across."""
+    from deformesh_cli import plot
+
+    def picture(n):  # an n x n grid of squares, each split in two
+        x, y = np.meshgrid(np.arange(n + 1.0), np.arange(n + 1.0), indexing="ij")
+        k = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)[:-1, :-1].ravel()
+        tri = np.concatenate([np.c_[k, k + n + 1, k + n + 2], np.c_[k, k + n + 2, k + 1]])
+        path = tmp_path / f"g{n}.png"
+        path.write_bytes(plot.render(np.c_[x.ravel(), y.ravel()], tri))
+        return _png(path)
+
+    small, large = picture(20), picture(224)  # 800 and 100,352 triangles
+    assert large.shape[1] >= 1.6 * small.shape[1]  # (184 dpi against 110)
+    # along a row through the grid the edges show as dark pixels between the cells'
+    # colour: about one run of dark pixels per cell
+    rgb = large[large.shape[0] // 2, :, :3]
+    dark = rgb.sum(axis=1) < 1.2
+    runs = int(np.count_nonzero(dark[1:] & ~dark[:-1]))
+    assert runs > 150, runs
+
+
 def test_png_without_matplotlib_leaves_no_file(run, tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "matplotlib", None)
     r = run("all", SAMPLES / "circle.csv", "-o", tmp_path / "m.vtk", "--png", tmp_path / "m.png")

@@ -3,12 +3,20 @@
 from __future__ import annotations
 
 import click
+import numpy as np
 
 from .. import files, formats
 from ..options import MeshOptions
 from ..readers import load_contour
 from .errors import handle_errors
-from .options import check_binary_stdout, contour_reading, output_option, quiet_option, take
+from .options import (
+    BoxType,
+    check_binary_stdout,
+    contour_reading,
+    output_option,
+    quiet_option,
+    take,
+)
 
 
 @click.command("plot")
@@ -21,27 +29,67 @@ from .options import check_binary_stdout, contour_reading, output_option, quiet_
     default=None,
     help="Draw this contour's points over the mesh.",
 )
+@click.option(
+    "--window",
+    type=BoxType(),
+    default=None,
+    help="Draw only this part of the plane, X0,Y0,X1,Y1 (the whole mesh in an inset).",
+)
+@click.option(
+    "--zoom",
+    type=click.Choice(["contour", "mesh"]),
+    default="contour",
+    show_default=True,
+    help="Without --window: frame the contour's points (those of --contour, or the "
+    "mesh's point data contour_point), so a far field shows its body, or the whole mesh.",
+)
+@click.option(
+    "--colour",
+    type=click.Choice(["radius-ratio", "angle"]),
+    default="radius-ratio",
+    show_default=True,
+    help="Shade each triangle by its radius ratio 2r/R or its smallest angle.",
+)
 @contour_reading()
 @quiet_option
 @handle_errors
-def command(mesh_path: str, output: str, contour_path: str | None, quiet: bool, **kwargs) -> None:
-    """Draw a mesh to PNG: triangles shaded by radius ratio, the boundary, a histogram."""
+def command(
+    mesh_path: str,
+    output: str,
+    contour_path: str | None,
+    window,
+    zoom: str,
+    colour: str,
+    quiet: bool,
+    **kwargs,
+) -> None:
+    """Draw a mesh to PNG: triangles shaded by radius ratio (or angle) with their edges,
+    the boundary, a histogram."""
     from .. import plot  # matplotlib loads only here
 
     o = take(MeshOptions, kwargs)
     check_binary_stdout(output)
+    if window is not None and not (window[0] < window[2] and window[1] < window[3]):
+        raise click.BadParameter("X0 < X1 and Y0 < Y1 are needed", param_hint="--window")
     files.check_outputs([output], [mesh_path, contour_path])
-    points, tri = formats.read_mesh(mesh_path)
+    points, tri, data = formats.read_mesh(mesh_path, point_data=True)
     cpts = None
     if contour_path is not None:
         c = load_contour(
             contour_path, None, o.decimal, o.tolerance, o.element_id, o.resample, o.stroke
         )
         cpts = c.points
+    if window is None and zoom == "contour":
+        at = data.get("contour_point")
+        body = cpts if cpts is not None else None if at is None else points[np.ravel(at) >= 0]
+        if body is not None and len(body):
+            window = plot.zoom_window(body)
     plot.draw(
         points,
         tri,
         output,
         contour_points=cpts,
         title=f"{mesh_path}: {len(points)} nodes, {len(tri)} triangles",
+        window=window,
+        colour=colour,
     )

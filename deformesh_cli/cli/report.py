@@ -58,6 +58,7 @@ def finish(
             boundary=mesh.lines,
             contour_points=mesh.points[: mesh.n_contour],
             title=f"{output}: {mesh.n_nodes} nodes, {len(mesh.triangles)} triangles",
+            window=plot.zoom_window(mesh.points[: mesh.n_contour]),  # (as plot's --zoom)
         )
     if picture is None:
         formats.write_mesh(mesh, output, fmt, msh_version)

@@ -12,8 +12,9 @@ from ..errors import InputError, ReadError
 from ..files import existing_file
 
 
-def read_mesh(path: str, fmt: str | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """A mesh file's 2D points and triangles.
+def read_mesh(path: str, fmt: str | None = None, *, point_data: bool = False):
+    """A mesh file's 2D points and triangles (and with ``point_data``, its point data
+    as a third item: a dict of arrays, one row a node).
 
     z must be 0 (the meshes are planar), and every coordinate finite and within
     :data:`~deformesh_cli.contour.MAX_COORDINATE`.  meshio prints and exits on some bad
@@ -53,4 +54,7 @@ def read_mesh(path: str, fmt: str | None = None) -> tuple[np.ndarray, np.ndarray
     tri = np.concatenate(tri).astype(np.int64)
     if tri.min() < 0 or tri.max() >= len(pts):
         raise InputError(f"{path}: a triangle refers to a node that does not exist")
+    if point_data:
+        data = {k: np.asarray(v) for k, v in m.point_data.items() if len(v) == len(pts)}
+        return np.ascontiguousarray(pts), tri, data
     return np.ascontiguousarray(pts), tri
