@@ -120,7 +120,7 @@ def test_pitching_min_angle_stays_within_5_degrees_of_the_first_frame(pitching):
 
 def test_pulsating_shape_keeps_its_angles(pulsating):
     d, summary, _ = pulsating
-    assert summary["min_angle"] >= summary["min_angle_first"] - 5  # measured: 31.0 vs 35.0
+    assert summary["min_angle"] >= summary["min_angle_first"] - 5  # measured: 31.0 vs 35.1
     # the motion ends where it started: so does the mesh, near enough
     files = _frames(d, summary)
     assert np.abs(files[-1].points - files[0].points).max() < 1e-3

@@ -225,3 +225,38 @@ def test_limits_random_set_numbers_are_the_benchmark_file():
         f"under 1 s in process and the slowest {round(float(slowest))} s; one had "
         f"{int(most):,} extra boundary nodes"
     ) in text
+
+
+def test_moving_numbers_in_the_docs_are_the_benchmark_file():
+    """docs/commands.md's and docs/limits.md's numbers for ``move`` are the rows
+    ``make bench`` last wrote in RESULTS.md ("Moving meshes")."""
+    results = (ROOT / "benchmarks" / "RESULTS.md").read_text()
+    moving = results.split("<!-- section:moving -->")[1].split("<!-- end:moving -->")[0]
+    rows = {}
+    for row in moving.splitlines():
+        cells = [c.strip() for c in row.strip().strip("|").split("|")]
+        if len(cells) == 11 and cells[1].isdigit():
+            rows[cells[0]] = cells
+    pitch, peanut = rows["pitching sample (README)"], rows["pulsating peanut (README)"]
+    naca = rows["pitching NACA 0012, 160 points, box -2..3"]
+    shape = rows["pulsating NACA 0012 (amplitude 0.1), whole mesh"]
+    band = rows["pulsating NACA 0012 (amplitude 0.1), --solve band"]
+    commands = " ".join(DOCS["commands.md"].split())
+    limits = " ".join(DOCS["limits.md"].split())
+
+    def count(n: str) -> str:
+        return f"{int(n):,}"
+
+    assert f"({count(pitch[1])} triangles, {pitch[3]} s)" in commands
+    assert f"{count(peanut[1])} triangles, {peanut[3]} s)" in commands
+    assert f"{pitch[6]} degrees at frame 0 and {pitch[7]} at its lowest" in commands
+    assert f"the peanut goes from {peanut[6]} to {peanut[7]} degrees" in commands
+    assert (
+        f"far field of {count(shape[1])} triangles reshaped by up to 15% ends at {shape[7]} "
+        f"degrees on the whole mesh and at {band[7]} with the band"
+    ) in commands
+    assert f"{count(naca[1])} triangles: {naca[6]} degrees at frame 0, {naca[7]} at the" in limits
+    assert f"(the beating peanut: {peanut[6]} to {peanut[7]}" in limits
+    assert f"goes to {shape[7]} degrees on the whole mesh" in limits
+    hole = rows["square_hole_100, the hole turning 10 degrees"]
+    assert f"`square_hole_100`: {hole[6]} to {hole[7]})" in limits
