@@ -260,3 +260,17 @@ def test_moving_numbers_in_the_docs_are_the_benchmark_file():
     assert f"goes to {shape[7]} degrees on the whole mesh" in limits
     hole = rows["square_hole_100, the hole turning 10 degrees"]
     assert f"`square_hole_100`: {hole[6]} to {hole[7]})" in limits
+
+
+@pytest.mark.parametrize("shell", ["bash", "zsh", "fish"])
+def test_shell_completion_is_documented_and_works(sh, shell):
+    line = 'eval "$(_DEFORMESH_COMPLETE=bash_source deformesh)"'
+    assert line in DOCS["commands.md"]
+    assert f"`{shell}_source`" in DOCS["commands.md"] or shell == "bash"
+    script = sh(f"_DEFORMESH_COMPLETE={shell}_source deformesh").stdout.decode()
+    assert "_DEFORMESH_COMPLETE" in script and len(script) > 200
+    if shell == "bash":  # the completion offers the subcommands
+        got = sh(
+            "COMP_WORDS='deformesh mo' COMP_CWORD=1 _DEFORMESH_COMPLETE=bash_complete deformesh"
+        ).stdout.decode()
+        assert "move" in got
