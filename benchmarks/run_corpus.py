@@ -47,7 +47,11 @@ def main():
         runs = [(Path(args.records).read_text(), args.wall)]
     else:
         runs = [run_batch(args.jobs, extra) for _ in range(max(1, args.runs))]
-    every = [[json.loads(ln) for ln in out.splitlines()] for out, _ in runs]
+    # (the folder's SOURCES.md comes back as a file not meshed: not a contour)
+    every = [
+        [r for r in map(json.loads, out.splitlines()) if not r["input"].endswith(".md")]
+        for out, _ in runs
+    ]
     walls = [wall for _, wall in runs]
     recs = least(every)
     by = collections.defaultdict(list)

@@ -36,6 +36,10 @@ def test_corpus_meshes_or_refuses_with_a_reason(run, tmp_path):
         "all", CORPUS, "--out-dir", tmp_path, "--jobs", "2", "--json", "-q", "--max-nodes", "300000"
     )
     recs = [json.loads(ln) for ln in r.stdout.splitlines()]
+    # the folder's SOURCES.md is listed as not meshed (no contour format)
+    notes = [x for x in recs if Path(x["input"]).name == "SOURCES.md"]
+    assert len(notes) == 1 and notes[0]["status"] == "skipped"
+    recs = [x for x in recs if x not in notes]
     assert [Path(x["input"]).name for x in recs] == [p.name for p in files]
     for x in recs:
         if x["status"] == "ok":

@@ -94,7 +94,7 @@ def stages(*names: str) -> Callable:
 
 #: What the reading options do for a command that reads a contour only to compare a
 #: mesh with it (``quality``, ``plot``): read it as the mesh was made from it.
-_AS_MADE = {
+AS_MADE = {
     "element_id": "SVG: read only the element with this id, as the mesh was made.",
     "stroke": "SVG: read the outline of the stroked shapes, as the mesh was made.",
     "resample": "Re-space the contour at SPACING, as the mesh was made, so that its "
@@ -105,7 +105,7 @@ _AS_MADE = {
 def contour_reading() -> Callable:
     """Decorator: the options that read a contour, for a command that compares a mesh
     with the contour it was made from."""
-    return fields(MeshOptions, *STAGES["read"], helps=_AS_MADE)
+    return fields(MeshOptions, *STAGES["read"], helps=AS_MADE)
 
 
 def take(cls: type, kwargs: dict) -> Any:

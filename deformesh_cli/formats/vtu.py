@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from xml.sax.saxutils import quoteattr
 
+from ..errors import WriteError
 from ..mesh import Mesh
 from ._common import GROUP_DATA, cell_groups, group_table, meshio_mesh
 from .format import Format
@@ -21,7 +22,7 @@ def write(mesh: Mesh, path: str, version: str | None = None) -> None:
         data = f.read()
     grid = b"<UnstructuredGrid>"
     if data.count(grid) != 1:  # (meshio's layout changed: the names would go astray)
-        raise ValueError("unexpected VTU layout from meshio: no single <UnstructuredGrid>")
+        raise WriteError(f"{path}: unexpected VTU layout from meshio (no single {grid!r})")
     arrays = "".join(
         f'<DataArray type="Int32" Name={quoteattr(name)} NumberOfComponents="{len(tag)}" '
         f'NumberOfTuples="1" format="ascii">{" ".join(map(str, tag.tolist()))}</DataArray>\n'
