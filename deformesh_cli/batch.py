@@ -84,8 +84,9 @@ def _passed_over(path: Path) -> str | None:
     """Why a folder's file is not meshed (no contour extension), or None."""
     if path.suffix.lower() in CONTOUR_SUFFIXES:
         return None
-    kind = f"its extension {path.suffix}" if path.suffix else "it has no extension"
-    return f"{path}: not meshed: {kind} is not a contour format's ({', '.join(CONTOUR_SUFFIXES)})"
+    kind = f"{path.suffix} is not" if path.suffix else "no extension is"
+    known = ", ".join(CONTOUR_SUFFIXES)
+    return f"{path}: not meshed: {kind} a contour file's extension ({known})"
 
 
 def prepare(
