@@ -37,6 +37,11 @@ class SizeError(OptionError):
     """A size function fails to evaluate, or is not finite and > 0 over the box."""
 
 
+class MonitorError(DeformeshError):
+    """An adaptation monitor is not finite and > 0 where a mesh's nodes go (a failure
+    on that mesh: the expression itself is fine)."""
+
+
 class DependencyError(DeformeshError):
     """An optional dependency the request needs is not installed (the message names the extra)."""
 

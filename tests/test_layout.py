@@ -27,6 +27,8 @@ CORE = sorted(
 
 def _cli_params():
     for name, cmd in cli.commands.items():
+        if name == "adapt":  # (its options are its own: it meshes nothing)
+            continue
         cls = MoveOptions if name == "move" else MeshOptions
         fields = opts.fields(cls)
         for p in cmd.params:

@@ -16,8 +16,8 @@ import warnings
 import click
 
 from .. import __version__
+from . import adapt, deform, move, plot, quality, select, triangulate
 from . import all as all_command
-from . import deform, move, plot, quality, select, triangulate
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -30,7 +30,7 @@ def cli():
     """
 
 
-for _module in (select, deform, triangulate, all_command, move, quality, plot):
+for _module in (select, deform, triangulate, all_command, move, adapt, quality, plot):
     cli.add_command(_module.command)
 
 

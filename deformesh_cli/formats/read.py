@@ -12,6 +12,23 @@ from ..errors import InputError, ReadError
 from ..files import existing_file
 
 
+def read_meshio(path: str, fmt: str | None = None):
+    """The ``meshio.Mesh`` of a mesh file, meshio's console output kept quiet and its
+    failures one-line :class:`~deformesh_cli.errors.ReadError` messages."""
+    import meshio
+
+    existing_file(path)
+    try:
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            return meshio.read(path, file_format=fmt)
+    except SystemExit:
+        raise ReadError(f"{path}: not a mesh file meshio can read") from None
+    except meshio.ReadError as exc:
+        raise ReadError(f"{path}: cannot read mesh: {exc}") from None
+    except Exception as exc:  # parsers of malformed files raise anything
+        raise ReadError(f"{path}: cannot read mesh: {type(exc).__name__}: {exc}") from None
+
+
 def read_mesh(path: str, fmt: str | None = None, *, point_data: bool = False):
     """A mesh file's 2D points and triangles (and with ``point_data``, its point data
     as a third item: a dict of arrays, one row a node).
@@ -20,18 +37,16 @@ def read_mesh(path: str, fmt: str | None = None, *, point_data: bool = False):
     :data:`~deformesh_cli.contour.MAX_COORDINATE`.  meshio prints and exits on some bad
     files; both become one-line :class:`~deformesh_cli.errors.ReadError` messages.
     """
-    import meshio
+    m = read_meshio(path, fmt)
+    pts, tri = checked(m, path)
+    if point_data:
+        data = {k: np.asarray(v) for k, v in m.point_data.items() if len(v) == len(pts)}
+        return pts, tri, data
+    return pts, tri
 
-    existing_file(path)
-    try:
-        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-            m = meshio.read(path, file_format=fmt)
-    except SystemExit:
-        raise ReadError(f"{path}: not a mesh file meshio can read") from None
-    except meshio.ReadError as exc:
-        raise ReadError(f"{path}: cannot read mesh: {exc}") from None
-    except Exception as exc:  # parsers of malformed files raise anything
-        raise ReadError(f"{path}: cannot read mesh: {type(exc).__name__}: {exc}") from None
+
+def checked(m, path: str) -> tuple[np.ndarray, np.ndarray]:
+    """A ``meshio.Mesh``'s 2D points and triangles, checked as :func:`read_mesh` says."""
     tri = [c.data for c in m.cells if c.type == "triangle"]
     if not tri:
         kinds = sorted({c.type for c in m.cells}) or ["none"]
@@ -54,7 +69,4 @@ def read_mesh(path: str, fmt: str | None = None, *, point_data: bool = False):
     tri = np.concatenate(tri).astype(np.int64)
     if tri.min() < 0 or tri.max() >= len(pts):
         raise InputError(f"{path}: a triangle refers to a node that does not exist")
-    if point_data:
-        data = {k: np.asarray(v) for k, v in m.point_data.items() if len(v) == len(pts)}
-        return np.ascontiguousarray(pts), tri, data
     return np.ascontiguousarray(pts), tri

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import WriteError
 from ..mesh import Mesh
 from ._common import GROUP_DATA, cell_groups, contour_point, group_table
 from .format import Format
@@ -39,15 +40,12 @@ def write(mesh: Mesh, path: str, version: str | None = None) -> None:
         data = np.asarray(data, dtype=">f8")
         k = 1 if data.ndim == 1 else data.shape[1]
         fields.append((f"{name} {k} {n} double\n".encode(), data))
-    table = group_table(mesh)
     with open(path, "wb") as f:
         f.write(
-            f"# vtk DataFile Version 4.2\n{TITLE}\nBINARY\n"
-            f"DATASET UNSTRUCTURED_GRID\nFIELD FieldData {len(table)}\n".encode()
+            f"# vtk DataFile Version 4.2\n{TITLE}\nBINARY\nDATASET UNSTRUCTURED_GRID\n".encode()
+            + field_block(dict(group_table(mesh)))  # (the group names: the dataset's)
+            + f"POINTS {n} double\n".encode()
         )
-        for name, tag in table:  # (the group names: VTK reads them as the dataset's)
-            f.write(f"{name} {len(tag)} 1 int\n".encode() + tag.astype(">i4").tobytes() + b"\n")
-        f.write(f"POINTS {n} double\n".encode())
         for head, data in (
             (b"", pts),
             (f"CELLS {nt + nl} {len(cells)}\n".encode(), cells),
@@ -62,6 +60,32 @@ def write(mesh: Mesh, path: str, version: str | None = None) -> None:
             f.write(head)
             f.write(data.tobytes())
             f.write(b"\n")
+
+
+def field_block(table: dict) -> bytes:
+    """The dataset's field data of a binary legacy file: per name, its integer array
+    as one tuple (``b""`` for none)."""
+    if not table:
+        return b""
+    out = f"FIELD FieldData {len(table)}\n".encode()
+    for name, tag in table.items():
+        tag = np.asarray(tag, dtype=">i4").ravel()
+        out += f"{name} {tag.size} 1 int\n".encode() + tag.tobytes() + b"\n"
+    return out
+
+
+def add_field_data(path: str, table: dict) -> None:
+    """Put ``table`` into the dataset's field data of the binary legacy file meshio
+    wrote at ``path`` (meshio writes none)."""
+    if not table:
+        return
+    with open(path, "rb") as f:
+        data = f.read()
+    head = b"DATASET UNSTRUCTURED_GRID\n"
+    if data.count(head) != 1 or b"\nBINARY\n" not in data[:200]:
+        raise WriteError(f"{path}: unexpected VTK layout from meshio")
+    with open(path, "wb") as f:
+        f.write(data.replace(head, head + field_block(table), 1))
 
 
 FORMAT = Format(

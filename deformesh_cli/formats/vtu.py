@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from xml.sax.saxutils import quoteattr
 
+import numpy as np
+
 from ..errors import WriteError
 from ..mesh import Mesh
 from ._common import GROUP_DATA, cell_groups, group_table, meshio_mesh
@@ -18,15 +20,24 @@ def write(mesh: Mesh, path: str, version: str | None = None) -> None:
 
     m = meshio_mesh(mesh, dim3=True, cell_data={GROUP_DATA: cell_groups(mesh)})
     meshio.write(path, m, file_format="vtu")
+    add_field_data(path, dict(group_table(mesh)))
+
+
+def add_field_data(path: str, table: dict) -> None:
+    """Put ``table`` (name -> an integer array, one tuple) into the grid's field data of
+    the VTU file meshio wrote at ``path`` (meshio writes none)."""
+    if not table:
+        return
     with open(path, "rb") as f:
         data = f.read()
     grid = b"<UnstructuredGrid>"
     if data.count(grid) != 1:  # (meshio's layout changed: the names would go astray)
         raise WriteError(f"{path}: unexpected VTU layout from meshio (no single {grid!r})")
     arrays = "".join(
-        f'<DataArray type="Int32" Name={quoteattr(name)} NumberOfComponents="{len(tag)}" '
-        f'NumberOfTuples="1" format="ascii">{" ".join(map(str, tag.tolist()))}</DataArray>\n'
-        for name, tag in group_table(mesh)
+        f'<DataArray type="Int32" Name={quoteattr(name)} NumberOfComponents="{tag.size}" '
+        f'NumberOfTuples="1" format="ascii">{" ".join(map(str, tag.ravel().tolist()))}'
+        "</DataArray>\n"
+        for name, tag in ((k, np.asarray(v, dtype=np.int32)) for k, v in table.items())
     )
     field = f"\n<FieldData>\n{arrays}</FieldData>".encode()
     with open(path, "wb") as f:

@@ -1,0 +1,145 @@
+"""``deformesh adapt MESH -o OUT --monitor EXPR``: move a mesh's nodes to follow a monitor."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import time
+
+import click
+import numpy as np
+
+from .. import adapt as _adapt
+from .. import files, formats
+from ..errors import InputError, OptionError, WriteError
+from ..formats._common import GROUP_DATA
+from ..formats.read import checked, read_meshio
+from .errors import handle_errors
+from .options import OutputPath, json_option, quiet_option, say
+
+#: meshio's name for each output extension it writes here (Gmsh 2.2 for ``.msh``: the
+#: version every solver reads; legacy VTK 4.2, binary, which VTK's own reader reads).
+_MESHIO_FORMATS = {".msh": "gmsh22", ".vtu": "vtu", ".vtk": "vtk42", ".xdmf": "xdmf"}
+
+
+#: Options of meshio's writers: Gmsh as ASCII, as solvers read it.
+_WRITE_OPTIONS = {"gmsh22": {"binary": False}}
+
+
+@click.command("adapt")
+@click.argument("mesh_path", metavar="MESH", type=click.Path(dir_okay=False))
+@click.option(
+    "-o", "--output", required=True, type=OutputPath(allow_dash=False),
+    help="Adapted mesh to write (.msh, .vtu, .vtk or .xdmf): the same cells, groups and "
+    "data, the nodes moved.",
+)  # fmt: skip
+@click.option(
+    "--monitor",
+    required=True,
+    metavar="EXPR",
+    help="Monitor M(x, y) > 0, in the --size grammar: cells shrink where M is large, "
+    "toward every cell holding the same integral of M.",
+)
+@click.option(
+    "--steps",
+    type=click.IntRange(min=1),
+    default=_adapt.ADAPT_STEPS,
+    show_default=True,
+    help="Pseudo-time steps of the deformation.",
+)
+@click.option("-f", "--force", is_flag=True, help="Replace an output deformesh did not write.")
+@json_option("Print the report as JSON on stdout.")
+@quiet_option
+@handle_errors
+def command(mesh_path, output, monitor, steps, force, as_json, quiet) -> None:
+    """Move a mesh's nodes so its cells follow a monitor: the same triangles, never
+    tangled, the boundary nodes where they are (r-adaptation by the div-curl
+    deformation).
+
+    MESH is any triangle mesh meshio reads; its point data are carried to the new
+    node positions by linear interpolation in the old mesh (integer arrays, which
+    label nodes, stay as they are) into .vtu, .vtk and .xdmf; .msh (Gmsh 2.2) keeps
+    the physical groups only.
+    """
+    t0 = time.perf_counter()
+    suffix = "." + output.rsplit(".", 1)[-1].lower() if "." in output else ""
+    if suffix not in _MESHIO_FORMATS:
+        raise click.UsageError(
+            f"{output}: adapt writes {', '.join(_MESHIO_FORMATS)}; give one of those extensions"
+        )
+    code = _monitor(monitor)
+    files.check_outputs([output], [mesh_path])
+    m = read_meshio(mesh_path)
+    others = sorted({c.type for c in m.cells} - {"triangle", "line", "vertex"})
+    if others:
+        raise InputError(
+            f"{mesh_path}: cells other than triangles ({', '.join(others)}); adapt moves "
+            "triangle meshes"
+        )
+    points, tri = checked(m, mesh_path)
+    res = _adapt.adapt(points, tri, code, steps, source=mesh_path)
+    new = res.points
+    xyz = np.array(m.points, dtype=np.float64, copy=True)
+    xyz[:, :2] = new
+    data = {
+        k: v
+        if np.issubdtype(np.asarray(v).dtype, np.integer)
+        else _adapt.carry(points, tri, new, v)
+        for k, v in m.point_data.items()
+    }
+    import meshio
+
+    fmt = _MESHIO_FORMATS[suffix]
+    # the group names as meshio's Gmsh convention has them (name -> [tag, dimension])
+    names = {k: np.asarray(v).ravel() for k, v in m.field_data.items()}
+    cell_data = dict(m.cell_data)
+    if fmt == "gmsh22" and "gmsh:physical" not in cell_data and GROUP_DATA in cell_data:
+        # (a deformesh .vtk or .vtu: its group tags are the .msh physical tags)
+        tags = [np.asarray(t, dtype=np.int32) for t in cell_data[GROUP_DATA]]
+        cell_data.update({"gmsh:physical": tags, "gmsh:geometrical": tags})
+    if fmt == "gmsh22":  # (the groups only, as deformesh's own .msh: meshio writes
+        # $NodeData of numpy 2 arrays as "np.float64(0.0)", which no reader takes)
+        data = {}
+        cell_data = {k: v for k, v in cell_data.items() if k.startswith("gmsh:")}
+    out = meshio.Mesh(xyz, m.cells, point_data=data, cell_data=cell_data, field_data=names)
+    with files.atomic_path(output) as staged:
+        try:  # (meshio's console chatter kept off stdout, where --json goes)
+            with (
+                contextlib.redirect_stdout(io.StringIO()),
+                contextlib.redirect_stderr(io.StringIO()),
+            ):
+                meshio.write(staged, out, file_format=fmt, **_WRITE_OPTIONS.get(fmt, {}))
+        except OSError as exc:
+            raise WriteError(f"{output}: cannot write: {exc.strerror or exc}") from None
+        if fmt in ("vtu", "vtk42"):  # (meshio writes no field data there: the group names)
+            add = formats.vtu.add_field_data if fmt == "vtu" else formats.vtk.add_field_data
+            add(staged, m.field_data)
+    report = {"input": mesh_path, "output": output, "monitor": monitor, **res.report}
+    report["seconds"] = round(time.perf_counter() - t0, 3)
+    if as_json:
+        files.write_stdout(files.to_json(report))
+    r = report
+    say(
+        quiet,
+        f"{mesh_path} -> {output}: {r['moved_nodes']} of {r['nodes']} nodes moved "
+        f"({r['boundary_nodes_held']} boundary nodes held), {r['triangles']} triangles kept; "
+        f"sigma/mu {r['sigma_over_mu_before']:.3f} -> {r['sigma_over_mu']:.3f}, volume ratio "
+        f"{r['volume_ratio_before']:.2f} -> {r['volume_ratio']:.2f} ({r['seconds']:.2f} s)",
+    )
+
+
+def _monitor(text: str):
+    """The monitor expression as a function of points (an OptionError if it is not one)."""
+    from ..size import compile_expression
+
+    code = compile_expression(text, "--monitor")
+    if code.uses_distance:
+        raise OptionError("--monitor: d (the distance to a contour) is not defined for a mesh")
+
+    def monitor(q):
+        try:
+            return code(x=q[:, 0], y=q[:, 1])
+        except (ArithmeticError, ValueError, TypeError) as exc:
+            raise OptionError(f"--monitor {text!r} fails: {type(exc).__name__}: {exc}") from None
+
+    return monitor

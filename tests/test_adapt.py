@@ -1,0 +1,201 @@
+"""``deformesh adapt``: a mesh's nodes moved to follow a monitor, the triangles kept,
+nothing tangled, the boundary held; point data carried; bad input refused in one line."""
+
+import json
+
+import meshio
+import numpy as np
+import pytest
+
+from deformesh_cli.adapt import adapt, carry
+from deformesh_cli.geometry import signed_areas
+
+from .conftest import SAMPLES
+
+#: The ``movement`` package's ring monitor (its demo), 1/cosh^2 written with tanh.
+RING = "1 + 20 * (1 - tanh(200 * ((x - 0.5)**2 + (y - 0.5)**2 - 0.15))**2)"
+
+
+def ring(q):
+    r2 = (q[:, 0] - 0.5) ** 2 + (q[:, 1] - 0.5) ** 2
+    return 1 + 20 * (1 - np.tanh(200 * (r2 - 0.15)) ** 2)
+
+
+def square_grid(n: int):
+    """The unit square as n x n squares, each split by one diagonal."""
+    x, y = np.meshgrid(np.linspace(0, 1, n + 1), np.linspace(0, 1, n + 1), indexing="ij")
+    k = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)[:-1, :-1].ravel()
+    tri = np.concatenate([np.c_[k, k + n + 1, k + n + 2], np.c_[k, k + n + 2, k + 1]])
+    return np.c_[x.ravel(), y.ravel()], tri
+
+
+@pytest.fixture
+def grid_file(tmp_path):
+    p, tri = square_grid(20)
+    path = tmp_path / "sq.vtu"
+    data = {"u": p[:, 0] + 2 * p[:, 1], "id": np.arange(len(p), dtype=np.int32)}
+    meshio.write(path, meshio.Mesh(np.c_[p, np.zeros(len(p))], [("triangle", tri)], data))
+    return path, p, tri
+
+
+def test_the_ring_monitor_evens_the_cells_out(run, grid_file, tmp_path):
+    path, p, tri = grid_file
+    out = tmp_path / "ring.vtu"
+    r = run("adapt", path, "-o", out, "--monitor", RING, "--json")
+    assert r.exit_code == 0, r.stderr
+    rep = json.loads(r.stdout)
+    # movement's measures on the input mesh itself (its first line)
+    assert rep["volume_ratio_before"] == pytest.approx(11.49, abs=0.005)
+    assert rep["sigma_over_mu_before"] == pytest.approx(0.971, abs=0.0005)
+    assert rep["sigma_over_mu"] < 0.4  # (measured 0.387; movement's converged mesh 0.348)
+    m = meshio.read(out)
+    assert np.array_equal(m.cells_dict["triangle"], tri)  # the same triangles
+    assert (signed_areas(m.points[:, :2], tri) > 0).all()  # none tangled
+    # cells shrank on the ring: the smallest cells are there
+    area = signed_areas(m.points[:, :2], tri)
+    cen = m.points[tri, :2].mean(axis=1)
+    small = np.argsort(area)[:50]
+    assert np.abs(np.hypot(*(cen[small] - 0.5).T) - np.sqrt(0.15)).max() < 0.1
+    # the boundary did not move, to the bit
+    side = (p == 0).any(axis=1) | (p == 1).any(axis=1)
+    assert np.array_equal(m.points[side, :2], p[side])
+
+
+def test_a_constant_monitor_gives_the_mesh_back(run, grid_file, tmp_path):
+    path, p, _ = grid_file
+    for monitor in ("1", "3.7"):
+        out = tmp_path / f"same_{monitor}.vtu"
+        assert run("adapt", path, "-o", out, "--monitor", monitor, "-q").exit_code == 0
+        m = meshio.read(out)
+        assert np.array_equal(m.points[:, :2], p)
+        assert np.array_equal(m.point_data["u"], p[:, 0] + 2 * p[:, 1])
+
+
+def test_point_data_are_carried_by_linear_interpolation(run, grid_file, tmp_path):
+    path, p, tri = grid_file
+    out = tmp_path / "a.vtu"
+    assert run("adapt", path, "-o", out, "--monitor", "1 + 10 * exp(-20 * x)", "-q").exit_code == 0
+    m = meshio.read(out)
+    moved = (m.points[:, :2] != p).any(axis=1)
+    assert moved.sum() > 100
+    # u is linear: its interpolant is u itself, at every new place
+    want = m.points[:, 0] + 2 * m.points[:, 1]
+    assert np.abs(m.point_data["u"] - want).max() < 1e-12
+    assert np.array_equal(m.point_data["id"], np.arange(len(p)))  # labels stay
+
+
+def test_carry_finds_each_point_in_the_old_mesh():
+    p, tri = square_grid(6)
+    rng = np.random.default_rng(1)
+    new = p.copy()
+    inner = ((p > 0) & (p < 1)).all(axis=1)
+    new[inner] += rng.uniform(-0.05, 0.05, (inner.sum(), 2))
+    v = np.c_[3 * p[:, 0] - p[:, 1], p[:, 1]]
+    got = carry(p, tri, new, v)
+    assert np.abs(got - np.c_[3 * new[:, 0] - new[:, 1], new[:, 1]]).max() < 1e-12
+    assert np.array_equal(got[~inner], v[~inner])
+
+
+def test_a_deformesh_mesh_keeps_its_contour_nodes_and_groups(run, tmp_path):
+    mesh = tmp_path / "ff.vtu"
+    r = run("all", SAMPLES / "naca0012.csv", "--exterior", "-o", mesh, "-q")
+    assert r.exit_code == 0, r.stderr
+    out = tmp_path / "adapted.vtu"
+    monitor = "1 + 4 * exp(-((x - 1.3)**2 + 4 * y**2))"  # a wake-like band behind the tail
+    r = run("adapt", mesh, "-o", out, "--monitor", monitor, "--json")
+    assert r.exit_code == 0, r.stderr
+    a, b = meshio.read(mesh), meshio.read(out)
+    n = int((a.point_data["contour_point"] >= 0).sum())
+    assert np.array_equal(b.points[:n], a.points[:n])  # node k is contour point k, bit for bit
+    assert np.array_equal(b.point_data["contour_point"], a.point_data["contour_point"])
+    for x, y in zip(a.cells, b.cells):
+        assert x.type == y.type and np.array_equal(x.data, y.data)
+    assert all(np.array_equal(x, y) for x, y in zip(a.cell_data["group"], b.cell_data["group"]))
+    assert set(b.field_data) == set(a.field_data)  # the group names
+    assert json.loads(r.stdout)["moved_nodes"] > 0
+    # Gmsh 2.2 and legacy VTK out: the groups and their names too
+    for suffix in ("msh", "vtk"):
+        out = tmp_path / f"adapted.{suffix}"
+        assert run("adapt", mesh, "-o", out, "--monitor", monitor, "-q").exit_code == 0
+        c = meshio.read(out)
+        assert np.array_equal(c.points[:n, :2], a.points[:n, :2])
+        if suffix == "msh":
+            assert set(c.field_data) == set(a.field_data)  # $PhysicalNames
+        else:  # (meshio does not read a legacy file's dataset field data; VTK does)
+            import vtk
+
+            r = vtk.vtkUnstructuredGridReader()
+            r.SetFileName(str(out))
+            r.ReadAllFieldsOn()
+            r.Update()
+            fd = r.GetOutput().GetFieldData()
+            assert {fd.GetArrayName(i) for i in range(fd.GetNumberOfArrays())} == set(a.field_data)
+
+
+def test_adapt_the_library_function():
+    p, tri = square_grid(10)
+    res = adapt(p, tri, ring)
+    assert res.report["sigma_over_mu"] < res.report["sigma_over_mu_before"]
+    assert (signed_areas(res.points, tri) > 0).all()
+
+
+@pytest.mark.parametrize(
+    "monitor, code, text",
+    [
+        ("x - 0.5", 1, "sq.vtu: the monitor is -0.5 at (0, 0); it must be finite and > 0"),
+        ("log(x)", 1, "sq.vtu: the monitor is -inf at (0, 0)"),
+        ("1 + d", 2, "d (the distance to a contour) is not defined"),
+        ("1 + z", 2, "--monitor"),
+    ],
+)
+def test_a_bad_monitor_is_refused_and_no_file(run, grid_file, tmp_path, monitor, code, text):
+    path, _, _ = grid_file
+    out = tmp_path / "x.vtu"
+    r = run("adapt", path, "-o", out, "--monitor", monitor)
+    assert r.exit_code == code, r.stderr
+    assert text in r.stderr and "Traceback" not in r.stderr
+    if code == 1:  # (a usage error prints click's usage lines before its one)
+        assert r.stderr.count("\n") == 1
+    assert not out.exists()
+
+
+def test_bad_meshes_are_refused_in_one_line(run, tmp_path):
+    p, tri = square_grid(3)
+    folded = tmp_path / "folded.vtu"
+    meshio.write(folded, meshio.Mesh(np.c_[p, 0 * p[:, 0]], [("triangle", tri[:, ::-1])]))
+    quads = tmp_path / "quads.vtu"
+    meshio.write(quads, meshio.Mesh(np.c_[p, 0 * p[:, 0]], [("quad", np.array([[0, 4, 5, 1]]))]))
+    mixed = tmp_path / "mixed.vtu"
+    meshio.write(
+        mixed,
+        meshio.Mesh(np.c_[p, 0 * p[:, 0]], [("triangle", tri), ("quad", np.array([[0, 4, 5, 1]]))]),
+    )
+    for path, text in (
+        (folded, "is folded or flat"),
+        (quads, "cells other than triangles (quad)"),
+        (mixed, "cells other than triangles (quad)"),
+        (tmp_path / "none.vtu", "no such file"),
+    ):
+        out = tmp_path / "o.vtu"
+        r = run("adapt", path, "-o", out, "--monitor", "1 + x")
+        assert r.exit_code == 1 and text in r.stderr, r.stderr
+        assert r.stderr.count("\n") == 1 and not out.exists()
+    r = run("adapt", folded, "-o", tmp_path / "o.ply", "--monitor", "1")
+    assert r.exit_code == 2 and "adapt writes" in r.stderr
+
+
+def test_the_docs_ring_example_evens_the_circle_out(run, tmp_path):
+    """docs/commands.md's example: the caption's numbers, and sigma/mu falling under a
+    tenth of where it started."""
+    mesh, out = tmp_path / "c.vtu", tmp_path / "r.vtu"
+    assert run("all", SAMPLES / "circle.csv", "--max-h", "0.04", "-o", mesh, "-q").exit_code == 0
+    monitor = "1 + 10 * (1 - tanh(30 * (x*x + y*y - 0.25))**2)"
+    r = run("adapt", mesh, "-o", out, "--monitor", monitor, "--json")
+    assert r.exit_code == 0, r.stderr
+    rep = json.loads(r.stdout)
+    assert rep["sigma_over_mu"] < rep["sigma_over_mu_before"] / 10
+    page = " ".join((SAMPLES.parent / "docs" / "commands.md").read_text().split())
+    assert (
+        f"({rep['triangles']:,} triangles): sigma/mu {rep['sigma_over_mu_before']:.3f} before, "
+        f"{rep['sigma_over_mu']:.3f} after"
+    ) in page
