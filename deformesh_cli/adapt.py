@@ -29,7 +29,7 @@ import numpy as np
 from .deform import DEFAULT_STEPS, deform_
 from .errors import InputError, MonitorError, OptionError
 from .geometry import boundary_edges, signed_areas
-from .size import SizePath
+from .size import SizePath, positive_values
 
 #: Pseudo-time steps by default: the measures improve little past this many on the
 #: ``movement`` ring (``benchmarks/MEASURED.md``).
@@ -50,14 +50,10 @@ def monitor_values(
     """``monitor`` at the points ``q``, checked finite and positive (a
     :class:`MonitorError` naming the mesh ``source`` and the first point where it is
     not)."""
-    m = np.asarray(monitor(q), dtype=np.float64)
-    if m.shape == ():
-        m = np.full(len(q), float(m))
-    if m.shape != (len(q),):
-        raise MonitorError(f"{source}: the monitor gave shape {m.shape} for {len(q)} points")
-    bad = ~(np.isfinite(m) & (m > 0))
-    if bad.any():
-        k = int(np.argmax(bad))
+    m, k = positive_values(monitor(q), len(q))
+    if m is None:
+        raise MonitorError(f"{source}: the monitor gave shape {k} for {len(q)} points")
+    if k is not None:
         raise MonitorError(
             f"{source}: the monitor is {float(m[k]):.6g} at ({float(q[k, 0]):.6g}, "
             f"{float(q[k, 1]):.6g}); it must be finite and > 0 wherever the mesh's nodes go"
@@ -156,10 +152,10 @@ def carry(old: np.ndarray, tri: np.ndarray, new: np.ndarray, values: np.ndarray)
         return out
     polys = shapely.polygons(old[tri])
     at, hit = shapely.STRtree(polys).query(shapely.points(new[moved]), predicate="intersects")
-    first = np.full(len(moved), -1)
-    first[at[::-1]] = hit[::-1]  # (the lowest-numbered triangle holding each point)
-    if (first < 0).any():  # (the mesh's nodes stay inside it: round-off at its side)
-        k = moved[int(np.argmax(first < 0))]
+    first = np.full(len(moved), len(tri))
+    np.minimum.at(first, at, hit)  # (the lowest-numbered triangle holding each point)
+    if (first == len(tri)).any():  # (the mesh's nodes stay inside it: round-off at its side)
+        k = moved[int(np.argmax(first == len(tri)))]
         raise InputError(f"node {k} moved out of the mesh to ({new[k, 0]:.6g}, {new[k, 1]:.6g})")
     a, b, c = (old[tri[first, j]] for j in range(3))
     p = new[moved]

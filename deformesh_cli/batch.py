@@ -111,9 +111,9 @@ def prepare(
         passed = {f: why for f, why in found if why}
         errors = {}
     tasks = make_tasks([f for f, _ in found], out_dir, options.replace(fmt=fmt), passed, errors)
-    run = [t for t in tasks if t.passed is None]
     inputs = [t.source for t in tasks] + [options.size_field]
-    formats.check_outputs([t.output for t in run], fmt, inputs, typed=False, force=force)
+    outputs = [t.output for t in tasks if t.output]  # (a file passed over or failed names none)
+    formats.check_outputs(outputs, fmt, inputs, typed=False, force=force)
     files.make_folder(out_dir)
     return tasks
 

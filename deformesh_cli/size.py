@@ -77,6 +77,19 @@ def _segment_distance(q, a, b):
     return np.hypot(*(a + t[:, None] * ab - q).T)
 
 
+def positive_values(raw, n: int):
+    """``(values, k)``: a function's answer for ``n`` points as an (n,) float array (a
+    scalar spread over them) and the first point where it is not finite and > 0, or
+    None; ``(None, shape)`` if it has another shape."""
+    v = np.asarray(raw, dtype=np.float64)
+    if v.shape == ():
+        v = np.full(n, float(v))
+    if v.shape != (n,):
+        return None, v.shape
+    bad = ~(np.isfinite(v) & (v > 0))
+    return v, (int(np.argmax(bad)) if bad.any() else None)
+
+
 @dataclass
 class SizeFunction:
     """``f`` as given (any positive scale), and its normalisation on a box."""
@@ -90,14 +103,10 @@ class SizeFunction:
 
     def values(self, q: np.ndarray) -> np.ndarray:
         """``f`` (as given) at points, checked finite and positive."""
-        f = np.asarray(self.raw(q), dtype=np.float64)
-        if f.shape == ():
-            f = np.full(len(q), float(f))
-        if f.shape != (len(q),):
-            raise SizeError(f"size function {self.label}: gave shape {f.shape} for {len(q)} points")
-        bad = ~(np.isfinite(f) & (f > 0))
-        if bad.any():
-            k = int(np.argmax(bad))
+        f, k = positive_values(self.raw(q), len(q))
+        if f is None:
+            raise SizeError(f"size function {self.label}: gave shape {k} for {len(q)} points")
+        if k is not None:
             where = f"{self.source}: " if self.source else ""
             raise SizeError(
                 f"{where}size function {self.label} is {f[k]:.3g} at "
