@@ -2,20 +2,32 @@
 triangles unchanged (the paper's section 3.2 deformation, driven by a solution).
 
 Where ``M`` is large the cells shrink: the target is equidistribution, every cell's
-integral of ``M`` the same.  Relative to the input mesh's own cells, a cell at ``y``
-should end ``c / M(y)`` times its area, ``c`` chosen so the domain keeps its area:
-that is the deformation's size function ``f = c / M`` (density ``g = 1/f = M / c``,
-whose integral over the domain is its area, by the P1 rule on the input mesh).  The
-div-curl deformation goes from ``g = 1`` (the input's cells as they are) to it over
-pseudo-time (:func:`.deform.deform_`, linear path): at every step ``div U = -dg/dt``,
-``curl U = 0`` on the current mesh, ``U = 0`` on the boundary nodes, which stay
-where they are, bit for bit.  Every step is checked for folds and halved where one
-would appear, as in meshing; if none can be avoided the run is refused.  ``M = 1``
-gives back the input coordinates unchanged (``g`` stays 1, no node moves).
+integral of ``M`` the same.  Relative to a reference mesh's cells (the input mesh
+itself by default), a cell at ``y`` should end ``c / M(y)`` times its reference
+area, ``c`` chosen so the domain keeps its area: that is the deformation's size
+function ``f = c / M`` (density ``g = 1/f = M / c``, whose integral over the domain
+is its area, by the P1 rule on the reference mesh).  The div-curl deformation goes
+from ``g = 1`` (the reference's cells as they are) to it over pseudo-time on the
+paper's linear path ``g = (1 - t) + t M / c``: at every time the velocity is
+``U / g`` with ``div U = -dg/dt = 1 - M / c``, ``curl U = 0`` on the current mesh,
+integrated by the midpoint rule (second order: :data:`ADAPT_STEPS` steps reach what
+several hundred first-order ones do, ``benchmarks/MEASURED.md``).  Every stage is
+checked for folds and its step halved where one would appear; if none can be
+avoided the run is refused.  ``M`` constant gives back the reference coordinates
+unchanged (``g`` stays 1, no node moves).
+
+Boundary nodes either stay where they are, bit for bit (the user's contour points,
+corners, and every boundary node with ``slide=False``), or slide along the straight
+run of boundary they sit on (their two boundary neighbours collinear with them, to
+:data:`COLLINEAR` relative): only their tangential velocity is solved for, so a node
+on an axis-parallel side keeps that coordinate to the bit, and the domain keeps its
+shape.  The least-squares functional couples the two velocity components only
+through the boundary (its ``ux``-``uy`` block is ``oint ux d(uy)``, a null
+Lagrangian), which :class:`SlipSystem` assembles edge by edge.
 
 The equidistribution measures are ``movement``'s: ``M`` interpolated at the nodes,
 integrated over each cell of the adapted mesh (P1), divided by that cell's area in
-the input mesh; their ``sigma / mu`` and ``max / min`` (its "volume ratio").
+the reference mesh; their ``sigma / mu`` and ``max / min`` (its "volume ratio").
 Nothing here prints or exits.
 """
 
@@ -26,14 +38,31 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .deform import DEFAULT_STEPS, deform_
-from .errors import InputError, MonitorError, OptionError
+from .divcurl import Assembler
+from .errors import FoldError, InputError, MonitorError, OptionError
 from .geometry import boundary_edges, signed_areas
-from .size import SizePath, positive_values
+from .quality import measures
+from .size import positive_values
 
-#: Pseudo-time steps by default: the measures improve little past this many on the
-#: ``movement`` ring (``benchmarks/MEASURED.md``).
-ADAPT_STEPS = 4 * DEFAULT_STEPS
+#: Midpoint-rule pseudo-time steps by default: on the ``movement`` ring, 20 steps end
+#: within 0.005 of sigma/mu's limit under step refinement (``benchmarks/MEASURED.md``).
+ADAPT_STEPS = 20
+
+#: Halvings of one step allowed before a fold is reported.
+MAX_HALVINGS = 10
+
+#: A boundary node slides when the cross product of its two boundary edges is at most
+#: this fraction of their lengths' product (collinear up to coordinates' round-off).
+COLLINEAR = 1e-12
+
+#: Monitors built from a point field (``--field``): ``gradient``, ``1 + alpha |grad u|^2
+#: / max |grad u|^2``; ``hessian``, ``1 + alpha |H u| / max |H u|`` (Frobenius norm),
+#: with gradients recovered at the nodes by area-weighted averages of the cells'.
+KINDS = ("gradient", "hessian")
+
+#: ``alpha`` by default: the front benchmark's L2 interpolation error is within a few
+#: per cent of its best over alpha in 1..100 here (``benchmarks/MEASURED.md``).
+DEFAULT_ALPHA = 10.0
 
 
 @dataclass
@@ -70,20 +99,12 @@ def equidistribution(
     return float(q.std() / q.mean()), float(q.max() / q.min())
 
 
-def adapt(
-    points: np.ndarray,
-    tri: np.ndarray,
-    monitor: Callable[[np.ndarray], np.ndarray],
-    steps: int = ADAPT_STEPS,
-    source: str = "<mesh>",
-) -> Adapted:
-    """``points`` moved to follow ``monitor`` (points (k, 2) -> M (k,)); ``tri`` (counter-
-    clockwise) unchanged, the boundary nodes held (see the module)."""
-    points = np.asarray(points, dtype=np.float64)
-    tri = np.asarray(tri, dtype=np.int64)
-    area = signed_areas(points, tri)
+def check_mesh(points: np.ndarray, tri: np.ndarray, source: str) -> np.ndarray:
+    """The triangles' signed areas, all > 0 (else an :class:`InputError` naming the
+    first folded or flat one and where it is)."""
     if len(tri) == 0:
         raise InputError(f"{source}: no triangles to adapt")
+    area = signed_areas(points, tri)
     if not (area > 0).all():
         k = int(np.argmax(~(area > 0)))
         c = points[tri[k]].mean(axis=0)
@@ -91,82 +112,292 @@ def adapt(
             f"{source}: triangle {k} near ({float(c[0]):.6g}, {float(c[1]):.6g}) is folded or "
             "flat; adapt needs a mesh whose triangles are all counter-clockwise"
         )
+    return area
+
+
+def boundary_motion(
+    points: np.ndarray, tri: np.ndarray, held: np.ndarray | None = None, slide: bool = True
+) -> tuple[np.ndarray, np.ndarray]:
+    """Which nodes may not move and the direction the sliding ones move along.
+
+    Returns ``(fixed, tangent)``: ``fixed`` (N,) is True at the nodes ``held`` names
+    (a mask, or None), at every boundary node without ``slide``, and at every
+    boundary node that is not on a straight run (a corner, a node of a curve, a
+    node where boundaries touch); ``tangent`` (N, 2) is the unit direction of the
+    run at a sliding node (from its previous to its next boundary neighbour) and 0
+    elsewhere.
+    """
+    n = len(points)
+    edges = boundary_edges(tri, n)
+    fixed = np.zeros(n, dtype=bool) if held is None else np.array(held, dtype=bool)
+    tangent = np.zeros((n, 2))
+    on = np.zeros(n, dtype=bool)
+    on[edges.ravel()] = True
+    if not slide:
+        return fixed | on, tangent
+    # each boundary node's next and previous boundary neighbour (the domain on the left)
+    out_count = np.bincount(edges[:, 0], minlength=n)
+    nxt = np.full(n, -1)
+    prv = np.full(n, -1)
+    nxt[edges[:, 0]] = edges[:, 1]
+    prv[edges[:, 1]] = edges[:, 0]
+    simple = on & (out_count == 1) & (np.bincount(edges[:, 1], minlength=n) == 1)
+    k = np.flatnonzero(simple)
+    a, b = points[k] - points[prv[k]], points[nxt[k]] - points[k]
+    cross = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    la, lb = np.hypot(*a.T), np.hypot(*b.T)
+    run = (np.abs(cross) <= COLLINEAR * la * lb) & ((a * b).sum(axis=1) > 0)
+    sliding = np.zeros(n, dtype=bool)
+    sliding[k[run]] = True
+    sliding &= ~fixed
+    fixed |= on & ~sliding
+    s = np.flatnonzero(sliding)
+    d = points[nxt[s]] - points[prv[s]]
+    tangent[s] = d / np.hypot(*d.T)[:, None]
+    return fixed, tangent
+
+
+class SlipSystem:
+    """The div-curl least-squares system on the motions a mesh's nodes may make.
+
+    Unknowns: ``(ux, uy)`` at a free inner node, ``w`` at a sliding node (its
+    velocity ``w t`` along its tangent ``t``), none at a fixed node.  The functional
+    ``sum_T |T| ((div U - r)^2 + (curl U)^2)`` has the P1 Laplace stiffness ``L`` on
+    each component and couples them by ``B``, ``ux . B uy = oint ux d(uy)``: on each
+    boundary edge ``a -> b``, ``(ux_a + ux_b) (uy_b - uy_a) / 2``, whatever the
+    coordinates.  The reduced matrix ``P^T [[L, B], [B^T, L]] P`` is factorised
+    (QDLDL, approximate minimum degree) once, and refactorised with new numbers on
+    later solves while its pattern holds.
+    """
+
+    def __init__(self, tri: np.ndarray, fixed: np.ndarray, tangent: np.ndarray):
+        import scipy.sparse as sp
+
+        n = len(fixed)
+        self.n = n
+        self.tri = tri
+        self.asm = Assembler(tri, n, np.zeros(n, dtype=bool))
+        slide = np.flatnonzero(tangent.any(axis=1) & ~fixed)
+        inner = np.flatnonzero(~fixed & ~tangent.any(axis=1))
+        ni, ns = len(inner), len(slide)
+        rows = np.concatenate([inner, n + inner, slide, n + slide])
+        cols = np.concatenate([np.arange(2 * ni), 2 * ni + np.arange(ns), 2 * ni + np.arange(ns)])
+        vals = np.concatenate([np.ones(2 * ni), tangent[slide, 0], tangent[slide, 1]])
+        self.P = sp.csr_matrix((vals, (rows, cols)), shape=(2 * n, 2 * ni + ns))
+        self.P.eliminate_zeros()  # (a side parallel to an axis: one component only)
+        e = boundary_edges(tri, n)
+        a, b = e[:, 0], e[:, 1]
+        half = np.full(len(e), 0.5)
+        self.B = sp.csr_matrix(
+            (np.concatenate([half, -half, half, -half]),
+             (np.concatenate([a, a, b, b]), np.concatenate([b, a, b, a]))),
+            shape=(n, n),
+        )  # fmt: skip
+        self._ldl = None
+        self._pattern = None
+        self.factorisations = 0
+
+    def velocity(self, points: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """``U`` (N, 2) with ``div U = r`` (per triangle), ``curl U = 0``, in the least-
+        squares sense on the allowed motions."""
+        import qdldl
+        import scipy.sparse as sp
+
+        U = np.zeros((self.n, 2))
+        if self.P.shape[1] == 0:
+            return U
+        L, _ = self.asm.system(points, U)
+        L = L.tocsr()
+        A = sp.bmat([[L, self.B], [self.B.T, L]], format="csr")
+        K = (self.P.T @ A @ self.P).tocsr()
+        upper = sp.triu(K, format="csc")
+        upper.sort_indices()
+        pattern = (upper.indptr, upper.indices)
+        if self._ldl is not None and all(
+            np.array_equal(x, y) for x, y in zip(pattern, self._pattern)
+        ):
+            self._ldl.update(upper, upper=True)
+        else:
+            self._ldl = qdldl.Solver(upper, upper=True)
+            self._pattern = pattern
+            self.factorisations += 1
+        load = self.asm.load(points, r)
+        rhs = self.P.T @ np.concatenate([load[:, 0], load[:, 1]])
+        u = self.P @ self._ldl.solve(rhs)
+        U[:, 0], U[:, 1] = u[: self.n], u[self.n :]
+        return U
+
+
+def adapt(
+    points: np.ndarray,
+    tri: np.ndarray,
+    monitor: Callable[[np.ndarray], np.ndarray],
+    steps: int = ADAPT_STEPS,
+    source: str = "<mesh>",
+    held: np.ndarray | None = None,
+    slide: bool = True,
+) -> Adapted:
+    """``points`` (the reference mesh) moved to follow ``monitor`` (points (k, 2) -> M
+    (k,)); ``tri`` (counter-clockwise) unchanged; boundary nodes as
+    :func:`boundary_motion` says (``held``: a node mask of the user's points)."""
+    points = np.asarray(points, dtype=np.float64)
+    tri = np.asarray(tri, dtype=np.int64)
+    area = check_mesh(points, tri, source)
     if steps < 1:
         raise OptionError(f"--steps must be >= 1, got {steps}")
     m0 = monitor_values(monitor, points, source)
-    # g = M / c, its P1 integral over the domain its area (the input mesh's cells);
+    # g = M / c, its P1 integral over the domain its area (the reference's cells);
     # relative to the first node's value and summed alike, so that a monitor equal at
     # every node gives c that value exactly: g = 1, dg/dt = 0, and no node moves
     share = (m0[tri] / m0[0]).mean(axis=1)
     c = float(m0[0]) * float(np.sum(area * share) / np.sum(area))
-    fixed = np.unique(boundary_edges(tri, len(points)))
+    fixed, tangent = boundary_motion(points, tri, held, slide)
     before = equidistribution(points, tri, m0, area)
+    system = SlipSystem(tri, fixed, tangent)
 
-    def g1(q):
-        return monitor_values(monitor, q, source) / c
+    def velocity(q: np.ndarray, t: float) -> np.ndarray:
+        g1 = monitor_values(monitor, q, source) / c
+        U = system.velocity(q, (1.0 - g1)[tri].mean(axis=1))
+        return U / ((1.0 - t) + t * g1)[:, None]
 
-    lo, hi = points.min(axis=0), points.max(axis=0)
-    new, stats = deform_(
-        points,
-        tri,
-        np.zeros(0, dtype=np.int64),
-        np.zeros((0, 2)),
-        fixed,
-        steps=steps,
-        # (direct: one ordering for every step, whose matrices share their pattern; the
-        # 300 x 300 ring grid took 15 s so against 52 s with multigrid, MEASURED.md)
-        solver="direct",
-        size=SizePath(g1, (lo[0], lo[1], hi[0], hi[1])),
-        advice=(
-            "the monitor asks for more than these cells can give; give a smoother monitor",
-            "give a smoother monitor or more --steps",
-        ),
-    )
-    after = equidistribution(new, tri, monitor_values(monitor, new, source), area)
+    pos = points.copy()
+    t, dt, halvings = 0.0, 1.0 / steps, 0
+    while t < 1.0:
+        h = min(dt, 1.0 - t)
+        v = velocity(pos, t)
+        new = pos
+        while True:
+            mid = pos + (0.5 * h) * v
+            if (signed_areas(mid, tri) > 0).all():
+                new = pos + h * velocity(mid, t + 0.5 * h)
+                if (signed_areas(new, tri) > 0).all():
+                    break
+            if halvings >= MAX_HALVINGS * steps:
+                worst = mid if not (signed_areas(mid, tri) > 0).all() else new
+                x, y = worst[tri[int(np.argmin(signed_areas(worst, tri)))]].mean(axis=0)
+                raise FoldError(
+                    f"{source}: the adaptation folds a triangle near ({x:.6g}, {y:.6g}) at "
+                    f"pseudo-time {t:.3f} even with the step refined; give a smoother "
+                    "monitor or more --steps"
+                )
+            h *= 0.5
+            halvings += 1
+        pos = new
+        t = 1.0 if h == 1.0 - t else t + h
+    fixed_count = int(fixed.sum())
+    after = equidistribution(pos, tri, monitor_values(monitor, pos, source), area)
     report = {
         "nodes": len(points),
         "triangles": len(tri),
-        "boundary_nodes_held": len(fixed),
+        "boundary_nodes_held": fixed_count,
+        "boundary_nodes_sliding": int(tangent.any(axis=1).sum()),
         "steps": steps,
-        "halvings": stats.halvings,
+        "halvings": halvings,
         "sigma_over_mu_before": before[0],
         "volume_ratio_before": before[1],
         "sigma_over_mu": after[0],
         "volume_ratio": after[1],
-        "moved_nodes": int((new != points).any(axis=1).sum()),
+        "smallest_angle": float(measures(pos, tri)[0].min()),
+        "tangled": int((signed_areas(pos, tri) <= 0).sum()),
+        "moved_nodes": int((pos != points).any(axis=1).sum()),
     }
-    return Adapted(new, report)
+    return Adapted(pos, report)
+
+
+def locate(old: np.ndarray, tri: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For each point of ``q``: the lowest-numbered triangle of the mesh ``(old, tri)``
+    holding it (shapely's STRtree over the triangles), and its barycentric weights
+    there (k, 3).  A point outside the mesh is an :class:`InputError`."""
+    import shapely
+
+    polys = shapely.polygons(old[tri])
+    at, hit = shapely.STRtree(polys).query(shapely.points(q), predicate="intersects")
+    first = np.full(len(q), len(tri))
+    np.minimum.at(first, at, hit)  # (the lowest-numbered triangle holding each point)
+    if (first == len(tri)).any():
+        k = int(np.argmax(first == len(tri)))
+        raise InputError(f"the point ({q[k, 0]:.6g}, {q[k, 1]:.6g}) is outside the mesh")
+    a, b, c = (old[tri[first, j]] for j in range(3))
+    den = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
+    wb = (q[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (q[:, 1] - a[:, 1])
+    wc = (b[:, 0] - a[:, 0]) * (q[:, 1] - a[:, 1]) - (q[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
+    wb, wc = wb / den, wc / den
+    return first, np.column_stack([1.0 - wb - wc, wb, wc])
 
 
 def carry(old: np.ndarray, tri: np.ndarray, new: np.ndarray, values: np.ndarray) -> np.ndarray:
     """``values`` (one row per node of the mesh at ``old``) at the points ``new``, by P1
-    interpolation in the old mesh: each point in a triangle that holds it (shapely's
-    STRtree over the triangles; a point on a shared side takes the first, equal up to
-    round-off); a node that did not move keeps its value to the bit."""
-    import shapely
-
+    interpolation in the old mesh (:func:`locate`; a point on a shared side takes the
+    lower-numbered triangle, equal up to round-off); a node that did not move keeps its
+    value to the bit."""
     values = np.asarray(values)
     out = np.array(values, dtype=np.float64, copy=True)
     moved = np.flatnonzero((new != old).any(axis=1))
     if not len(moved):
         return out
-    polys = shapely.polygons(old[tri])
-    at, hit = shapely.STRtree(polys).query(shapely.points(new[moved]), predicate="intersects")
-    first = np.full(len(moved), len(tri))
-    np.minimum.at(first, at, hit)  # (the lowest-numbered triangle holding each point)
-    if (first == len(tri)).any():  # (the mesh's nodes stay inside it: round-off at its side)
-        k = moved[int(np.argmax(first == len(tri)))]
-        raise InputError(f"node {k} moved out of the mesh to ({new[k, 0]:.6g}, {new[k, 1]:.6g})")
-    a, b, c = (old[tri[first, j]] for j in range(3))
-    p = new[moved]
-    den = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
-    wb = (
-        (p[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (p[:, 1] - a[:, 1])
-    ) / den
-    wc = (
-        (b[:, 0] - a[:, 0]) * (p[:, 1] - a[:, 1]) - (p[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
-    ) / den
-    w = np.column_stack([1.0 - wb - wc, wb, wc])
+    first, w = locate(old, tri, new[moved])
     v = values[tri[first]].astype(np.float64)  # (m, 3, ...)
     out[moved] = np.einsum("mj,mj...->m...", w, v)
     return out
+
+
+def recovered_gradient(points: np.ndarray, tri: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """``grad u`` (N, 2) at the nodes: the area-weighted mean of the P1 gradients of the
+    cells around each node."""
+    from .divcurl import gradients
+
+    gx, gy, a2 = gradients(points, tri)
+    g = np.column_stack([(gx * u[tri]).sum(axis=1), (gy * u[tri]).sum(axis=1)])
+    n = len(points)
+    w = np.bincount(tri.ravel(), weights=np.repeat(a2, 3), minlength=n)
+    out = np.empty((n, 2))
+    for k in range(2):
+        out[:, k] = np.bincount(tri.ravel(), weights=np.repeat(a2 * g[:, k], 3), minlength=n) / w
+    return out
+
+
+def field_monitor(
+    points: np.ndarray,
+    tri: np.ndarray,
+    u: np.ndarray,
+    alpha: float = DEFAULT_ALPHA,
+    kind: str = "gradient",
+    name: str = "the field",
+) -> np.ndarray:
+    """The monitor at the nodes built from the point field ``u`` (see :data:`KINDS`);
+    a field constant over the mesh gives ``M = 1``."""
+    if kind not in KINDS:
+        raise OptionError(f"--kind must be one of {', '.join(KINDS)}, got {kind!r}")
+    if not (np.isfinite(alpha) and alpha >= 0):
+        raise OptionError(f"--alpha must be finite and >= 0, got {alpha}")
+    u = np.asarray(u, dtype=np.float64)
+    if u.ndim == 2 and u.shape[1] == 1:
+        u = u[:, 0]
+    if u.ndim != 1:
+        raise InputError(f"{name} has {u.shape[1]} components; adapt follows a scalar field")
+    if not np.isfinite(u).all():
+        k = int(np.argmax(~np.isfinite(u)))
+        raise InputError(f"{name} is {u[k]} at node {k}; it must be finite")
+    grad = recovered_gradient(points, tri, u)
+    if kind == "gradient":
+        s = (grad**2).sum(axis=1)
+    else:
+        hx = recovered_gradient(points, tri, grad[:, 0])
+        hy = recovered_gradient(points, tri, grad[:, 1])
+        s = np.sqrt((hx**2).sum(axis=1) + (hy**2).sum(axis=1))
+    top = s.max()
+    return np.ones(len(u)) if top == 0 else 1.0 + alpha * s / top
+
+
+def interpolated(points: np.ndarray, tri: np.ndarray, values: np.ndarray):
+    """``values`` at the nodes of the mesh ``(points, tri)`` as a function of points, by
+    P1 interpolation (a point at a node gets that node's value to the bit)."""
+    values = np.asarray(values, dtype=np.float64)
+
+    def at(q: np.ndarray) -> np.ndarray:
+        if q.shape == points.shape and np.array_equal(q, points):
+            return values.copy()
+        first, w = locate(points, tri, q)
+        return (values[tri[first]] * w).sum(axis=1)
+
+    return at

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from deformesh_cli.adapt import adapt, carry
-from deformesh_cli.geometry import signed_areas
+from deformesh_cli.geometry import boundary_edges, signed_areas
 
 from .conftest import SAMPLES
 
@@ -47,7 +47,11 @@ def test_the_ring_monitor_evens_the_cells_out(run, grid_file, tmp_path):
     # movement's measures on the input mesh itself (its first line)
     assert rep["volume_ratio_before"] == pytest.approx(11.49, abs=0.005)
     assert rep["sigma_over_mu_before"] == pytest.approx(0.971, abs=0.0005)
-    assert rep["sigma_over_mu"] < 0.4  # (measured 0.387; movement's converged mesh 0.348)
+    # at least as even as movement's converged Monge-Ampere mesh (0.348; its volume
+    # ratio, 8.84, is not reached: benchmarks/RESULTS.md)
+    assert rep["sigma_over_mu"] <= 0.348
+    assert rep["volume_ratio"] < rep["volume_ratio_before"]
+    assert rep["tangled"] == 0 and rep["halvings"] == 0
     m = meshio.read(out)
     assert np.array_equal(m.cells_dict["triangle"], tri)  # the same triangles
     assert (signed_areas(m.points[:, :2], tri) > 0).all()  # none tangled
@@ -56,9 +60,73 @@ def test_the_ring_monitor_evens_the_cells_out(run, grid_file, tmp_path):
     cen = m.points[tri, :2].mean(axis=1)
     small = np.argsort(area)[:50]
     assert np.abs(np.hypot(*(cen[small] - 0.5).T) - np.sqrt(0.15)).max() < 0.1
-    # the boundary did not move, to the bit
-    side = (p == 0).any(axis=1) | (p == 1).any(axis=1)
-    assert np.array_equal(m.points[side, :2], p[side])
+    # the sides' nodes slid along them, each keeping its side's coordinate to the bit;
+    # the corners stayed
+    q = m.points[:, :2]
+    side = (p == 0) | (p == 1)
+    assert np.array_equal(q[side], p[side])
+    assert rep["boundary_nodes_held"] == 4 and rep["boundary_nodes_sliding"] == 76
+    assert (q[side.any(axis=1)] != p[side.any(axis=1)]).any(axis=1).sum() > 40
+    corners = side.all(axis=1)
+    assert np.array_equal(q[corners], p[corners])
+
+
+def test_boundary_fixed_holds_every_boundary_node(run, grid_file, tmp_path):
+    path, p, tri = grid_file
+    out = tmp_path / "held.vtu"
+    r = run("adapt", path, "-o", out, "--monitor", RING, "--boundary", "fixed", "--json")
+    assert r.exit_code == 0, r.stderr
+    rep = json.loads(r.stdout)
+    assert rep["boundary_nodes_held"] == 80 and rep["boundary_nodes_sliding"] == 0
+    q = meshio.read(out).points[:, :2]
+    side = ((p == 0) | (p == 1)).any(axis=1)
+    assert np.array_equal(q[side], p[side])
+    assert rep["sigma_over_mu"] < 0.4
+
+
+def test_nodes_slide_along_a_slanted_straight_side():
+    """A square turned 30 degrees: its side nodes move along their sides (to round-off),
+    its corners stay, and the result is as even as on the upright square."""
+    p, tri = square_grid(20)
+    a = np.radians(30)
+    rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    q = p @ rot.T
+
+    def turned_ring(x):
+        return ring(x @ rot)  # the ring monitor in the square's own frame
+
+    res = adapt(q, tri, turned_ring)
+    upright = adapt(p, tri, ring)
+    back = res.points @ rot  # the result in the square's frame
+    side = (p == 0) | (p == 1)
+    assert np.abs(back[side] - p[side]).max() < 1e-12
+    corners = side.all(axis=1)
+    assert np.abs(res.points[corners] - q[corners]).max() == 0
+    assert res.report["boundary_nodes_sliding"] == 76
+    assert res.report["sigma_over_mu"] == pytest.approx(upright.report["sigma_over_mu"], abs=1e-6)
+    assert (signed_areas(res.points, tri) > 0).all()
+
+
+def test_the_slip_system_is_the_coupled_least_squares_system():
+    """SlipSystem's edge-by-edge coupling equals the element-by-element coupled
+    matrix (assemble_coupled) on the motions allowed, on a moved, curved mesh."""
+    from deformesh_cli.adapt import SlipSystem, boundary_motion
+    from deformesh_cli.divcurl import assemble_coupled
+
+    p, tri = square_grid(6)
+    rng = np.random.default_rng(3)
+    inner = ((p > 0) & (p < 1)).all(axis=1)
+    p[inner] += rng.uniform(-0.03, 0.03, (inner.sum(), 2))
+    p[:, 1] += 0.3 * p[:, 0] ** 2 * (p[:, 1] > 0)  # the top side bends: its nodes held
+    fixed, tangent = boundary_motion(p, tri)
+    assert tangent.any(axis=1).sum() > 0 and fixed.sum() > 4
+    system = SlipSystem(tri, fixed, tangent)
+    r = rng.uniform(-1, 1, len(tri))
+    A, b = assemble_coupled(p, tri, r)
+    P = system.P.toarray()
+    want = np.linalg.solve(P.T @ A.toarray() @ P, P.T @ b)
+    got = system.velocity(p, r)
+    assert np.abs(np.concatenate([got[:, 0], got[:, 1]]) - P @ want).max() < 1e-12
 
 
 def test_a_constant_monitor_gives_the_mesh_back(run, grid_file, tmp_path):
@@ -112,7 +180,20 @@ def test_a_deformesh_mesh_keeps_its_contour_nodes_and_groups(run, tmp_path):
         assert x.type == y.type and np.array_equal(x.data, y.data)
     assert all(np.array_equal(x, y) for x, y in zip(a.cell_data["group"], b.cell_data["group"]))
     assert set(b.field_data) == set(a.field_data)  # the group names
-    assert json.loads(r.stdout)["moved_nodes"] > 0
+    rep = json.loads(r.stdout)
+    assert rep["moved_nodes"] > 0 and rep["boundary_nodes_sliding"] > 0
+    # the box's nodes stayed on their sides (each its side's coordinate to the bit), and
+    # some slid; the box's corners stayed
+    box = np.zeros(len(a.points), dtype=bool)
+    box[boundary_edges(a.cells_dict["triangle"], len(a.points)).ravel()] = True
+    box[:n] = False
+    lo, hi = a.points[:, :2].min(axis=0), a.points[:, :2].max(axis=0)
+    on = (a.points[:, :2] == lo) | (a.points[:, :2] == hi)
+    assert on[box].any(axis=1).all()
+    assert np.array_equal(b.points[:, :2][on & box[:, None]], a.points[:, :2][on & box[:, None]])
+    assert (b.points[box] != a.points[box]).any(axis=1).sum() > 10
+    corners = on.all(axis=1)
+    assert corners.sum() == 4 and np.array_equal(b.points[corners], a.points[corners])
     # Gmsh 2.2 and legacy VTK out: the groups and their names too
     for suffix in ("msh", "vtk"):
         out = tmp_path / f"adapted.{suffix}"
@@ -199,3 +280,92 @@ def test_the_docs_ring_example_evens_the_circle_out(run, tmp_path):
         f"({rep['triangles']:,} triangles): sigma/mu {rep['sigma_over_mu_before']:.3f} before, "
         f"{rep['sigma_over_mu']:.3f} after"
     ) in page
+
+
+def front(q):
+    return np.tanh(30 * (q[:, 1] - 0.5 - 0.25 * np.sin(2 * np.pi * q[:, 0])))
+
+
+def l2_error(p, tri, f, levels=3):
+    """The L2 norm of ``f`` minus its P1 interpolant on the mesh, each triangle split
+    into 4^levels by its lattice, f sampled at each small triangle's centroid."""
+    n = 2**levels
+    b = [((i + 1 / 3) / n, (j + 1 / 3) / n) for i in range(n) for j in range(n - i)]
+    b += [((i + 2 / 3) / n, (j + 2 / 3) / n) for i in range(n) for j in range(n - i - 1)]
+    b = np.array(b)
+    w = np.c_[1 - b.sum(axis=1), b]  # barycentric weights of the sample points
+    x = np.einsum("kj,tjd->tkd", w, p[tri])
+    interp = np.einsum("kj,tj->tk", w, f(p)[tri])
+    exact = f(x.reshape(-1, 2)).reshape(x.shape[:2])
+    area = signed_areas(p, tri)
+    return float(np.sqrt(np.sum(area[:, None] * (exact - interp) ** 2) / len(w)))
+
+
+@pytest.mark.parametrize("kind", ["gradient", "hessian"])
+def test_a_field_front_halves_the_interpolation_error(run, tmp_path, kind):
+    """The front u = tanh(30 (y - 1/2 - sin(2 pi x) / 4)) on a 64 x 64 grid: adapted to
+    u's recovered gradient (or Hessian), u's P1 interpolant's L2 error at least halves."""
+    p, tri = square_grid(64)
+    path, out = tmp_path / "front.vtu", tmp_path / "adapted.vtu"
+    meshio.write(path, meshio.Mesh(np.c_[p, 0 * p[:, 0]], [("triangle", tri)], {"u": front(p)}))
+    r = run("adapt", path, "-o", out, "--field", "u", "--kind", kind, "--json")
+    assert r.exit_code == 0, r.stderr
+    rep = json.loads(r.stdout)
+    assert rep["field"] == "u" and rep["kind"] == kind and rep["tangled"] == 0
+    q = meshio.read(out).points[:, :2]
+    before, after = l2_error(p, tri, front), l2_error(q, tri, front)
+    assert after <= before / 2, (before, after)
+    assert (signed_areas(q, tri) > 0).all()
+
+
+def test_a_reference_mesh_does_not_compound(run, grid_file, tmp_path):
+    """Adapting an adapted mesh again relative to the mesh it came from, with the same
+    monitor, gives the same nodes (no second shrink on top of the first); without the
+    reference the cells shrink again."""
+    path, p, tri = grid_file
+    once, again, twice = (tmp_path / f"{k}.vtu" for k in ("once", "again", "twice"))
+    monitor = "1 + 10 * exp(-20 * ((x - 0.3)**2 + (y - 0.6)**2))"
+    assert run("adapt", path, "-o", once, "--monitor", monitor, "-q").exit_code == 0
+    r = run("adapt", once, "--reference", path, "-o", again, "--monitor", monitor, "--json")
+    assert r.exit_code == 0, r.stderr
+    assert json.loads(r.stdout)["reference"] == str(path)
+    a, b = meshio.read(once), meshio.read(again)
+    assert np.array_equal(a.points, b.points)
+    assert run("adapt", once, "-o", twice, "--monitor", monitor, "-q").exit_code == 0
+    c = meshio.read(twice)
+    assert signed_areas(c.points[:, :2], tri).min() < signed_areas(a.points[:, :2], tri).min()
+
+
+def test_bad_fields_and_references_are_refused_in_one_line(run, grid_file, tmp_path):
+    path, p, tri = grid_file
+    other = tmp_path / "other.vtu"
+    flipped = tri.copy()
+    flipped[5] = flipped[5][[1, 2, 0]]
+    meshio.write(other, meshio.Mesh(np.c_[p, 0 * p[:, 0]], [("triangle", flipped)]))
+    small = tmp_path / "small.vtu"
+    sp, st = square_grid(4)
+    meshio.write(small, meshio.Mesh(np.c_[sp, 0 * sp[:, 0]], [("triangle", st)]))
+    nan = tmp_path / "nan.vtu"
+    u = p[:, 0].copy()
+    u[7] = np.nan
+    meshio.write(nan, meshio.Mesh(np.c_[p, 0 * p[:, 0]], [("triangle", tri)], {"u": u}))
+    out = tmp_path / "o.vtu"
+    for args, code, text in (
+        (
+            (path, "--field", "pressure"),
+            1,
+            "sq.vtu: no point field 'pressure' (point fields: id, u)",
+        ),
+        ((nan, "--field", "u"), 1, "nan.vtu: field 'u' is nan at node 7; it must be finite"),
+        ((path, "--monitor", "1", "--reference", other), 1, "other.vtu: triangle 5 is"),
+        ((path, "--monitor", "1", "--reference", small), 1, "small.vtu: has 25 nodes"),
+        ((path, "--monitor", "1", "--reference", tmp_path / "no.vtu"), 1, "no such file"),
+        ((path, "--monitor", "1", "--field", "u"), 2, "give one of --monitor EXPR and --field"),
+        ((path,), 2, "give one of --monitor EXPR and --field"),
+        ((path, "--field", "u", "--alpha", "-1"), 2, "--alpha must be finite and >= 0"),
+    ):
+        r = run("adapt", *args, "-o", out)
+        assert r.exit_code == code and text in r.stderr, (args, r.stderr)
+        assert "Traceback" not in r.stderr and not out.exists()
+        if code == 1:
+            assert r.stderr.count("\n") == 1

@@ -35,26 +35,68 @@ _WRITE_OPTIONS = {"gmsh22": {"binary": False}}
 )  # fmt: skip
 @click.option(
     "--monitor",
-    required=True,
     metavar="EXPR",
     help="Monitor M(x, y) > 0, in the --size grammar: cells shrink where M is large, "
     "toward every cell holding the same integral of M.",
+)
+@click.option(
+    "--field",
+    metavar="NAME",
+    help="Build the monitor from MESH's point field NAME: 1 + alpha |grad u|^2 / "
+    "max |grad u|^2 (--kind gradient) or 1 + alpha |H u| / max |H u| (--kind hessian), "
+    "recovered at the nodes.",
+)
+@click.option(
+    "--alpha",
+    type=float,
+    default=_adapt.DEFAULT_ALPHA,
+    show_default=True,
+    help="With --field: how much larger M gets where the field varies most.",
+)
+@click.option(
+    "--kind",
+    type=click.Choice(_adapt.KINDS),
+    default="gradient",
+    show_default=True,
+    help="With --field: what of the field the monitor follows.",
+)
+@click.option(
+    "--reference",
+    "reference_path",
+    metavar="MESH2",
+    type=click.Path(dir_okay=False),
+    help="Adapt from MESH2's nodes and relative to its cells (the same triangles as MESH), "
+    "so that repeated solve-adapt cycles do not compound; default: MESH itself.",
+)
+@click.option(
+    "--boundary",
+    type=click.Choice(("slide", "fixed")),
+    default="slide",
+    show_default=True,
+    help="slide: boundary nodes on straight runs (a far field's box sides) slide along "
+    "them, corners and contour points stay; fixed: every boundary node stays.",
 )
 @click.option(
     "--steps",
     type=click.IntRange(min=1),
     default=_adapt.ADAPT_STEPS,
     show_default=True,
-    help="Pseudo-time steps of the deformation.",
+    help="Pseudo-time steps of the deformation (midpoint rule).",
 )
 @click.option("-f", "--force", is_flag=True, help="Replace an output deformesh did not write.")
 @json_option("Print the report as JSON on stdout.")
 @quiet_option
 @handle_errors
-def command(mesh_path, output, monitor, steps, force, as_json, quiet) -> None:
+def command(
+    mesh_path, output, monitor, field, alpha, kind, reference_path, boundary, steps, force,
+    as_json, quiet,
+) -> None:  # fmt: skip
     """Move a mesh's nodes so its cells follow a monitor: the same triangles, never
-    tangled, the boundary nodes where they are (r-adaptation by the div-curl
-    deformation).
+    tangled (r-adaptation by the div-curl deformation).  A deformesh mesh's contour
+    points stay where they are, bit for bit.
+
+    The monitor is an expression (--monitor) or follows a point field of MESH
+    (--field), as a solver wrote it.
 
     MESH is any triangle mesh meshio reads; its point data are carried to the new
     node positions by linear interpolation in the old mesh (integer arrays, which
@@ -67,17 +109,42 @@ def command(mesh_path, output, monitor, steps, force, as_json, quiet) -> None:
         raise click.UsageError(
             f"{output}: adapt writes {', '.join(_MESHIO_FORMATS)}; give one of those extensions"
         )
-    code = _monitor(monitor)
-    files.check_outputs([output], [mesh_path])
-    m = read_meshio(mesh_path)
-    others = sorted({c.type for c in m.cells} - {"triangle", "line", "vertex"})
-    if others:
-        raise InputError(
-            f"{mesh_path}: cells other than triangles ({', '.join(others)}); adapt moves "
-            "triangle meshes"
-        )
+    if (monitor is None) == (field is None):
+        raise click.UsageError("give one of --monitor EXPR and --field NAME")
+    code = _monitor(monitor) if monitor is not None else None
+    files.check_outputs([output], [mesh_path] + ([reference_path] if reference_path else []))
+    m = _read(mesh_path)
     points, tri = checked(m, mesh_path)
-    res = _adapt.adapt(points, tri, code, steps, source=mesh_path)
+    start = points
+    if reference_path is not None:
+        start, ref_tri = checked(_read(reference_path), reference_path)
+        if ref_tri.shape != tri.shape or len(start) != len(points):
+            raise InputError(
+                f"{reference_path}: has {len(start)} nodes and {len(ref_tri)} triangles, "
+                f"{mesh_path} {len(points)} and {len(tri)}; --reference needs the same triangles"
+            )
+        if (ref_tri != tri).any():
+            k = int(np.argmax((ref_tri != tri).any(axis=1)))
+            raise InputError(
+                f"{reference_path}: triangle {k} is {ref_tri[k].tolist()}, in {mesh_path} "
+                f"{tri[k].tolist()}; --reference needs the same triangles"
+            )
+    if field is not None:
+        if field not in m.point_data:
+            have = ", ".join(sorted(m.point_data)) or "none"
+            raise InputError(f"{mesh_path}: no point field {field!r} (point fields: {have})")
+        _adapt.check_mesh(points, tri, mesh_path)
+        nodal = _adapt.field_monitor(
+            points, tri, m.point_data[field], alpha, kind, f"{mesh_path}: field {field!r}"
+        )
+        code = _adapt.interpolated(points, tri, nodal)
+    held = None
+    if "contour_point" in m.point_data:  # (a deformesh mesh: its contour points stay)
+        held = np.asarray(m.point_data["contour_point"]).ravel() >= 0
+    res = _adapt.adapt(
+        start, tri, code, steps, source=reference_path or mesh_path, held=held,
+        slide=boundary == "slide",
+    )  # fmt: skip
     new = res.points
     xyz = np.array(m.points, dtype=np.float64, copy=True)
     xyz[:, :2] = new
@@ -114,7 +181,14 @@ def command(mesh_path, output, monitor, steps, force, as_json, quiet) -> None:
         if fmt in ("vtu", "vtk42"):  # (meshio writes no field data there: the group names)
             add = formats.vtu.add_field_data if fmt == "vtu" else formats.vtk.add_field_data
             add(staged, m.field_data)
-    report = {"input": mesh_path, "output": output, "monitor": monitor, **res.report}
+    report = {"input": mesh_path, "output": output}
+    if monitor is not None:
+        report["monitor"] = monitor
+    else:
+        report.update(field=field, kind=kind, alpha=alpha)
+    if reference_path is not None:
+        report["reference"] = reference_path
+    report.update(res.report)
     report["seconds"] = round(time.perf_counter() - t0, 3)
     if as_json:
         files.write_stdout(files.to_json(report))
@@ -122,7 +196,8 @@ def command(mesh_path, output, monitor, steps, force, as_json, quiet) -> None:
     say(
         quiet,
         f"{mesh_path} -> {output}: {r['moved_nodes']} of {r['nodes']} nodes moved "
-        f"({r['boundary_nodes_held']} boundary nodes held), {r['triangles']} triangles kept; "
+        f"({r['boundary_nodes_held']} held, {r['boundary_nodes_sliding']} sliding), "
+        f"{r['triangles']} triangles kept, smallest angle {r['smallest_angle']:.1f}; "
         f"sigma/mu {r['sigma_over_mu_before']:.3f} -> {r['sigma_over_mu']:.3f}, volume ratio "
         f"{r['volume_ratio_before']:.2f} -> {r['volume_ratio']:.2f} ({r['seconds']:.2f} s)",
     )
@@ -143,3 +218,14 @@ def _monitor(text: str):
             raise OptionError(f"--monitor {text!r} fails: {type(exc).__name__}: {exc}") from None
 
     return monitor
+
+
+def _read(path: str):
+    """A triangle mesh read by meshio (other 2D cells refused in one line)."""
+    m = read_meshio(path)
+    others = sorted({c.type for c in m.cells} - {"triangle", "line", "vertex"})
+    if others:
+        raise InputError(
+            f"{path}: cells other than triangles ({', '.join(others)}); adapt moves triangle meshes"
+        )
+    return m
