@@ -55,6 +55,7 @@ bench: $(VENV)/.installed-bench
 	$(BIN)/python benchmarks/run_construct.py
 	$(BIN)/python benchmarks/run_construct.py --set corpus
 	$(BIN)/python benchmarks/run_circles.py
+	$(BIN)/python benchmarks/run_adapt.py
 
 # only the side-by-side comparison with Triangle and Gmsh (about 25 minutes)
 bench-peers: $(VENV)/.installed-bench

@@ -16,6 +16,8 @@ from .errors import DeformeshError
 #: Colour map of the radius ratio: red = poor (sliver), green = equilateral.
 CMAP = "RdYlGn"
 BOUNDARY_COLOUR = "#1f3fbf"
+#: Colour map of other values (``render``'s ``values``: an adaptation's monitor).
+VALUES_CMAP = "viridis"
 
 
 def _pyplot():
@@ -65,6 +67,7 @@ def render(
     title: str = "",
     window: tuple[float, float, float, float] | None = None,
     colour: str = "radius-ratio",
+    values: tuple[str, np.ndarray] | None = None,
 ) -> bytes:
     """PNG bytes of the mesh.
 
@@ -73,7 +76,9 @@ def render(
     (x0, y0, x1, y1): the part drawn, with the whole mesh's outline in an inset where
     the window leaves some out (default: the whole mesh).  Every triangle's edges
     are drawn, thinner as more are in view (rasterised).  ``colour``: a key of
-    :data:`COLOURS`; the histogram counts every triangle of the mesh.
+    :data:`COLOURS`; the histogram counts every triangle of the mesh.  ``values``
+    (label, one number per triangle) shades by those instead, from their least to
+    their largest.
     """
     plt = _pyplot()
     from matplotlib.collections import LineCollection
@@ -82,6 +87,12 @@ def render(
     label, top, bins = COLOURS[colour]
     smallest, largest, _, rr = quality.measures(points, tri)
     value = rr if colour == "radius-ratio" else smallest
+    base, cmap_name = 0.0, CMAP
+    if values is not None:
+        label, value = values[0], np.asarray(values[1], dtype=np.float64)
+        base, top = float(value.min()), float(value.max())
+        top = top if top > base else base + 1.0
+        bins, cmap_name = np.linspace(base, top, 11), VALUES_CMAP
     if boundary is None:
         boundary = geometry.boundary_edges(tri, len(points))
     lo, hi = points.min(axis=0), points.max(axis=0)
@@ -99,13 +110,13 @@ def render(
     fig, (ax, axh) = plt.subplots(
         1, 2, figsize=(9.6, height + 0.8), gridspec_kw={"width_ratios": [4.2, 1]}
     )
-    cmap = plt.get_cmap(CMAP)
+    cmap = plt.get_cmap(cmap_name)
     t = tri[shown]
     # a triangle in view about PIXELS_ACROSS pixels wide (the plot is some 800 at 110 dpi)
     dpi = float(np.clip(110.0 * PIXELS_ACROSS * np.sqrt(len(t) / 2.0) / 800.0, 110.0, 300.0))
     if len(t):
         ax.tripcolor(
-            points[:, 0], points[:, 1], t, facecolors=value[shown], cmap=cmap, vmin=0,
+            points[:, 0], points[:, 1], t, facecolors=value[shown], cmap=cmap, vmin=base,
             vmax=top, edgecolors="none", rasterized=True,
         )  # fmt: skip
         edges = np.unique(
@@ -141,10 +152,12 @@ def render(
 
     counts, edges_ = np.histogram(value, bins=bins)
     mids = 0.5 * (edges_[:-1] + edges_[1:])
-    axh.barh(mids, counts, height=0.9 * (bins[1] - bins[0]), color=cmap(mids / top))
+    axh.barh(
+        mids, counts, height=0.9 * (bins[1] - bins[0]), color=cmap((mids - base) / (top - base))
+    )
     axh.set_xscale("log")  # the few poor triangles stay visible next to thousands of good ones
     axh.set_xlim(0.8, max(10, 2 * counts.max()))
-    axh.set_ylim(0, top)
+    axh.set_ylim(base, top)
     axh.set_ylabel(label, fontsize=8)
     axh.set_xlabel("triangles", fontsize=8)
     axh.tick_params(labelsize=7)

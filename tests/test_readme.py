@@ -262,6 +262,41 @@ def test_moving_numbers_in_the_docs_are_the_benchmark_file():
     assert f"`square_hole_100`: {hole[6]} to {hole[7]})" in limits
 
 
+def test_adapt_numbers_in_the_docs_are_the_benchmark_file():
+    """README's, docs/commands.md's and docs/limits.md's numbers for ``adapt`` are the
+    rows ``make bench`` last wrote in RESULTS.md ("adapt")."""
+    results = (ROOT / "benchmarks" / "RESULTS.md").read_text()
+    part = results.split("<!-- section:adapt -->")[1].split("<!-- end:adapt -->")[0]
+    rows = {}
+    for row in part.splitlines():
+        cells = [c.strip() for c in row.strip().strip("|").split("|")]
+        if len(cells) == 10 and cells[1].isdigit():
+            rows[(cells[0], cells[2])] = cells
+        if len(cells) == 7 and cells[0] in ("gradient", "hessian"):
+            rows[(cells[0], cells[1])] = cells
+    ring = rows[("movement's ring, 20 x 20", "defaults")]
+    more = rows[("movement's ring, 20 x 20", "--steps 80")]
+    wake = next(v for k, v in rows.items() if k[0].startswith("samples/naca0012.csv"))
+    big = next(v for k, v in rows.items() if k[0] == "ring, 300 x 300")
+    grad, hess = rows[("gradient", "10")], rows[("hessian", "10")]
+    commands = " ".join(DOCS["commands.md"].split())
+    limits = " ".join(DOCS["limits.md"].split())
+    readme = " ".join(README.split())
+    assert (
+        f"sigma/mu goes from {ring[3]} to {ring[4]} and the volume ratio from {ring[5]} to "
+        f"{ring[6]}, where `movement`'s converged Monge-Ampere mesh has 0.348 and 8.84"
+    ) in commands
+    assert f"error in L2 to {grad[4]} of what it was, `--kind hessian` to {hess[4]}" in commands
+    assert f"sigma/mu {ring[3]} to {ring[4]}, where" in readme
+    assert f"reaches sigma/mu {ring[4]} but a volume ratio of {ring[6]}," in limits
+    assert f"({more[4]} and {more[6]} at 80)" in limits
+    assert (
+        f"leaves sigma/mu at {wake[4]} from {wake[3]} and the volume ratio at {wake[6]} from "
+        f"{wake[5]}"
+    ) in limits
+    assert f"(180,000 triangles) takes {big[8]} s as a whole process, {big[9]} MB" in limits
+
+
 @pytest.mark.parametrize("shell", ["bash", "zsh", "fish"])
 def test_shell_completion_is_documented_and_works(sh, shell):
     line = 'eval "$(_DEFORMESH_COMPLETE=bash_source deformesh)"'

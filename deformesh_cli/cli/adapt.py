@@ -83,13 +83,19 @@ _WRITE_OPTIONS = {"gmsh22": {"binary": False}}
     show_default=True,
     help="Pseudo-time steps of the deformation (midpoint rule).",
 )
+@click.option(
+    "--png",
+    type=OutputPath(allow_dash=False),
+    help="Also draw the adapted mesh, each triangle coloured by the monitor (the mean of "
+    "its nodes'), to this PNG (needs matplotlib).",
+)
 @click.option("-f", "--force", is_flag=True, help="Replace an output deformesh did not write.")
 @json_option("Print the report as JSON on stdout.")
 @quiet_option
 @handle_errors
 def command(
-    mesh_path, output, monitor, field, alpha, kind, reference_path, boundary, steps, force,
-    as_json, quiet,
+    mesh_path, output, monitor, field, alpha, kind, reference_path, boundary, steps, png,
+    force, as_json, quiet,
 ) -> None:  # fmt: skip
     """Move a mesh's nodes so its cells follow a monitor: the same triangles, never
     tangled (r-adaptation by the div-curl deformation).  A deformesh mesh's contour
@@ -112,7 +118,8 @@ def command(
     if (monitor is None) == (field is None):
         raise click.UsageError("give one of --monitor EXPR and --field NAME")
     code = _monitor(monitor) if monitor is not None else None
-    files.check_outputs([output], [mesh_path] + ([reference_path] if reference_path else []))
+    outputs = [output] + ([png] if png else [])
+    files.check_outputs(outputs, [mesh_path] + ([reference_path] if reference_path else []))
     m = _read(mesh_path)
     points, tri = checked(m, mesh_path)
     start = points
@@ -146,6 +153,15 @@ def command(
         slide=boundary == "slide",
     )  # fmt: skip
     new = res.points
+    picture = None
+    if png:  # (drawn before any file is written: no mesh without its picture)
+        from .. import plot
+
+        m_new = _adapt.monitor_values(code, new, mesh_path)
+        picture = plot.render(
+            new, tri, title=f"{output}: adapted, sigma/mu {res.report['sigma_over_mu']:.3f}",
+            values=("monitor M (triangle's nodes' mean)", m_new[tri].mean(axis=1)),
+        )  # fmt: skip
     xyz = np.array(m.points, dtype=np.float64, copy=True)
     xyz[:, :2] = new
     data = {
@@ -181,6 +197,8 @@ def command(
         if fmt in ("vtu", "vtk42"):  # (meshio writes no field data there: the group names)
             add = formats.vtu.add_field_data if fmt == "vtu" else formats.vtk.add_field_data
             add(staged, m.field_data)
+    if picture is not None:
+        files.write_bytes(picture, png)
     report = {"input": mesh_path, "output": output}
     if monitor is not None:
         report["monitor"] = monitor
