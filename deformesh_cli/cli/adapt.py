@@ -49,16 +49,13 @@ _WRITE_OPTIONS = {"gmsh22": {"binary": False}}
 @click.option(
     "--alpha",
     type=float,
-    default=_adapt.DEFAULT_ALPHA,
-    show_default=True,
-    help="With --field: how much larger M gets where the field varies most.",
+    help="With --field: how much larger M gets where the field varies most "
+    f"[default: {_adapt.DEFAULT_ALPHA:g}].",
 )
 @click.option(
     "--kind",
     type=click.Choice(_adapt.KINDS),
-    default="gradient",
-    show_default=True,
-    help="With --field: what of the field the monitor follows.",
+    help="With --field: what of the field the monitor follows [default: gradient].",
 )
 @click.option(
     "--reference",
@@ -117,6 +114,10 @@ def command(
         )
     if (monitor is None) == (field is None):
         raise click.UsageError("give one of --monitor EXPR and --field NAME")
+    if field is None and (alpha is not None or kind is not None):
+        raise click.UsageError("--alpha and --kind shape a --field monitor; give --field NAME")
+    alpha = _adapt.DEFAULT_ALPHA if alpha is None else alpha
+    kind = kind or "gradient"
     code = _monitor(monitor) if monitor is not None else None
     outputs = [output] + ([png] if png else [])
     files.check_outputs(outputs, [mesh_path] + ([reference_path] if reference_path else []))
