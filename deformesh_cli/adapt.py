@@ -48,7 +48,7 @@ from .size import positive_values
 #: within 0.005 of sigma/mu's limit under step refinement (``benchmarks/MEASURED.md``).
 ADAPT_STEPS = 20
 
-#: Halvings of one step allowed before a fold is reported.
+#: Step halvings allowed over a run, per step asked for, before a fold is reported.
 MAX_HALVINGS = 10
 
 #: A boundary node slides when the cross product of its two boundary edges is at most
@@ -304,30 +304,54 @@ def adapt(
     return Adapted(pos, report)
 
 
-def locate(old: np.ndarray, tri: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """For each point of ``q``: the lowest-numbered triangle of the mesh ``(old, tri)``
-    holding it (shapely's STRtree over the triangles), and its barycentric weights
-    there (k, 3).  A point outside the mesh is an :class:`InputError`."""
-    import shapely
+#: A point within this fraction of a mesh's extent of it, outside by round-off (a node
+#: sliding along a slanted side), is located in the lowest-numbered triangle within that
+#: reach.
+ROUND_OFF = 1e-9
 
-    polys = shapely.polygons(old[tri])
-    at, hit = shapely.STRtree(polys).query(shapely.points(q), predicate="intersects")
-    first = np.full(len(q), len(tri))
-    np.minimum.at(first, at, hit)  # (the lowest-numbered triangle holding each point)
-    if (first == len(tri)).any():
-        k = int(np.argmax(first == len(tri)))
-        raise InputError(f"the point ({q[k, 0]:.6g}, {q[k, 1]:.6g}) is outside the mesh")
-    a, b, c = (old[tri[first, j]] for j in range(3))
-    den = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
-    wb = (q[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (q[:, 1] - a[:, 1])
-    wc = (b[:, 0] - a[:, 0]) * (q[:, 1] - a[:, 1]) - (q[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
-    wb, wc = wb / den, wc / den
-    return first, np.column_stack([1.0 - wb - wc, wb, wc])
+
+class Locator:
+    """Finds points in a fixed triangle mesh: shapely's STRtree over its triangles,
+    built once."""
+
+    def __init__(self, points: np.ndarray, tri: np.ndarray):
+        import shapely
+
+        self.points, self.tri = points, tri
+        self.tree = shapely.STRtree(shapely.polygons(points[tri]))
+        self.reach = ROUND_OFF * float(np.ptp(points, axis=0).max())
+
+    def find(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """For each point of ``q``: the lowest-numbered triangle holding it (else, for a
+        point outside by no more than :data:`ROUND_OFF` of the mesh's extent, the
+        lowest-numbered one within that reach), and its barycentric weights there (k,
+        3).  A point further out is an :class:`InputError`."""
+        import shapely
+
+        old, tri = self.points, self.tri
+        first = np.full(len(q), len(tri))
+        at, hit = self.tree.query(shapely.points(q), predicate="intersects")
+        np.minimum.at(first, at, hit)
+        out = np.flatnonzero(first == len(tri))
+        if len(out):
+            at, hit = self.tree.query(
+                shapely.points(q[out]), predicate="dwithin", distance=self.reach
+            )
+            np.minimum.at(first, out[at], hit)
+        if (first == len(tri)).any():
+            k = int(np.argmax(first == len(tri)))
+            raise InputError(f"the point ({q[k, 0]:.6g}, {q[k, 1]:.6g}) is outside the mesh")
+        a, b, c = (old[tri[first, j]] for j in range(3))
+        den = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
+        wb = (q[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (q[:, 1] - a[:, 1])
+        wc = (b[:, 0] - a[:, 0]) * (q[:, 1] - a[:, 1]) - (q[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
+        wb, wc = wb / den, wc / den
+        return first, np.column_stack([1.0 - wb - wc, wb, wc])
 
 
 def carry(old: np.ndarray, tri: np.ndarray, new: np.ndarray, values: np.ndarray) -> np.ndarray:
     """``values`` (one row per node of the mesh at ``old``) at the points ``new``, by P1
-    interpolation in the old mesh (:func:`locate`; a point on a shared side takes the
+    interpolation in the old mesh (:class:`Locator`; a point on a shared side takes the
     lower-numbered triangle, equal up to round-off); a node that did not move keeps its
     value to the bit."""
     values = np.asarray(values)
@@ -335,7 +359,7 @@ def carry(old: np.ndarray, tri: np.ndarray, new: np.ndarray, values: np.ndarray)
     moved = np.flatnonzero((new != old).any(axis=1))
     if not len(moved):
         return out
-    first, w = locate(old, tri, new[moved])
+    first, w = Locator(old, tri).find(new[moved])
     v = values[tri[first]].astype(np.float64)  # (m, 3, ...)
     out[moved] = np.einsum("mj,mj...->m...", w, v)
     return out
@@ -393,11 +417,12 @@ def interpolated(points: np.ndarray, tri: np.ndarray, values: np.ndarray):
     """``values`` at the nodes of the mesh ``(points, tri)`` as a function of points, by
     P1 interpolation (a point at a node gets that node's value to the bit)."""
     values = np.asarray(values, dtype=np.float64)
+    locator = Locator(points, tri)
 
     def at(q: np.ndarray) -> np.ndarray:
         if q.shape == points.shape and np.array_equal(q, points):
             return values.copy()
-        first, w = locate(points, tri, q)
+        first, w = locator.find(q)
         return (values[tri[first]] * w).sum(axis=1)
 
     return at

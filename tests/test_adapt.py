@@ -7,7 +7,7 @@ import meshio
 import numpy as np
 import pytest
 
-from deformesh_cli.adapt import adapt, carry
+from deformesh_cli.adapt import adapt, carry, field_monitor, interpolated
 from deformesh_cli.geometry import boundary_edges, signed_areas
 
 from .conftest import SAMPLES
@@ -105,6 +105,11 @@ def test_nodes_slide_along_a_slanted_straight_side():
     assert res.report["boundary_nodes_sliding"] == 76
     assert res.report["sigma_over_mu"] == pytest.approx(upright.report["sigma_over_mu"], abs=1e-6)
     assert (signed_areas(res.points, tri) > 0).all()
+    # a field's monitor, read wherever the sliding nodes go (on the side to round-off)
+    u = front(p)
+    field = adapt(q, tri, interpolated(q, tri, field_monitor(q, tri, u)))
+    assert np.abs((field.points @ rot)[side] - p[side]).max() < 1e-12
+    assert field.report["sigma_over_mu"] < field.report["sigma_over_mu_before"]
 
 
 def test_the_slip_system_is_the_coupled_least_squares_system():
