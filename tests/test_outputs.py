@@ -342,7 +342,8 @@ def test_vtk_is_meshios_file_but_the_title_and_the_group_names(tmp_path, exterio
     _vtk_42.write(tmp_path / "meshio.vtk", m, binary=True)
     table = _common.group_table(mesh)
     field = f"FIELD FieldData {len(table)}\n".encode() + b"".join(
-        f"{name} 2 1 int\n".encode() + tag.astype(">i4").tobytes() + b"\n" for name, tag in table
+        f"{name} 2 1 int\n".encode() + tag.astype(">i4").tobytes() + b"\n"
+        for name, tag in table.items()
     )
     data = (tmp_path / "ours.vtk").read_bytes()
     assert data.count(b"UNSTRUCTURED_GRID\n" + field) == 1

@@ -14,11 +14,11 @@ def groups(mesh: Mesh) -> dict[str, tuple[int, int]]:
     return out
 
 
-def group_table(mesh: Mesh) -> list[tuple[str, np.ndarray]]:
+def group_table(mesh: Mesh) -> dict[str, np.ndarray]:
     """The physical groups as VTK field data: per group, an int32 array named after it
     holding ``(tag, dimension)`` (what meshio reads a ``.msh``'s groups into), so a
     reader can find which ``group`` tag is ``contour``, ``hole_1`` or a box side."""
-    return [(name, np.array(v, dtype=np.int32)) for name, v in groups(mesh).items()]
+    return {name: np.array(v, dtype=np.int32) for name, v in groups(mesh).items()}
 
 
 def contour_point(mesh: Mesh) -> np.ndarray:

@@ -43,7 +43,7 @@ def write(mesh: Mesh, path: str, version: str | None = None) -> None:
     with open(path, "wb") as f:
         f.write(
             f"# vtk DataFile Version 4.2\n{TITLE}\nBINARY\nDATASET UNSTRUCTURED_GRID\n".encode()
-            + field_block(dict(group_table(mesh)))  # (the group names: the dataset's)
+            + field_block(group_table(mesh))  # (the group names: the dataset's)
             + f"POINTS {n} double\n".encode()
         )
         for head, data in (

@@ -20,7 +20,7 @@ def write(mesh: Mesh, path: str, version: str | None = None) -> None:
 
     m = meshio_mesh(mesh, dim3=True, cell_data={GROUP_DATA: cell_groups(mesh)})
     meshio.write(path, m, file_format="vtu")
-    add_field_data(path, dict(group_table(mesh)))
+    add_field_data(path, group_table(mesh))
 
 
 def add_field_data(path: str, table: dict) -> None:
