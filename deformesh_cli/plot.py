@@ -59,6 +59,17 @@ def zoom_window(xy: np.ndarray) -> tuple[float, float, float, float]:
     return (lo[0] - pad, lo[1] - pad, hi[0] + pad, hi[1] + pad)
 
 
+def contour_window(
+    points: np.ndarray, contour_point: np.ndarray | None, contour: np.ndarray | None = None
+) -> tuple[float, float, float, float] | None:
+    """``--zoom contour``'s window: :func:`zoom_window` around the contour's points
+    (``contour``, else the nodes whose ``contour_point`` is >= 0), or None (the whole
+    mesh) where neither says which they are."""
+    if contour is None and contour_point is not None:
+        contour = points[np.ravel(contour_point) >= 0]
+    return None if contour is None or not len(contour) else zoom_window(contour)
+
+
 def render(
     points: np.ndarray,
     tri: np.ndarray,

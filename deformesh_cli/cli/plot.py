@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import click
-import numpy as np
 
 from .. import files, formats
 from ..options import MeshOptions
@@ -80,10 +79,7 @@ def command(
         )
         cpts = c.points
     if window is None and zoom == "contour":
-        at = data.get("contour_point")
-        body = cpts if cpts is not None else None if at is None else points[np.ravel(at) >= 0]
-        if body is not None and len(body):
-            window = plot.zoom_window(body)
+        window = plot.contour_window(points, data.get("contour_point"), cpts)
     plot.draw(
         points,
         tri,
