@@ -374,3 +374,38 @@ def test_bad_fields_and_references_are_refused_in_one_line(run, grid_file, tmp_p
         assert "Traceback" not in r.stderr and not out.exists()
         if code == 1:
             assert r.stderr.count("\n") == 1
+
+
+def test_a_gmsh_file_keeps_its_node_data(run, tmp_path):
+    """A solver's .msh with $NodeData (a scalar, a 3-vector) in, .msh out: the arrays
+    carried (linear ones exactly), a 2-vector written as Gmsh's 3D vector; an array Gmsh
+    cannot hold (4 components) refused in one line for .msh, written to .vtu."""
+    p, tri = square_grid(16)
+
+    def as_python(a):  # (meshio writes each number by repr: numpy 2's are not numbers)
+        return np.array(np.asarray(a).tolist(), dtype=object)
+
+    mesh = tmp_path / "solution.msh"
+    data = {"u": as_python(front(p)), "v": as_python(np.c_[p, 3 * p[:, 0]])}
+    meshio.write(
+        mesh, meshio.Mesh(np.c_[p, 0 * p[:, 0]], [("triangle", tri)], data), "gmsh22", binary=False
+    )
+    out = tmp_path / "adapted.msh"
+    r = run("adapt", mesh, "--field", "u", "-o", out, "-q")
+    assert r.exit_code == 0, r.stderr
+    b = meshio.read(out)
+    q = b.points[:, :2]
+    assert (q != p).any(axis=1).sum() > 100
+    assert np.abs(b.point_data["v"] - np.c_[q, 3 * q[:, 0]]).max() < 1e-12
+    assert b.point_data["u"].shape == (len(p),)
+    wide = tmp_path / "wide.vtu"
+    two = {"w": np.c_[p, p], "d": p}
+    meshio.write(wide, meshio.Mesh(np.c_[p, 0 * p[:, 0]], [("triangle", tri)], two))
+    r = run("adapt", wide, "--monitor", "1 + x", "-o", tmp_path / "w.msh")
+    assert r.exit_code == 2 and "point data 'w' has 4 components" in r.stderr
+    assert not (tmp_path / "w.msh").exists()
+    two = {"d": p}
+    meshio.write(wide, meshio.Mesh(np.c_[p, 0 * p[:, 0]], [("triangle", tri)], two))
+    assert run("adapt", wide, "--monitor", "1 + x", "-o", tmp_path / "d.msh", "-q").exit_code == 0
+    d = meshio.read(tmp_path / "d.msh")
+    assert d.point_data["d"].shape == (len(p), 3) and not d.point_data["d"][:, 2].any()

@@ -103,8 +103,8 @@ def command(
 
     MESH is any triangle mesh meshio reads; its point data are carried to the new
     node positions by linear interpolation in the old mesh (integer arrays, which
-    label nodes, stay as they are) into .vtu, .vtk and .xdmf; .msh (Gmsh 2.2) keeps
-    the physical groups only.
+    label nodes, stay as they are) into .vtu, .vtk and .xdmf, and into .msh (Gmsh
+    2.2) as $NodeData beside the physical groups.
     """
     t0 = time.perf_counter()
     suffix = "." + output.rsplit(".", 1)[-1].lower() if "." in output else ""
@@ -122,6 +122,9 @@ def command(
     outputs = [output] + ([png] if png else [])
     files.check_outputs(outputs, [mesh_path] + ([reference_path] if reference_path else []))
     m = _read(mesh_path)
+    if suffix == ".msh":  # (refused before the work, not after it)
+        for k, v in m.point_data.items():
+            _node_data(k, v, output)
     points, tri = checked(m, mesh_path)
     start = points
     if reference_path is not None:
@@ -181,10 +184,9 @@ def command(
         # (a deformesh .vtk or .vtu: its group tags are the .msh physical tags)
         tags = [np.asarray(t, dtype=np.int32) for t in cell_data[GROUP_DATA]]
         cell_data.update({"gmsh:physical": tags, "gmsh:geometrical": tags})
-    if fmt == "gmsh22":  # (the groups only, as deformesh's own .msh: meshio writes
-        # $NodeData of numpy 2 arrays as "np.float64(0.0)", which no reader takes)
-        data = {}
+    if fmt == "gmsh22":  # the groups, and the point data as $NodeData
         cell_data = {k: v for k, v in cell_data.items() if k.startswith("gmsh:")}
+        data = {k: _node_data(k, v, output) for k, v in data.items() if not k.startswith("gmsh:")}
     out = meshio.Mesh(xyz, m.cells, point_data=data, cell_data=cell_data, field_data=names)
     with files.atomic_path(output) as staged:
         try:  # (meshio's console chatter kept off stdout, where --json goes)
@@ -248,3 +250,20 @@ def _read(path: str):
             f"{path}: cells other than triangles ({', '.join(others)}); adapt moves triangle meshes"
         )
     return m
+
+
+def _node_data(name: str, values, output: str) -> np.ndarray:
+    """A point array as meshio's Gmsh writer can put it in ``$NodeData``: 1, 3 or 9
+    components (2 padded with a zero third, as Gmsh's vectors are 3D), as Python
+    numbers (meshio writes each with ``repr``, which gives ``np.float64(0.5)`` for a
+    numpy 2 scalar, which no reader takes)."""
+    v = np.asarray(values)
+    v = v.reshape(len(v), -1)
+    if v.shape[1] == 2:
+        v = np.column_stack([v, np.zeros(len(v), dtype=v.dtype)])
+    if v.shape[1] not in (1, 3, 9):
+        raise OptionError(
+            f"{output}: point data {name!r} has {v.shape[1]} components, and Gmsh's $NodeData "
+            "takes 1, 3 or 9; write .vtu, .vtk or .xdmf"
+        )
+    return np.array(v.tolist(), dtype=object)
