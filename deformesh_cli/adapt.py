@@ -38,6 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .deform import LinearSolver
 from .divcurl import Assembler
 from .errors import FoldError, InputError, MonitorError, OptionError
 from .geometry import boundary_edges, signed_areas
@@ -168,6 +169,13 @@ class SlipSystem:
     coordinates.  The reduced matrix ``P^T [[L, B], [B^T, L]] P`` is factorised
     (QDLDL, approximate minimum degree) once, and refactorised with new numbers on
     later solves while its pattern holds.
+
+    Where every sliding node moves along an axis (a box, a grid's square) ``B``
+    couples no two unknowns (a boundary edge's ends are a fixed ``ux`` or ``uy`` on
+    one side, or a corner) and the system is two scalar Laplace problems, each
+    component held where its node may not move that way: they are assembled and
+    solved as meshing's are (:class:`.divcurl.Assembler`,
+    :class:`.deform.LinearSolver`), one matrix for both where the held sets agree.
     """
 
     def __init__(self, tri: np.ndarray, fixed: np.ndarray, tangent: np.ndarray):
@@ -196,6 +204,15 @@ class SlipSystem:
         self._ldl = None
         self._pattern = None
         self.factorisations = 0
+        along = np.zeros(n, dtype=bool)
+        along[slide] = True
+        self.split = bool((tangent[slide] == 0).any(axis=1).all())
+        if self.split:
+            hold_x = fixed | (along & (tangent[:, 0] == 0))
+            hold_y = fixed | (along & (tangent[:, 1] == 0))
+            x = (Assembler(tri, n, hold_x), LinearSolver("direct"))
+            same = np.array_equal(hold_x, hold_y)
+            self._parts = [x] if same else [x, (Assembler(tri, n, hold_y), LinearSolver("direct"))]
 
     def velocity(self, points: np.ndarray, r: np.ndarray) -> np.ndarray:
         """``U`` (N, 2) with ``div U = r`` (per triangle), ``curl U = 0``, in the least-
@@ -205,6 +222,16 @@ class SlipSystem:
 
         U = np.zeros((self.n, 2))
         if self.P.shape[1] == 0:
+            return U
+        if self.split:
+            for k, (asm, lin) in enumerate(self._parts):
+                if asm.n_free:
+                    K, _ = asm.system(points, U)  # (held components are 0)
+                    load = asm.load(points, r)
+                    if len(self._parts) == 1:
+                        U[asm.free] = lin.solve(K, load)
+                    else:
+                        U[asm.free, k] = lin.solve(K, load[:, [k]])[:, 0]
             return U
         L, _ = self.asm.system(points, U)
         L = L.tocsr()

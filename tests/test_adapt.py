@@ -112,9 +112,12 @@ def test_nodes_slide_along_a_slanted_straight_side():
     assert field.report["sigma_over_mu"] < field.report["sigma_over_mu_before"]
 
 
-def test_the_slip_system_is_the_coupled_least_squares_system():
-    """SlipSystem's edge-by-edge coupling equals the element-by-element coupled
-    matrix (assemble_coupled) on the motions allowed, on a moved, curved mesh."""
+@pytest.mark.parametrize("degrees, split", [(0, True), (30, False)])
+def test_the_slip_system_is_the_coupled_least_squares_system(degrees, split):
+    """SlipSystem's solution is the element-by-element coupled system's
+    (assemble_coupled) on the motions allowed, on a moved mesh with a curved side:
+    by two scalar systems where the straight sides are parallel to the axes, by the
+    edge-by-edge coupling where they are not."""
     from deformesh_cli.adapt import SlipSystem, boundary_motion
     from deformesh_cli.divcurl import assemble_coupled
 
@@ -123,9 +126,12 @@ def test_the_slip_system_is_the_coupled_least_squares_system():
     inner = ((p > 0) & (p < 1)).all(axis=1)
     p[inner] += rng.uniform(-0.03, 0.03, (inner.sum(), 2))
     p[:, 1] += 0.3 * p[:, 0] ** 2 * (p[:, 1] > 0)  # the top side bends: its nodes held
+    a = np.radians(degrees)
+    p = p @ np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]]).T
     fixed, tangent = boundary_motion(p, tri)
     assert tangent.any(axis=1).sum() > 0 and fixed.sum() > 4
     system = SlipSystem(tri, fixed, tangent)
+    assert system.split == split
     r = rng.uniform(-1, 1, len(tri))
     A, b = assemble_coupled(p, tri, r)
     P = system.P.toarray()
