@@ -295,6 +295,8 @@ def test_adapt_numbers_in_the_docs_are_the_benchmark_file():
         f"{wake[5]}"
     ) in limits
     assert f"(180,000 triangles) takes {big[8]} s as a whole process, {big[9]} MB" in limits
+    million = next(v for k, v in rows.items() if k[0] == "ring, 707 x 707")
+    assert f"on a million triangles {million[8]} s, {int(million[9]):,} MB" in limits
 
 
 @pytest.mark.parametrize("shell", ["bash", "zsh", "fish"])
