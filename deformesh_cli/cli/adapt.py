@@ -149,9 +149,7 @@ def command(
             points, tri, m.point_data[field], alpha, kind, f"{mesh_path}: field {field!r}"
         )
         code = _adapt.interpolated(points, tri, nodal)
-    held = None
-    if "contour_point" in m.point_data:  # (a deformesh mesh: its contour points stay)
-        held = np.asarray(m.point_data["contour_point"]).ravel() >= 0
+    held = _contour_nodes(m, len(points))
     res = _adapt.adapt(
         start, tri, code, steps, source=reference_path or mesh_path, held=held,
         slide=boundary == "slide",
@@ -267,3 +265,26 @@ def _node_data(name: str, values, output: str) -> np.ndarray:
             "takes 1, 3 or 9; write .vtu, .vtk or .xdmf"
         )
     return np.array(v.tolist(), dtype=object)
+
+
+def _contour_nodes(m, n: int) -> np.ndarray | None:
+    """A deformesh mesh's contour and hole nodes (a mask), which stay where they are: the
+    nodes its ``contour_point`` data number (.vtu, .vtk, .xdmf), or the nodes of the lines
+    of every physical group but the box sides where the groups name a ``contour`` (.msh).
+    None for any other mesh."""
+    from ..triangulate import BOX_SIDES
+
+    if "contour_point" in m.point_data:
+        return np.asarray(m.point_data["contour_point"]).ravel() >= 0
+    names = {int(np.ravel(v)[0]): k for k, v in m.field_data.items() if np.ravel(v)[-1] == 1}
+    if "contour" not in names.values():
+        return None
+    tags = m.cell_data.get("gmsh:physical", m.cell_data.get(GROUP_DATA))
+    if tags is None:
+        return None
+    held = np.zeros(n, dtype=bool)
+    for block, tag in zip(m.cells, tags):
+        if block.type == "line":
+            user = np.array([names.get(int(t)) not in BOX_SIDES for t in np.ravel(tag)])
+            held[np.asarray(block.data)[user].ravel()] = True
+    return held
