@@ -418,8 +418,8 @@ def test_a_gmsh_file_keeps_its_node_data(run, tmp_path):
 
 
 def test_a_deformesh_gmsh_file_keeps_its_contour_points(run, tmp_path):
-    """A deformesh .msh carries no contour_point array: its contour is the lines of its
-    groups but the box sides. A square contour's points, 20 to a side on straight
+    """A deformesh .msh or .su2 carries no contour_point array: its contour is the lines
+    of its groups (markers) but the box sides. A square contour's points, 20 to a side on straight
     runs, stay to the bit (they would slide on any other mesh); a far field adapts as
     from .vtu, its box sides sliding."""
     t = np.linspace(0, 1, 21)[:-1]
@@ -428,18 +428,19 @@ def test_a_deformesh_gmsh_file_keeps_its_contour_points(run, tmp_path):
     csv = tmp_path / "square.csv"
     np.savetxt(csv, square, delimiter=",", header="x,y", comments="")
     monitor = "1 + 10 * exp(-30 * ((x - 0.3)**2 + (y - 0.4)**2))"
-    mesh, out = tmp_path / "sq.msh", tmp_path / "sq_a.msh"
-    assert run("all", csv, "-o", mesh, "-q").exit_code == 0
-    r = run("adapt", mesh, "-o", out, "--monitor", monitor, "--json")
-    assert r.exit_code == 0, r.stderr
-    rep = json.loads(r.stdout)
-    assert rep["boundary_nodes_held"] == 80 and rep["boundary_nodes_sliding"] == 0
-    assert rep["moved_nodes"] > 100
-    assert np.array_equal(meshio.read(out).points[:80, :2], square)
-    ff = {s: tmp_path / f"ff.{s}" for s in ("msh", "vtu")}
+    for suffix in ("msh", "su2"):
+        mesh, out = tmp_path / f"sq.{suffix}", tmp_path / f"sq_a_{suffix}.vtu"
+        assert run("all", csv, "-o", mesh, "-q").exit_code == 0
+        r = run("adapt", mesh, "-o", out, "--monitor", monitor, "--json")
+        assert r.exit_code == 0, r.stderr
+        rep = json.loads(r.stdout)
+        assert rep["boundary_nodes_held"] == 80 and rep["boundary_nodes_sliding"] == 0
+        assert rep["moved_nodes"] > 100
+        assert np.array_equal(meshio.read(out).points[:80, :2], square)
+    ff = {s: tmp_path / f"ff.{s}" for s in ("msh", "su2", "vtu")}
     for suffix, path in ff.items():
         assert run("all", SAMPLES / "naca0012.csv", "--exterior", "-o", path, "-q").exit_code == 0
         r = run("adapt", path, "-o", tmp_path / f"ff_a_{suffix}.vtu", "--monitor", monitor)
         assert r.exit_code == 0, r.stderr
-    a, b = (meshio.read(tmp_path / f"ff_a_{s}.vtu").points for s in ("msh", "vtu"))
-    assert np.array_equal(a, b)
+    a, b, c = (meshio.read(tmp_path / f"ff_a_{s}.vtu").points for s in ("msh", "su2", "vtu"))
+    assert np.array_equal(a, c) and np.array_equal(b, c)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import re
 import time
 
 import click
@@ -149,7 +150,7 @@ def command(
             points, tri, m.point_data[field], alpha, kind, f"{mesh_path}: field {field!r}"
         )
         code = _adapt.interpolated(points, tri, nodal)
-    held = _contour_nodes(m, len(points))
+    held = _contour_nodes(m, len(points), mesh_path)
     res = _adapt.adapt(
         start, tri, code, steps, source=reference_path or mesh_path, held=held,
         slide=boundary == "slide",
@@ -267,19 +268,25 @@ def _node_data(name: str, values, output: str) -> np.ndarray:
     return np.array(v.tolist(), dtype=object)
 
 
-def _contour_nodes(m, n: int) -> np.ndarray | None:
+def _contour_nodes(m, n: int, path: str) -> np.ndarray | None:
     """A deformesh mesh's contour and hole nodes (a mask), which stay where they are: the
     nodes its ``contour_point`` data number (.vtu, .vtk, .xdmf), or the nodes of the lines
-    of every physical group but the box sides where the groups name a ``contour`` (.msh).
+    of every physical group (SU2 marker) but the box sides where they name a ``contour``
+    (.msh, .su2).
     None for any other mesh."""
     from ..triangulate import BOX_SIDES
 
     if "contour_point" in m.point_data:
         return np.asarray(m.point_data["contour_point"]).ravel() >= 0
     names = {int(np.ravel(v)[0]): k for k, v in m.field_data.items() if np.ravel(v)[-1] == 1}
+    tags = m.cell_data.get("gmsh:physical", m.cell_data.get(GROUP_DATA))
+    if "su2:tag" in m.cell_data and path.lower().endswith(".su2"):
+        # (meshio numbers SU2's markers 1, 2, ... in the order of their MARKER_TAG lines)
+        with open(path, errors="replace") as f:
+            found = re.findall(r"^\s*MARKER_TAG\s*=\s*(\S+)", f.read(), re.M)
+        names, tags = {k + 1: name for k, name in enumerate(found)}, m.cell_data["su2:tag"]
     if "contour" not in names.values():
         return None
-    tags = m.cell_data.get("gmsh:physical", m.cell_data.get(GROUP_DATA))
     if tags is None:
         return None
     held = np.zeros(n, dtype=bool)
