@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .deform import LinearSolver
+from .cholesky import Cholesky
 from .divcurl import Assembler
 from .errors import FoldError, InputError, MonitorError, OptionError
 from .geometry import boundary_edges, signed_areas
@@ -167,15 +167,15 @@ class SlipSystem:
     each component and couples them by ``B``, ``ux . B uy = oint ux d(uy)``: on each
     boundary edge ``a -> b``, ``(ux_a + ux_b) (uy_b - uy_a) / 2``, whatever the
     coordinates.  The reduced matrix ``P^T [[L, B], [B^T, L]] P`` is factorised
-    (QDLDL, approximate minimum degree) once, and refactorised with new numbers on
-    later solves while its pattern holds.
+    (:class:`.cholesky.Cholesky`) once, and refactorised with new numbers on later
+    solves while its pattern holds.
 
     Where every sliding node moves along an axis (a box, a grid's square) ``B``
     couples no two unknowns (a boundary edge's ends are a fixed ``ux`` or ``uy`` on
     one side, or a corner) and the system is two scalar Laplace problems, each
     component held where its node may not move that way: they are assembled and
-    solved as meshing's are (:class:`.divcurl.Assembler`,
-    :class:`.deform.LinearSolver`), one matrix for both where the held sets agree.
+    solved on meshing's assembly (:class:`.divcurl.Assembler`), one matrix for both
+    where the held sets agree.
     """
 
     def __init__(self, tri: np.ndarray, fixed: np.ndarray, tangent: np.ndarray):
@@ -202,36 +202,34 @@ class SlipSystem:
             shape=(n, n),
         )  # fmt: skip
         self._ldl = None
-        self._pattern = None
-        self.factorisations = 0
         along = np.zeros(n, dtype=bool)
         along[slide] = True
         self.split = bool((tangent[slide] == 0).any(axis=1).all())
         if self.split:
             hold_x = fixed | (along & (tangent[:, 0] == 0))
             hold_y = fixed | (along & (tangent[:, 1] == 0))
-            x = (Assembler(tri, n, hold_x), LinearSolver("direct"))
+            x = (Assembler(tri, n, hold_x), Cholesky())
             same = np.array_equal(hold_x, hold_y)
-            self._parts = [x] if same else [x, (Assembler(tri, n, hold_y), LinearSolver("direct"))]
+            self._parts = [x] if same else [x, (Assembler(tri, n, hold_y), Cholesky())]
 
     def velocity(self, points: np.ndarray, r: np.ndarray) -> np.ndarray:
         """``U`` (N, 2) with ``div U = r`` (per triangle), ``curl U = 0``, in the least-
         squares sense on the allowed motions."""
-        import qdldl
         import scipy.sparse as sp
 
         U = np.zeros((self.n, 2))
         if self.P.shape[1] == 0:
             return U
         if self.split:
-            for k, (asm, lin) in enumerate(self._parts):
+            for k, (asm, chol) in enumerate(self._parts):
                 if asm.n_free:
                     K, _ = asm.system(points, U)  # (held components are 0)
                     load = asm.load(points, r)
+                    chol.factorise(K.upper())
                     if len(self._parts) == 1:
-                        U[asm.free] = lin.solve(K, load)
+                        U[asm.free] = chol.solve(load)
                     else:
-                        U[asm.free, k] = lin.solve(K, load[:, [k]])[:, 0]
+                        U[asm.free, k] = chol.solve(load[:, k])
             return U
         L, _ = self.asm.system(points, U)
         L = L.tocsr()
@@ -239,15 +237,9 @@ class SlipSystem:
         K = (self.P.T @ A @ self.P).tocsr()
         upper = sp.triu(K, format="csc")
         upper.sort_indices()
-        pattern = (upper.indptr, upper.indices)
-        if self._ldl is not None and all(
-            np.array_equal(x, y) for x, y in zip(pattern, self._pattern)
-        ):
-            self._ldl.update(upper, upper=True)
-        else:
-            self._ldl = qdldl.Solver(upper, upper=True)
-            self._pattern = pattern
-            self.factorisations += 1
+        if self._ldl is None:
+            self._ldl = Cholesky()
+        self._ldl.factorise(upper)
         load = self.asm.load(points, r)
         rhs = self.P.T @ np.concatenate([load[:, 0], load[:, 1]])
         u = self.P @ self._ldl.solve(rhs)

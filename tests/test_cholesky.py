@@ -1,0 +1,45 @@
+"""The sparse Cholesky solver of adapt's systems: solutions, refactorisation on the
+same pattern, and a matrix that is not positive definite refused."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from deformesh_cli.cholesky import Cholesky
+from deformesh_cli.errors import SolverError
+
+
+def spd(n: int, seed: int) -> sp.csc_matrix:
+    rng = np.random.default_rng(seed)
+    A = sp.random(n, n, density=0.02, random_state=rng, format="csc")
+    return (A @ A.T + sp.eye(n) * n * 0.01).tocsc()
+
+
+def upper(K: sp.csc_matrix) -> sp.csc_matrix:
+    u = sp.triu(K, format="csc")
+    u.sort_indices()
+    return u
+
+
+def test_solves_and_refactorises_on_the_same_pattern():
+    K1 = spd(300, 1)
+    D = sp.diags(np.linspace(1.0, 2.0, 300))
+    K2 = (D @ K1 @ D).tocsc()  # same pattern, other numbers
+    K3 = spd(300, 4)  # another pattern
+    b = np.random.default_rng(2).random((300, 2))
+    chol = Cholesky()
+    for K in (K1, K2, K3):
+        chol.factorise(upper(K))
+        x = chol.solve(b)
+        assert x.shape == b.shape
+        assert np.allclose(x, spla.spsolve(K, b), rtol=1e-9, atol=1e-12)
+        assert np.allclose(chol.solve(b[:, 0]), x[:, 0], rtol=0, atol=0)
+    assert chol.symbolic == 2  # K2 reused K1's ordering
+
+
+def test_a_matrix_that_is_not_positive_definite_is_refused():
+    K = spd(50, 3)
+    K = (K - sp.eye(50) * 1e3).tocsc()
+    with pytest.raises(SolverError, match="not positive definite"):
+        Cholesky().factorise(upper(K))
