@@ -87,9 +87,9 @@ def main():
     with tempfile.TemporaryDirectory() as d:
         d = Path(d)
         lines += [
-            "| case | triangles | options | sigma/mu before | after | volume ratio before "
-            "| after | smallest angle | seconds | peak RSS MB |",
-            "| --- | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+            "| case | triangles | options | solves | sigma/mu before | after "
+            "| volume ratio before | after | smallest angle | seconds | peak RSS MB |",
+            "| --- | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
         ]
         ring = d / "ring.vtu"
         write_grid(ring, 20)
@@ -97,6 +97,7 @@ def main():
             dt, mb, r = adapt(ring, d / "o.vtu", "--monitor", RING, *opts)
             lines.append(
                 f"| movement's ring, 20 x 20 | {r['triangles']} | {' '.join(opts) or 'defaults'} "
+                f"| {r['solves']} "
                 f"| {r['sigma_over_mu_before']:.3f} | {r['sigma_over_mu']:.3f} "
                 f"| {r['volume_ratio_before']:.2f} | {r['volume_ratio']:.2f} "
                 f"| {r['smallest_angle']:.1f} | {dt:.2f} | {mb:.0f} |"
@@ -109,6 +110,7 @@ def main():
         dt, mb, r = adapt(ff, d / "o.vtu", "--monitor", WAKE)
         lines.append(
             f"| samples/naca0012.csv far field, `{WAKE}` | {r['triangles']} | defaults "
+            f"| {r['solves']} "
             f"| {r['sigma_over_mu_before']:.3f} | {r['sigma_over_mu']:.3f} "
             f"| {r['volume_ratio_before']:.2f} | {r['volume_ratio']:.2f} "
             f"| {r['smallest_angle']:.1f} | {dt:.2f} | {mb:.0f} |"
@@ -119,7 +121,7 @@ def main():
             write_grid(grid, n)
             dt, mb, r = adapt(grid, d / "o.vtu", "--monitor", RING)
             lines.append(
-                f"| ring, {n} x {n} | {r['triangles']} | defaults "
+                f"| ring, {n} x {n} | {r['triangles']} | defaults | {r['solves']} "
                 f"| {r['sigma_over_mu_before']:.3f} | {r['sigma_over_mu']:.3f} "
                 f"| {r['volume_ratio_before']:.2f} | {r['volume_ratio']:.2f} "
                 f"| {r['smallest_angle']:.1f} | {dt:.2f} | {mb:.0f} |"

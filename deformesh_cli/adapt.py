@@ -39,17 +39,33 @@ from dataclasses import dataclass
 import numpy as np
 
 from .cholesky import Cholesky
-from .divcurl import Assembler
+from .divcurl import Assembler, gradients, stiffness_entries
 from .errors import FoldError, InputError, MonitorError, OptionError
 from .geometry import boundary_edges, signed_areas
 from .quality import measures
 from .size import positive_values
 
-#: Midpoint-rule pseudo-time steps by default: on the ``movement`` ring, 20 steps end
-#: within 0.005 of sigma/mu's limit under step refinement (``benchmarks/MEASURED.md``).
-ADAPT_STEPS = 20
+#: Solves of the velocity at least, each on the mesh as it then is: the time between
+#: two solves is at most ``1 / ADAPT_STEPS`` (where the velocity is steep,
+#: :data:`STRETCH` asks for more: 18 on the ``movement`` ring on a 300 x 300 grid).
+#: On that ring 10 solves end where 40 do (sigma/mu 0.023 both; 8 give 0.025, 6
+#: 0.027), ``benchmarks/MEASURED.md``.
+ADAPT_STEPS = 10
 
-#: Step halvings allowed over a run, per step asked for, before a fold is reported.
+#: The time between two solves is also at most ``STRETCH / max_K |grad v|_K``, the
+#: velocity's P1 gradient on each cell at the solve (spectral norm): the field's own
+#: Euler map over that time then keeps every cell's singular values within
+#: ``[1 - STRETCH, 1 + STRETCH]``, so no cell folds or falls below a quarter of its
+#: area in it, and the frozen field is never read far from the mesh it was solved on.
+STRETCH = 0.5
+
+#: Midpoint-rule substeps in each solve's velocity field (frozen between solves): on
+#: the 300 x 300 ring sigma/mu 0.033 with 1, 0.022 with 2, 0.020 with 4 at twice the
+#: point location (``benchmarks/MEASURED.md``).
+SUBSTEPS = 2
+
+#: Halvings of the time between two solves allowed where a substep folds a triangle,
+#: before the fold is reported (the time then 1/1024 of what it was).
 MAX_HALVINGS = 10
 
 #: A boundary node slides when the cross product of its two boundary edges is at most
@@ -184,7 +200,6 @@ class SlipSystem:
         n = len(fixed)
         self.n = n
         self.tri = tri
-        self.asm = Assembler(tri, n, np.zeros(n, dtype=bool))
         slide = np.flatnonzero(tangent.any(axis=1) & ~fixed)
         inner = np.flatnonzero(~fixed & ~tangent.any(axis=1))
         ni, ns = len(inner), len(slide)
@@ -211,27 +226,32 @@ class SlipSystem:
             x = (Assembler(tri, n, hold_x), Cholesky())
             same = np.array_equal(hold_x, hold_y)
             self._parts = [x] if same else [x, (Assembler(tri, n, hold_y), Cholesky())]
+        else:
+            self.asm = Assembler(tri, n, np.zeros(n, dtype=bool))
 
-    def velocity(self, points: np.ndarray, r: np.ndarray) -> np.ndarray:
+    def velocity(self, points: np.ndarray, r: np.ndarray, geometry=None) -> np.ndarray:
         """``U`` (N, 2) with ``div U = r`` (per triangle), ``curl U = 0``, in the least-
-        squares sense on the allowed motions."""
+        squares sense on the allowed motions (``geometry``: :func:`.divcurl.gradients`
+        of the mesh at ``points``, if the caller has them)."""
         import scipy.sparse as sp
 
         U = np.zeros((self.n, 2))
         if self.P.shape[1] == 0:
             return U
-        if self.split:
+        if geometry is None:
+            geometry = gradients(points, self.tri)
+        ke = stiffness_entries(points, self.tri, geometry=geometry).ravel()
+        if self.split:  # (held components are 0: no Dirichlet load)
             for k, (asm, chol) in enumerate(self._parts):
                 if asm.n_free:
-                    K, _ = asm.system(points, U)  # (held components are 0)
-                    load = asm.load(points, r)
-                    chol.factorise(K.upper())
+                    chol.factorise(asm.matrix(ke).upper())
+                    load = asm.load(points, r, geometry)
                     if len(self._parts) == 1:
                         U[asm.free] = chol.solve(load)
                     else:
                         U[asm.free, k] = chol.solve(load[:, k])
             return U
-        L, _ = self.asm.system(points, U)
+        L = self.asm.matrix(ke)
         L = L.tocsr()
         A = sp.bmat([[L, self.B], [self.B.T, L]], format="csr")
         K = (self.P.T @ A @ self.P).tocsr()
@@ -240,7 +260,7 @@ class SlipSystem:
         if self._ldl is None:
             self._ldl = Cholesky()
         self._ldl.factorise(upper)
-        load = self.asm.load(points, r)
+        load = self.asm.load(points, r, geometry)
         rhs = self.P.T @ np.concatenate([load[:, 0], load[:, 1]])
         u = self.P @ self._ldl.solve(rhs)
         U[:, 0], U[:, 1] = u[: self.n], u[self.n :]
@@ -274,35 +294,65 @@ def adapt(
     before = equidistribution(points, tri, m0, area)
     system = SlipSystem(tri, fixed, tangent)
 
-    def velocity(q: np.ndarray, t: float) -> np.ndarray:
-        g1 = monitor_values(monitor, q, source) / c
-        U = system.velocity(q, (1.0 - g1)[tri].mean(axis=1))
-        return U / ((1.0 - t) + t * g1)[:, None]
+    neighbours = triangle_neighbours(tri)
+    start = np.empty(len(points), dtype=np.int64)
+    start[tri.ravel()] = np.repeat(np.arange(len(tri)), 3)  # a triangle at each node
+    slides = np.flatnonzero(tangent.any(axis=1))
+
+    def allowed(v: np.ndarray) -> np.ndarray:
+        # held nodes stay, sliding ones move along their run (exactly: a zero tangent
+        # component gives a zero velocity component)
+        v[fixed] = 0.0
+        v[slides] = (v[slides] * tangent[slides]).sum(axis=1)[:, None] * tangent[slides]
+        return v
+
+    def density(q: np.ndarray, t: float) -> np.ndarray:
+        return (1.0 - t) + t * monitor_values(monitor, q, source) / c
+
+    def folded(q: np.ndarray) -> bool:
+        return not (signed_areas(q, tri) > 0).all()
+
+    def substeps(field: FrozenField, pos: np.ndarray, t: float, span: float):
+        # SUBSTEPS midpoint steps over [t, t + span] in the frozen field: the end
+        # positions, or (None, positions with a fold) as soon as a substep folds
+        # (the midpoints are only where the field is read, not a mesh: not checked)
+        h = span / SUBSTEPS
+        for i in range(SUBSTEPS):
+            s = t + i * h
+            mid = pos + (0.5 * h) * allowed(field.at(pos) / density(pos, s)[:, None])
+            pos = pos + h * allowed(field.at(mid) / density(mid, s + 0.5 * h)[:, None])
+            if folded(pos):
+                return None, pos
+        return pos, None
 
     pos = points.copy()
-    t, dt, halvings = 0.0, 1.0 / steps, 0
+    t, halvings, solves = 0.0, 0, 0
     while t < 1.0:
-        h = min(dt, 1.0 - t)
-        v = velocity(pos, t)
-        new = pos
+        g1 = monitor_values(monitor, pos, source) / c
+        geometry = gradients(pos, tri)
+        U = system.velocity(pos, (1.0 - g1)[tri].mean(axis=1), geometry)
+        solves += 1
+        most = float(stretch(tri, geometry, allowed(U / ((1.0 - t) + t * g1)[:, None])).max())
+        span = min(1.0 / steps, 1.0 - t, STRETCH / most if most > 0 else np.inf)
+        halved = 0
         while True:
-            mid = pos + (0.5 * h) * v
-            if (signed_areas(mid, tri) > 0).all():
-                new = pos + h * velocity(mid, t + 0.5 * h)
-                if (signed_areas(new, tri) > 0).all():
-                    break
-            if halvings >= MAX_HALVINGS * steps:
-                worst = mid if not (signed_areas(mid, tri) > 0).all() else new
+            field = FrozenField(pos, tri, U, neighbours, start)
+            new, worst = substeps(field, pos, t, span)
+            if new is not None:
+                break
+            if halved == MAX_HALVINGS:
                 x, y = worst[tri[int(np.argmin(signed_areas(worst, tri)))]].mean(axis=0)
                 raise FoldError(
                     f"{source}: the adaptation folds a triangle near ({x:.6g}, {y:.6g}) at "
                     f"pseudo-time {t:.3f} even with the step refined; give a smoother "
                     "monitor or more --steps"
                 )
-            h *= 0.5
-            halvings += 1
+            span *= 0.5
+            halved += 1
+        halvings += halved
         pos = new
-        t = 1.0 if h == 1.0 - t else t + h
+        # (the end within round-off of pseudo-time 1 is 1: no solve for a sliver)
+        t = 1.0 if t + span > 1.0 - 2.0**-40 else t + span
     fixed_count = int(fixed.sum())
     after = equidistribution(pos, tri, monitor_values(monitor, pos, source), area)
     report = {
@@ -311,6 +361,8 @@ def adapt(
         "boundary_nodes_held": fixed_count,
         "boundary_nodes_sliding": int(tangent.any(axis=1).sum()),
         "steps": steps,
+        "substeps": SUBSTEPS,
+        "solves": solves,
         "halvings": halvings,
         "sigma_over_mu_before": before[0],
         "volume_ratio_before": before[1],
@@ -337,6 +389,7 @@ class Locator:
         import shapely
 
         self.points, self.tri = points, tri
+        self.frames = frames(points, tri)
         self.tree = shapely.STRtree(shapely.polygons(points[tri]))
         self.reach = ROUND_OFF * float(np.ptp(points, axis=0).max())
 
@@ -347,7 +400,7 @@ class Locator:
         3).  A point further out is an :class:`InputError`."""
         import shapely
 
-        old, tri = self.points, self.tri
+        tri = self.tri
         first = np.full(len(q), len(tri))
         at, hit = self.tree.query(shapely.points(q), predicate="intersects")
         np.minimum.at(first, at, hit)
@@ -360,12 +413,109 @@ class Locator:
         if (first == len(tri)).any():
             k = int(np.argmax(first == len(tri)))
             raise InputError(f"the point ({q[k, 0]:.6g}, {q[k, 1]:.6g}) is outside the mesh")
-        a, b, c = (old[tri[first, j]] for j in range(3))
-        den = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
-        wb = (q[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (q[:, 1] - a[:, 1])
-        wc = (b[:, 0] - a[:, 0]) * (q[:, 1] - a[:, 1]) - (q[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
-        wb, wc = wb / den, wc / den
-        return first, np.column_stack([1.0 - wb - wc, wb, wc])
+        return first, weights(self.frames, first, q)
+
+
+def stretch(tri: np.ndarray, geometry, v: np.ndarray) -> np.ndarray:
+    """(T,): the spectral norm of the gradient of the P1 field ``v`` (N, 2) on each
+    triangle; ``geometry``: :func:`.divcurl.gradients` of the mesh."""
+    gx, gy, _ = geometry
+    vx, vy = v[tri, 0], v[tri, 1]
+    a, b = np.einsum("ij,ij->i", gx, vx), np.einsum("ij,ij->i", gy, vx)
+    c, d = np.einsum("ij,ij->i", gx, vy), np.einsum("ij,ij->i", gy, vy)
+    fro = a * a + b * b + c * c + d * d
+    det = a * d - b * c
+    return np.sqrt(0.5 * (fro + np.sqrt(np.maximum(fro * fro - 4.0 * det * det, 0.0))))
+
+
+#: Steps a walk takes before the STRtree locates the point instead (a walk by the most
+#: negative barycentric weight can circle on a mesh that is not Delaunay).
+WALK_LIMIT = 256
+
+
+def triangle_neighbours(tri: np.ndarray) -> np.ndarray:
+    """(T, 3): the triangle across the side opposite each vertex, -1 on the boundary."""
+    n_tri = len(tri)
+    sides = np.concatenate([tri[:, [1, 2]], tri[:, [2, 0]], tri[:, [0, 1]]])
+    owner = np.tile(np.arange(n_tri), 3)
+    vertex = np.repeat(np.arange(3), n_tri)
+    key = np.sort(sides, axis=1)
+    order = np.lexsort((key[:, 1], key[:, 0]))
+    k = key[order]
+    pair = (k[1:] == k[:-1]).all(axis=1)
+    a, b = order[:-1][pair], order[1:][pair]
+    out = np.full((n_tri, 3), -1, dtype=np.int64)
+    out[owner[a], vertex[a]] = owner[b]
+    out[owner[b], vertex[b]] = owner[a]
+    return out
+
+
+def frames(points: np.ndarray, tri: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each triangle's first corner ``a`` (T, 2) and the inverse of ``[b - a, c - a]``
+    (T, 2, 2): the barycentric weights of ``q`` are ``1 - wb - wc, wb, wc`` with
+    ``(wb, wc) = inverse (q - a)``."""
+    a, b, c = (points[tri[:, j]] for j in range(3))
+    e1, e2 = b - a, c - a
+    den = e1[:, 0] * e2[:, 1] - e2[:, 0] * e1[:, 1]
+    inv = np.stack([[e2[:, 1], -e2[:, 0]], [-e1[:, 1], e1[:, 0]]]).transpose(2, 0, 1)
+    return a, inv / den[:, None, None]
+
+
+def weights(frame: tuple[np.ndarray, np.ndarray], t: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """(k, 3): the barycentric weights of the points ``q`` in the triangles ``t``
+    (``frame``: :func:`frames` of the mesh)."""
+    a, inv = frame
+    d = q - a[t]
+    m = inv[t]
+    wb = m[:, 0, 0] * d[:, 0] + m[:, 0, 1] * d[:, 1]
+    wc = m[:, 1, 0] * d[:, 0] + m[:, 1, 1] * d[:, 1]
+    return np.column_stack([1.0 - wb - wc, wb, wc])
+
+
+#: A barycentric weight this far below 0 is 0 up to round-off: a point on a side
+#: shared by two triangles is in both (a walk does not step back and forth).
+WEIGHT_ROUND_OFF = 1e-12
+
+
+class FrozenField:
+    """A P1 field on a fixed mesh (``values`` at its nodes), evaluated at points that
+    each started at a node and move a little between calls: every point walks from
+    the triangle it was found in last (at first, one at its node), across the side
+    of its most negative barycentric weight, until all weights are >= 0 (to
+    :data:`WEIGHT_ROUND_OFF`) or the walk meets the boundary; a point that stops
+    outside the mesh, or walks :data:`WALK_LIMIT` steps, is found by the
+    :class:`Locator` (within :data:`ROUND_OFF` of the mesh).  At the mesh's own nodes
+    the values are returned to the bit."""
+
+    def __init__(self, points, tri, values, neighbours, start):
+        self.points, self.tri, self.values = points, tri, values
+        self.neighbours = neighbours
+        self.hint = start.copy()
+        self.frame = frames(points, tri)
+        self._locator = None
+
+    def at(self, q: np.ndarray) -> np.ndarray:
+        if np.array_equal(q, self.points):
+            return self.values.copy()
+        t = self.hint
+        w = np.empty((len(q), 3))
+        todo = np.arange(len(q))
+        for _ in range(WALK_LIMIT):
+            ww = weights(self.frame, t[todo], q[todo])
+            j = np.argmin(ww, axis=1)
+            nxt = self.neighbours[t[todo], j]
+            done = (ww[np.arange(len(todo)), j] >= -WEIGHT_ROUND_OFF) | (nxt < 0)
+            w[todo[done]] = ww[done]
+            t[todo[~done]] = nxt[~done]
+            todo = todo[~done]
+            if not len(todo):
+                break
+        lost = np.union1d(todo, np.flatnonzero(w.min(axis=1) < -WEIGHT_ROUND_OFF))
+        if len(lost):
+            if self._locator is None:
+                self._locator = Locator(self.points, self.tri)
+            t[lost], w[lost] = self._locator.find(q[lost])
+        return np.einsum("mj,mj...->m...", w, self.values[self.tri[t]])
 
 
 def carry(old: np.ndarray, tri: np.ndarray, new: np.ndarray, values: np.ndarray) -> np.ndarray:

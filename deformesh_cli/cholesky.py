@@ -17,43 +17,41 @@ from .errors import SolverError
 
 class Cholesky:
     """``K x = b`` for a sequence of symmetric positive definite ``K`` given by their
-    upper triangles in CSC form (``data``, ``indices``, ``indptr``, ``shape``)."""
+    upper triangles in CSC form (``data``, ``indices``, ``indptr``, ``shape``; rows
+    sorted within each column)."""
 
     def __init__(self):
         self._factor = None
         self._pattern = None
-        self._rows = None
-        self._cols = None
+        self._K = None
         self.symbolic = 0  # orderings computed (one per sparsity pattern)
 
     def factorise(self, upper) -> None:
         import cvxopt
         import cvxopt.cholmod as cholmod
+        from threadpoolctl import threadpool_limits
 
         indices, indptr = upper.indices, upper.indptr
         old = self._pattern
         same = old is not None and all(
             a is b or np.array_equal(a, b) for a, b in zip((indices, indptr), old)
         )
-        if not same:
-            self._rows = cvxopt.matrix(np.asarray(indices, dtype=np.int64))
-            cols = np.repeat(np.arange(upper.shape[1], dtype=np.int64), np.diff(indptr))
-            self._cols = cvxopt.matrix(cols)
-        n = upper.shape[0]
-        K = cvxopt.spmatrix(
-            cvxopt.matrix(np.asarray(upper.data, dtype=np.float64)), self._rows, self._cols, (n, n)
-        )
-        cholmod.options["supernodal"] = 2
-        cholmod.options["postorder"] = True
-        if not same:
-            self._factor = cholmod.symbolic(K, uplo="U")
+        values = cvxopt.matrix(np.asarray(upper.data, dtype=np.float64))
+        if same:
+            self._K.V = values  # the same pattern, its entries in the same (CCS) order
+        else:
+            n = upper.shape[0]
+            rows = cvxopt.matrix(np.asarray(indices, dtype=np.int64))
+            cols = cvxopt.matrix(np.repeat(np.arange(n, dtype=np.int64), np.diff(indptr)))
+            self._K = cvxopt.spmatrix(values, rows, cols, (n, n))
+            cholmod.options["supernodal"] = 2
+            cholmod.options["postorder"] = True
+            self._factor = cholmod.symbolic(self._K, uplo="U")
             self._pattern = (indices, indptr)
             self.symbolic += 1
-        from threadpoolctl import threadpool_limits
-
         try:
             with threadpool_limits(limits=1, user_api="blas"):
-                cholmod.numeric(K, self._factor)
+                cholmod.numeric(self._K, self._factor)
         except ArithmeticError as e:
             raise SolverError(f"the matrix is not positive definite (column {e})") from None
 
@@ -61,10 +59,9 @@ class Cholesky:
         """``rhs`` (n,) or (n, k) -> the solution, same shape."""
         import cvxopt
         import cvxopt.cholmod as cholmod
-
-        b = np.asarray(rhs, dtype=np.float64)
         from threadpoolctl import threadpool_limits
 
+        b = np.asarray(rhs, dtype=np.float64)
         x = cvxopt.matrix(b.reshape(len(b), -1))
         with threadpool_limits(limits=1, user_api="blas"):
             cholmod.solve(self._factor, x)

@@ -34,12 +34,15 @@ def gradients(points: np.ndarray, tri: np.ndarray):
     return b / a2[:, None], c / a2[:, None], a2
 
 
-def stiffness_entries(points: np.ndarray, tri: np.ndarray, out: np.ndarray | None = None):
+def stiffness_entries(
+    points: np.ndarray, tri: np.ndarray, out: np.ndarray | None = None, geometry=None
+):
     """P1 Laplace element matrices, flattened row-major to (t, 9) (into ``out`` if
     given: a caller assembling many times keeps one buffer, rather than faulting a
     fresh one in every time).  A row of three at a time, each entry
-    ``(gx_i gx_j + gy_i gy_j) |T|``."""
-    gx, gy, a2 = gradients(points, tri)
+    ``(gx_i gx_j + gy_i gy_j) |T|``.  ``geometry``: :func:`gradients` of the same
+    mesh, if the caller has them."""
+    gx, gy, a2 = gradients(points, tri) if geometry is None else geometry
     area = (0.5 * a2)[:, None]
     ke = np.empty((len(tri), 9)) if out is None else out
     for i in range(3):
@@ -162,9 +165,10 @@ class Assembler:
         self._ke = np.empty((len(tri), 9))
         self._ke_ff = np.empty(len(self._ff))
 
-    def load(self, points: np.ndarray, r: np.ndarray) -> np.ndarray:
-        """The divergence load ``sum_T |T| r_T (gx, gy)`` on the free dofs, (n_free, 2)."""
-        gx, gy, a2 = gradients(points, self.tri)
+    def load(self, points: np.ndarray, r: np.ndarray, geometry=None) -> np.ndarray:
+        """The divergence load ``sum_T |T| r_T (gx, gy)`` on the free dofs, (n_free, 2)
+        (``geometry``: :func:`gradients` of the mesh, if the caller has them)."""
+        gx, gy, a2 = gradients(points, self.tri) if geometry is None else geometry
         w = (0.5 * a2 * r)[:, None]
         nodes = self.tri.ravel()
         free = self._fidx[nodes]
@@ -181,9 +185,20 @@ class Assembler:
         ``u_dirichlet`` is (N, 2); only its rows at Dirichlet nodes are read.
         """
         ke = stiffness_entries(points, self.tri, out=self._ke).ravel()
+        K = self.matrix(ke)
+        w = ke[self._fd]
+        rhs = np.empty((self.n_free, 2))
+        for comp in range(2):
+            rhs[:, comp] = -np.bincount(
+                self._fd_row, weights=w * u_dirichlet[self._fd_col, comp], minlength=self.n_free
+            )
+        return K, rhs
+
+    def matrix(self, ke: np.ndarray) -> SymmetricCSR:
+        """``K_ff`` from the element entries ``ke`` (:func:`stiffness_entries`, raveled)."""
         np.take(ke, self._ff, out=self._ke_ff)
         data = np.bincount(self._slot, weights=self._ke_ff, minlength=self._nnz)
-        K = SymmetricCSR(
+        return SymmetricCSR(
             data,
             self._indices,
             self._indptr,
@@ -192,10 +207,3 @@ class Assembler:
             self._up_indices,
             self._up_indptr,
         )
-        w = ke[self._fd]
-        rhs = np.empty((self.n_free, 2))
-        for comp in range(2):
-            rhs[:, comp] = -np.bincount(
-                self._fd_row, weights=w * u_dirichlet[self._fd_col, comp], minlength=self.n_free
-            )
-        return K, rhs

@@ -7,7 +7,18 @@ import meshio
 import numpy as np
 import pytest
 
-from deformesh_cli.adapt import adapt, carry, field_monitor, interpolated
+from deformesh_cli.adapt import (
+    ADAPT_STEPS,
+    STRETCH,
+    FrozenField,
+    adapt,
+    carry,
+    field_monitor,
+    interpolated,
+    stretch,
+    triangle_neighbours,
+)
+from deformesh_cli.divcurl import gradients
 from deformesh_cli.geometry import boundary_edges, signed_areas
 
 from .conftest import SAMPLES
@@ -222,6 +233,53 @@ def test_a_deformesh_mesh_keeps_its_contour_nodes_and_groups(run, tmp_path):
             r.Update()
             fd = r.GetOutput().GetFieldData()
             assert {fd.GetArrayName(i) for i in range(fd.GetNumberOfArrays())} == set(a.field_data)
+
+
+def test_stretch_is_the_spectral_norm_of_an_affine_fields_gradient():
+    """On any mesh, an affine field ``v = A x + b`` has gradient ``A`` on every cell:
+    its stretch is the largest singular value of ``A``."""
+    p, tri = square_grid(7)
+    rng = np.random.default_rng(3)
+    inner = ((p > 0) & (p < 1)).all(axis=1)
+    p[inner] += rng.uniform(-0.03, 0.03, (inner.sum(), 2))
+    for A in (np.array([[2.0, 0.0], [0.0, -0.5]]), rng.normal(size=(2, 2))):
+        v = p @ A.T + np.array([0.3, -1.0])
+        got = stretch(tri, gradients(p, tri), v)
+        assert np.allclose(got, np.linalg.svd(A, compute_uv=False)[0], rtol=1e-12)
+
+
+def test_the_frozen_field_walks_to_each_point_and_interpolates_linearly():
+    """Points that moved from their nodes, some across several triangles, and one on a
+    shared side: the walk finds each, and a linear field comes back exactly (to
+    round-off); at the mesh's own nodes the values come back to the bit."""
+    p, tri = square_grid(8)
+    rng = np.random.default_rng(4)
+    values = np.c_[2 * p[:, 0] - p[:, 1], 0.5 * p[:, 1] + 1]
+    start = np.empty(len(p), dtype=np.int64)
+    start[tri.ravel()] = np.repeat(np.arange(len(tri)), 3)
+    field = FrozenField(p, tri, values, triangle_neighbours(tri), start)
+    assert np.array_equal(field.at(p.copy()), values)
+    q = p.copy()
+    inner = ((p > 0) & (p < 1)).all(axis=1)
+    q[inner] += rng.uniform(-0.3, 0.3, (inner.sum(), 2))  # up to 2.4 cells away
+    q = np.clip(q, 0.0, 1.0)
+    q[0] = 0.5 * (p[tri[10, 0]] + p[tri[10, 2]])  # on a side two triangles share
+    for _ in range(2):  # a second call walks from where the first ended
+        got = field.at(q)
+        assert np.abs(got - np.c_[2 * q[:, 0] - q[:, 1], 0.5 * q[:, 1] + 1]).max() < 1e-12
+        q = np.clip(q + rng.uniform(-0.05, 0.05, q.shape), 0.0, 1.0)
+
+
+def test_solves_follow_the_stretch_rule_and_steps_bound_them():
+    """The ring's velocity is steep: its solves are more than --steps asks (the time
+    between them bounded by the stretch); a gentle monitor needs only --steps."""
+    p, tri = square_grid(20)
+    steep = adapt(p, tri, ring).report
+    assert steep["solves"] > ADAPT_STEPS
+    gentle = adapt(p, tri, lambda q: 1 + 0.2 * q[:, 0]).report
+    assert gentle["solves"] == ADAPT_STEPS
+    assert adapt(p, tri, lambda q: 1 + 0.2 * q[:, 0], steps=25).report["solves"] == 25
+    assert 0 < STRETCH < 1
 
 
 def test_adapt_the_library_function():

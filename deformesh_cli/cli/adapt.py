@@ -79,7 +79,8 @@ _WRITE_OPTIONS = {"gmsh22": {"binary": False}}
     type=click.IntRange(min=1),
     default=_adapt.ADAPT_STEPS,
     show_default=True,
-    help="Pseudo-time steps of the deformation (midpoint rule).",
+    help="Solves of the velocity at least: the pseudo-time between two solves is at most "
+    "1/N (and short enough that no cell stretches by more than half in it).",
 )
 @click.option(
     "--png",
