@@ -65,7 +65,9 @@ STRETCH = 0.5
 SUBSTEPS = 2
 
 #: Halvings of the time between two solves allowed where a substep folds a triangle,
-#: before the fold is reported (the time then 1/1024 of what it was).
+#: before the fold is reported (the time then 1/1024 of what it was).  The shortest
+#: time between solves, ``1 / (steps * 2**MAX_HALVINGS)``, bounds :data:`STRETCH`'s
+#: too: a velocity whose gradient asks for less (cells collapsing) is refused.
 MAX_HALVINGS = 10
 
 #: A boundary node slides when the cross product of its two boundary edges is at most
@@ -332,7 +334,17 @@ def adapt(
         geometry = gradients(pos, tri)
         U = system.velocity(pos, (1.0 - g1)[tri].mean(axis=1), geometry)
         solves += 1
-        most = float(stretch(tri, geometry, allowed(U / ((1.0 - t) + t * g1)[:, None])).max())
+        spread = stretch(tri, geometry, allowed(U / ((1.0 - t) + t * g1)[:, None]))
+        k = int(np.argmax(spread))
+        most = float(spread[k])
+        if STRETCH * steps * 2**MAX_HALVINGS < most:
+            # the stretch rule asks for a time shorter than the halvings' floor
+            x, y = pos[tri[k]].mean(axis=0)
+            raise FoldError(
+                f"{source}: the adaptation collapses the cells near ({x:.6g}, {y:.6g}) at "
+                f"pseudo-time {t:.3f} (the velocity's gradient there is {most:.3g}, which "
+                f"would take over {steps * 2**MAX_HALVINGS} solves); give a smoother monitor"
+            )
         span = min(1.0 / steps, 1.0 - t, STRETCH / most if most > 0 else np.inf)
         halved = 0
         while True:

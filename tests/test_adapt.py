@@ -309,6 +309,21 @@ def test_a_bad_monitor_is_refused_and_no_file(run, grid_file, tmp_path, monitor,
     assert not out.exists()
 
 
+def test_cells_collapsing_at_a_held_edge_are_refused_in_one_line(run, tmp_path):
+    """A broad strong monitor draws the NACA 0012 far field's nodes past its held sharp
+    trailing edge: the cells at the tip shrink at every solve and the velocity's gradient
+    there grows past what the shortest interval between solves allows. The run is
+    refused in one line naming the place, not ended on collapsed cells; no file."""
+    ff, out = tmp_path / "ff.vtu", tmp_path / "ff_a.vtu"
+    assert run("all", SAMPLES / "naca0012.csv", "--exterior", "-o", ff, "-q").exit_code == 0
+    monitor = "1 + 10 * exp(-3 * ((x - 0.867)**2 + (y - 0.978)**2))"
+    r = run("adapt", ff, "-o", out, "--monitor", monitor)
+    assert r.exit_code == 1
+    assert len(r.stderr.strip().splitlines()) == 1
+    assert "ff.vtu: the adaptation collapses the cells near (1" in r.stderr
+    assert not out.exists()
+
+
 def test_bad_meshes_are_refused_in_one_line(run, tmp_path):
     p, tri = square_grid(3)
     folded = tmp_path / "folded.vtu"
