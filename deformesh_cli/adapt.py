@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .cholesky import Cholesky
-from .divcurl import Assembler, gradients, stiffness_entries
+from .divcurl import Assembler, divergence_load, gradients, stiffness_entries
 from .errors import FoldError, InputError, MonitorError, OptionError
 from .geometry import boundary_edges, signed_areas
 from .quality import measures
@@ -243,15 +243,15 @@ class SlipSystem:
         if geometry is None:
             geometry = gradients(points, self.tri)
         ke = stiffness_entries(points, self.tri, geometry=geometry).ravel()
+        load = divergence_load(self.tri, geometry, r, self.n)
         if self.split:  # (held components are 0: no Dirichlet load)
             for k, (asm, chol) in enumerate(self._parts):
                 if asm.n_free:
                     chol.factorise(asm.matrix(ke).upper())
-                    load = asm.load(points, r, geometry)
                     if len(self._parts) == 1:
-                        U[asm.free] = chol.solve(load)
+                        U[asm.free] = chol.solve(load[asm.free])
                     else:
-                        U[asm.free, k] = chol.solve(load[:, k])
+                        U[asm.free, k] = chol.solve(load[asm.free, k])
             return U
         L = self.asm.matrix(ke)
         L = L.tocsr()
@@ -262,7 +262,6 @@ class SlipSystem:
         if self._ldl is None:
             self._ldl = Cholesky()
         self._ldl.factorise(upper)
-        load = self.asm.load(points, r, geometry)
         rhs = self.P.T @ np.concatenate([load[:, 0], load[:, 1]])
         u = self.P @ self._ldl.solve(rhs)
         U[:, 0], U[:, 1] = u[: self.n], u[self.n :]
@@ -308,21 +307,27 @@ def adapt(
         v[slides] = (v[slides] * tangent[slides]).sum(axis=1)[:, None] * tangent[slides]
         return v
 
-    def density(q: np.ndarray, t: float) -> np.ndarray:
-        return (1.0 - t) + t * monitor_values(monitor, q, source) / c
+    def density(g: np.ndarray, t: float) -> np.ndarray:
+        # the path from 1 to g = M / c
+        return (1.0 - t) + t * g
+
+    def g_at(q: np.ndarray) -> np.ndarray:
+        return monitor_values(monitor, q, source) / c
 
     def folded(q: np.ndarray) -> bool:
         return not (signed_areas(q, tri) > 0).all()
 
-    def substeps(field: FrozenField, pos: np.ndarray, t: float, span: float):
+    def substeps(field: FrozenField, pos: np.ndarray, g: np.ndarray, t: float, span: float):
         # SUBSTEPS midpoint steps over [t, t + span] in the frozen field: the end
         # positions, or (None, positions with a fold) as soon as a substep folds
         # (the midpoints are only where the field is read, not a mesh: not checked)
+        # (g: g_at(pos), known at the start)
         h = span / SUBSTEPS
         for i in range(SUBSTEPS):
             s = t + i * h
-            mid = pos + (0.5 * h) * allowed(field.at(pos) / density(pos, s)[:, None])
-            pos = pos + h * allowed(field.at(mid) / density(mid, s + 0.5 * h)[:, None])
+            g = g if i == 0 else g_at(pos)
+            mid = pos + (0.5 * h) * allowed(field.at(pos) / density(g, s)[:, None])
+            pos = pos + h * allowed(field.at(mid) / density(g_at(mid), s + 0.5 * h)[:, None])
             if folded(pos):
                 return None, pos
         return pos, None
@@ -330,11 +335,11 @@ def adapt(
     pos = points.copy()
     t, halvings, solves = 0.0, 0, 0
     while t < 1.0:
-        g1 = monitor_values(monitor, pos, source) / c
+        g1 = g_at(pos)
         geometry = gradients(pos, tri)
         U = system.velocity(pos, (1.0 - g1)[tri].mean(axis=1), geometry)
         solves += 1
-        spread = stretch(tri, geometry, allowed(U / ((1.0 - t) + t * g1)[:, None]))
+        spread = stretch(tri, geometry, allowed(U / density(g1, t)[:, None]))
         k = int(np.argmax(spread))
         most = float(spread[k])
         if STRETCH * steps * 2**MAX_HALVINGS < most:
@@ -349,7 +354,7 @@ def adapt(
         halved = 0
         while True:
             field = FrozenField(pos, tri, U, neighbours, start)
-            new, worst = substeps(field, pos, t, span)
+            new, worst = substeps(field, pos, g1, t, span)
             if new is not None:
                 break
             if halved == MAX_HALVINGS:
@@ -428,13 +433,19 @@ class Locator:
         return first, weights(self.frames, first, q)
 
 
+def cell_gradients(tri: np.ndarray, geometry, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``d u/dx, d u/dy`` (T,) each: the gradient of the P1 field ``u`` (N,) on each
+    triangle (``geometry``: :func:`.divcurl.gradients` of the mesh)."""
+    gx, gy, _ = geometry
+    ut = u[tri]
+    return np.einsum("ij,ij->i", gx, ut), np.einsum("ij,ij->i", gy, ut)
+
+
 def stretch(tri: np.ndarray, geometry, v: np.ndarray) -> np.ndarray:
     """(T,): the spectral norm of the gradient of the P1 field ``v`` (N, 2) on each
     triangle; ``geometry``: :func:`.divcurl.gradients` of the mesh."""
-    gx, gy, _ = geometry
-    vx, vy = v[tri, 0], v[tri, 1]
-    a, b = np.einsum("ij,ij->i", gx, vx), np.einsum("ij,ij->i", gy, vx)
-    c, d = np.einsum("ij,ij->i", gx, vy), np.einsum("ij,ij->i", gy, vy)
+    a, b = cell_gradients(tri, geometry, v[:, 0])
+    c, d = cell_gradients(tri, geometry, v[:, 1])
     fro = a * a + b * b + c * c + d * d
     det = a * d - b * c
     return np.sqrt(0.5 * (fro + np.sqrt(np.maximum(fro * fro - 4.0 * det * det, 0.0))))
@@ -528,7 +539,13 @@ class FrozenField:
             if self._locator is None:
                 self._locator = Locator(self.points, self.tri)
             t[lost], w[lost] = self._locator.find(q[lost])
-        return np.einsum("mj,mj...->m...", w, self.values[self.tri[t]])
+        return p1_values(self.values, self.tri, t, w)
+
+
+def p1_values(values: np.ndarray, tri: np.ndarray, t: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """``values`` (one row per node) interpolated linearly at points in the triangles
+    ``t`` with barycentric weights ``w`` (k, 3)."""
+    return np.einsum("mj,mj...->m...", w, values[tri[t]])
 
 
 def carry(old: np.ndarray, tri: np.ndarray, new: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -542,18 +559,16 @@ def carry(old: np.ndarray, tri: np.ndarray, new: np.ndarray, values: np.ndarray)
     if not len(moved):
         return out
     first, w = Locator(old, tri).find(new[moved])
-    v = values[tri[first]].astype(np.float64)  # (m, 3, ...)
-    out[moved] = np.einsum("mj,mj...->m...", w, v)
+    out[moved] = p1_values(values.astype(np.float64), tri, first, w)
     return out
 
 
 def recovered_gradient(points: np.ndarray, tri: np.ndarray, u: np.ndarray) -> np.ndarray:
     """``grad u`` (N, 2) at the nodes: the area-weighted mean of the P1 gradients of the
     cells around each node."""
-    from .divcurl import gradients
-
-    gx, gy, a2 = gradients(points, tri)
-    g = np.column_stack([(gx * u[tri]).sum(axis=1), (gy * u[tri]).sum(axis=1)])
+    geometry = gradients(points, tri)
+    a2 = geometry[2]
+    g = np.column_stack(cell_gradients(tri, geometry, u))
     n = len(points)
     w = np.bincount(tri.ravel(), weights=np.repeat(a2, 3), minlength=n)
     out = np.empty((n, 2))
@@ -604,7 +619,6 @@ def interpolated(points: np.ndarray, tri: np.ndarray, values: np.ndarray):
     def at(q: np.ndarray) -> np.ndarray:
         if q.shape == points.shape and np.array_equal(q, points):
             return values.copy()
-        first, w = locator.find(q)
-        return (values[tri[first]] * w).sum(axis=1)
+        return p1_values(values, tri, *locator.find(q))
 
     return at

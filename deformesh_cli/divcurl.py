@@ -34,6 +34,19 @@ def gradients(points: np.ndarray, tri: np.ndarray):
     return b / a2[:, None], c / a2[:, None], a2
 
 
+def divergence_load(tri: np.ndarray, geometry, r: np.ndarray, n: int) -> np.ndarray:
+    """The divergence load ``sum_T |T| r_T (gx, gy)`` at every node, (n, 2) (``r`` per
+    triangle; ``geometry``: :func:`gradients` of the mesh).  Each node sums its
+    triangles in their order, so a subset of the rows is the same as summed alone."""
+    gx, gy, a2 = geometry
+    w = (0.5 * a2 * r)[:, None]
+    nodes = tri.ravel()
+    out = np.empty((n, 2))
+    for comp, g in enumerate((gx, gy)):
+        out[:, comp] = np.bincount(nodes, weights=(w * g).ravel(), minlength=n)
+    return out
+
+
 def stiffness_entries(
     points: np.ndarray, tri: np.ndarray, out: np.ndarray | None = None, geometry=None
 ):
@@ -165,18 +178,9 @@ class Assembler:
         self._ke = np.empty((len(tri), 9))
         self._ke_ff = np.empty(len(self._ff))
 
-    def load(self, points: np.ndarray, r: np.ndarray, geometry=None) -> np.ndarray:
-        """The divergence load ``sum_T |T| r_T (gx, gy)`` on the free dofs, (n_free, 2)
-        (``geometry``: :func:`gradients` of the mesh, if the caller has them)."""
-        gx, gy, a2 = gradients(points, self.tri) if geometry is None else geometry
-        w = (0.5 * a2 * r)[:, None]
-        nodes = self.tri.ravel()
-        free = self._fidx[nodes]
-        ok = free >= 0
-        out = np.empty((self.n_free, 2))
-        for comp, g in enumerate((gx, gy)):
-            out[:, comp] = np.bincount(free[ok], weights=(w * g).ravel()[ok], minlength=self.n_free)
-        return out
+    def load(self, points: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """The divergence load ``sum_T |T| r_T (gx, gy)`` on the free dofs, (n_free, 2)."""
+        return divergence_load(self.tri, gradients(points, self.tri), r, len(self._fidx))[self.free]
 
     def system(self, points: np.ndarray, u_dirichlet: np.ndarray):
         """``K_ff`` (:class:`SymmetricCSR`) and right-hand sides (n_free, 2) for given
