@@ -352,8 +352,8 @@ def adapt(
             )
         span = min(1.0 / steps, 1.0 - t, STRETCH / most if most > 0 else np.inf)
         halved = 0
+        field = FrozenField(pos, tri, U, neighbours, start)
         while True:
-            field = FrozenField(pos, tri, U, neighbours, start)
             new, worst = substeps(field, pos, g1, t, span)
             if new is not None:
                 break

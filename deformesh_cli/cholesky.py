@@ -10,9 +10,35 @@ the core count (nor on the load: the blocks' sums run in a fixed order).
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 import numpy as np
 
 from .errors import SolverError
+
+#: CHOLMOD's options for every call here (supernodal, postordered); cvxopt keeps them
+#: module-wide, so they are set for each call and the caller's put back after it.
+OPTIONS = {"supernodal": 2, "postorder": True}
+
+
+@contextmanager
+def _cholmod():
+    """cvxopt's CHOLMOD under :data:`OPTIONS` and one BLAS thread; whatever options
+    were set before (another cvxopt user in the process) are restored after."""
+    import cvxopt.cholmod as cholmod
+    from threadpoolctl import threadpool_limits
+
+    saved = {k: cholmod.options[k] for k in OPTIONS if k in cholmod.options}
+    cholmod.options.update(OPTIONS)
+    try:
+        with threadpool_limits(limits=1, user_api="blas"):
+            yield cholmod
+    finally:
+        for k in OPTIONS:
+            if k in saved:
+                cholmod.options[k] = saved[k]
+            else:
+                del cholmod.options[k]
 
 
 class Cholesky:
@@ -28,8 +54,6 @@ class Cholesky:
 
     def factorise(self, upper) -> None:
         import cvxopt
-        import cvxopt.cholmod as cholmod
-        from threadpoolctl import threadpool_limits
 
         indices, indptr = upper.indices, upper.indptr
         old = self._pattern
@@ -44,13 +68,12 @@ class Cholesky:
             rows = cvxopt.matrix(np.asarray(indices, dtype=np.int64))
             cols = cvxopt.matrix(np.repeat(np.arange(n, dtype=np.int64), np.diff(indptr)))
             self._K = cvxopt.spmatrix(values, rows, cols, (n, n))
-            cholmod.options["supernodal"] = 2
-            cholmod.options["postorder"] = True
-            self._factor = cholmod.symbolic(self._K, uplo="U")
+            with _cholmod() as cholmod:
+                self._factor = cholmod.symbolic(self._K, uplo="U")
             self._pattern = (indices, indptr)
             self.symbolic += 1
         try:
-            with threadpool_limits(limits=1, user_api="blas"):
+            with _cholmod() as cholmod:
                 cholmod.numeric(self._K, self._factor)
         except ArithmeticError as e:
             raise SolverError(f"the matrix is not positive definite (column {e})") from None
@@ -58,11 +81,9 @@ class Cholesky:
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """``rhs`` (n,) or (n, k) -> the solution, same shape."""
         import cvxopt
-        import cvxopt.cholmod as cholmod
-        from threadpoolctl import threadpool_limits
 
         b = np.asarray(rhs, dtype=np.float64)
         x = cvxopt.matrix(b.reshape(len(b), -1))
-        with threadpool_limits(limits=1, user_api="blas"):
+        with _cholmod() as cholmod:
             cholmod.solve(self._factor, x)
         return np.array(x).reshape(b.shape)

@@ -9,8 +9,11 @@ import pytest
 
 from deformesh_cli.adapt import (
     ADAPT_STEPS,
+    STRETCH,
     FrozenField,
+    SlipSystem,
     adapt,
+    boundary_motion,
     carry,
     field_monitor,
     interpolated,
@@ -245,6 +248,31 @@ def test_stretch_is_the_spectral_norm_of_an_affine_fields_gradient():
         v = p @ A.T + np.array([0.3, -1.0])
         got = stretch(tri, gradients(p, tri), v)
         assert np.allclose(got, np.linalg.svd(A, compute_uv=False)[0], rtol=1e-12)
+
+
+def singular_values(p: np.ndarray, q: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """(T, 2): the singular values of each triangle's affine map from ``p`` to ``q``."""
+
+    def d(x):
+        return np.stack([x[tri[:, 1]] - x[tri[:, 0]], x[tri[:, 2]] - x[tri[:, 0]]], axis=2)
+
+    return np.linalg.svd(d(q) @ np.linalg.inv(d(p)), compute_uv=False)
+
+
+def test_the_stretch_rule_keeps_a_real_velocitys_euler_map_within_its_bound():
+    """The ring's first velocity (its sides sliding) moved along for the time the
+    stretch rule allows: every triangle's map has singular values within
+    ``[1 - STRETCH, 1 + STRETCH]``, and the steepest cell reaches the bound."""
+    p, tri = square_grid(20)
+    fixed, tangent = boundary_motion(p, tri)
+    geometry = gradients(p, tri)
+    area = signed_areas(p, tri)
+    g = ring(p) / float(np.sum(area * ring(p)[tri].mean(axis=1)) / area.sum())
+    v = SlipSystem(tri, fixed, tangent).velocity(p, (1.0 - g)[tri].mean(axis=1), geometry)
+    span = STRETCH / stretch(tri, geometry, v).max()
+    s = singular_values(p, p + span * v, tri)
+    assert s.min() >= 1 - STRETCH - 1e-12 and s.max() <= 1 + STRETCH + 1e-12
+    assert np.isclose(np.abs(s - 1).max(), STRETCH, rtol=1e-6)  # (the rule is not loose)
 
 
 def test_the_frozen_field_walks_to_each_point_and_interpolates_linearly():

@@ -43,3 +43,21 @@ def test_a_matrix_that_is_not_positive_definite_is_refused():
     K = (K - sp.eye(50) * 1e3).tocsc()
     with pytest.raises(SolverError, match="not positive definite"):
         Cholesky().factorise(upper(K))
+
+
+def test_cvxopts_module_wide_options_are_left_as_they_were():
+    """Another cvxopt user's CHOLMOD options survive a factorisation and a solve."""
+    import cvxopt.cholmod as cholmod
+
+    before = dict(cholmod.options)
+    cholmod.options["supernodal"] = 0  # simplicial, as another user might ask
+    try:
+        K = spd(200, 5)
+        chol = Cholesky()
+        chol.factorise(upper(K))
+        x = chol.solve(np.ones(200))
+        assert cholmod.options == {**before, "supernodal": 0}
+        assert np.allclose(x, spla.spsolve(K, np.ones(200)), rtol=1e-9)
+    finally:
+        cholmod.options.clear()
+        cholmod.options.update(before)
