@@ -4,26 +4,26 @@ triangles unchanged (the paper's section 3.2 deformation, driven by a solution).
 Where ``M`` is large the cells shrink: the target is equidistribution, every cell's
 integral of ``M`` the same.  Relative to a reference mesh's cells (the input mesh
 itself by default), a cell at ``y`` should end ``c / M(y)`` times its reference
-area, ``c`` chosen so the domain keeps its area: that is the deformation's size
-function ``f = c / M`` (density ``g = 1/f = M / c``, whose integral over the domain
-is its area, by the P1 rule on the reference mesh).  The div-curl deformation goes
-from ``g = 1`` (the reference's cells as they are) to it over pseudo-time on the
-paper's linear path ``g = (1 - t) + t M / c``: at every time the velocity is
-``U / g`` with ``div U = -dg/dt = 1 - M / c``, ``curl U = 0`` on the current mesh,
-integrated by the midpoint rule (second order: :data:`ADAPT_STEPS` steps reach what
-several hundred first-order ones do, ``benchmarks/MEASURED.md``).  Every stage is
-checked for folds and its step halved where one would appear; if none can be
-avoided the run is refused.  ``M`` constant gives back the reference coordinates
-unchanged (``g`` stays 1, no node moves).
+area: the deformation's size function ``f = c / M``, density ``g = 1/f = M / c``.
+The deformation goes from ``g = 1`` (the reference's cells as they are) to it over
+pseudo-time on the paper's linear path ``g = (1 - t) + t M / c``, its velocity ``V``
+from the paper's div-curl system on ``U = g V`` (``div U = -dg/dt``, ``curl U =
+0``), discretised so that the divergence equation is the rate of each cell's mass
+``|K| gbar_K`` (:class:`VelocitySystem`): the mass is the cell's reference area at
+the start and, where the equations hold, stays so; at the end it is the cell's P1
+integral of ``M / c``.  ``c`` makes the masses sum to the domain's area on the mesh
+as it is at each solve.  Between solves ``U`` (which the path leaves unchanged) is
+frozen as a P1 field and the nodes move through ``U / g`` by midpoint substeps;
+every substep is checked for folds and the interval halved where one would appear,
+and a run that cannot avoid one is refused.  ``M`` equal at every node gives back
+the reference coordinates unchanged (``g`` stays 1, no node moves).
 
 Boundary nodes either stay where they are, bit for bit (the user's contour points,
 corners, and every boundary node with ``slide=False``), or slide along the straight
 run of boundary they sit on (their two boundary neighbours collinear with them, to
-:data:`COLLINEAR` relative): only their tangential velocity is solved for, so a node
-on an axis-parallel side keeps that coordinate to the bit, and the domain keeps its
-shape.  The least-squares functional couples the two velocity components only
-through the boundary (its ``ux``-``uy`` block is ``oint ux d(uy)``, a null
-Lagrangian), which :class:`SlipSystem` assembles edge by edge.
+:data:`COLLINEAR` relative): only their velocity along it is solved for, so a node on
+an axis-parallel side keeps that coordinate to the bit, and the domain keeps its
+shape.
 
 The equidistribution measures are ``movement``'s: ``M`` interpolated at the nodes,
 integrated over each cell of the adapted mesh (P1), divided by that cell's area in
@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .cholesky import Cholesky
-from .divcurl import Assembler, divergence_load, gradients, stiffness_entries
+from .divcurl import gradients
 from .errors import FoldError, InputError, MonitorError, OptionError
 from .geometry import boundary_edges, signed_areas
 from .quality import measures
@@ -47,22 +47,25 @@ from .size import positive_values
 
 #: Solves of the velocity at least, each on the mesh as it then is: the time between
 #: two solves is at most ``1 / ADAPT_STEPS`` (where the velocity is steep,
-#: :data:`STRETCH` asks for more: 18 on the ``movement`` ring on a 300 x 300 grid).
-#: On that ring 10 solves end where 40 do (sigma/mu 0.023 both; 8 give 0.025, 6
-#: 0.027), ``benchmarks/MEASURED.md``.
+#: :data:`STRETCH` asks for more: 12 on the ``movement`` ring on a 300 x 300 grid).
+#: On that ring 10 end at sigma/mu 0.0194, 5 at 0.0195, 20 at 0.0178; on its 20 x 20
+#: grid 10 at 0.183, 5 at 0.202 (``benchmarks/MEASURED.md``).
 ADAPT_STEPS = 10
 
 #: The time between two solves is also at most ``STRETCH / max_K |grad v|_K``, the
 #: velocity's P1 gradient on each cell at the solve (spectral norm): the field's own
-#: Euler map over that time then keeps every cell's singular values within
-#: ``[1 - STRETCH, 1 + STRETCH]``, so no cell folds or falls below a quarter of its
-#: area in it, and the frozen field is never read far from the mesh it was solved on.
-STRETCH = 0.5
+#: Euler map over that time keeps every cell's singular values within ``[1 - STRETCH,
+#: 1 + STRETCH]``, so the frozen field is not read where the cells have changed shape
+#: by more than that.
+STRETCH = 0.8
 
-#: Midpoint-rule substeps in each solve's velocity field (frozen between solves): on
-#: the 300 x 300 ring sigma/mu 0.033 with 1, 0.022 with 2, 0.020 with 4 at twice the
-#: point location (``benchmarks/MEASURED.md``).
-SUBSTEPS = 2
+#: Midpoint-rule substeps in each interval between solves: each substep's Euler map
+#: keeps the cells' singular values within ``[1 - STRETCH / SUBSTEPS, 1 + STRETCH /
+#: SUBSTEPS]``.  On the 300 x 300 ring, where the intervals' length is what the stretch
+#: allows, the result follows the substeps' length, not the solves' count: sigma/mu
+#: 0.0194 with STRETCH 0.5 and 2 substeps (18 solves) and with 0.8 and 4 (12 solves),
+#: 0.0242 with 0.8 and 2 (``benchmarks/MEASURED.md``).
+SUBSTEPS = 4
 
 #: Halvings of the time between two solves allowed where a substep folds a triangle,
 #: before the fold is reported (the time then 1/1024 of what it was).  The shortest
@@ -73,6 +76,12 @@ MAX_HALVINGS = 10
 #: A boundary node slides when the cross product of its two boundary edges is at most
 #: this fraction of their lengths' product (collinear up to coordinates' round-off).
 COLLINEAR = 1e-12
+
+#: The step of the central differences that give a monitor's gradient (one without a
+#: gradient of its own: an expression), relative to the mesh's extent: about 1e-6 of
+#: it, far below any length a mesh of a million cells resolves, while the round-off of
+#: ``M`` stays ~1e-10 of the difference.
+GRADIENT_STEP = 2.0**-20
 
 #: Monitors built from a point field (``--field``): ``gradient``, ``1 + alpha |grad u|^2
 #: / max |grad u|^2``; ``hessian``, ``1 + alpha |H u| / max |H u|`` (Frobenius norm),
@@ -176,96 +185,161 @@ def boundary_motion(
     return fixed, tangent
 
 
-class SlipSystem:
-    """The div-curl least-squares system on the motions a mesh's nodes may make.
+#: The 21 pairs of a cell's 6 unknown slots (node j's first and second slot at 2j
+#: and 2j + 1) whose products make the upper triangle of its normal-equation block.
+_PAIRS = np.array([(a, b) for a in range(6) for b in range(a, 6)]).T
 
-    Unknowns: ``(ux, uy)`` at a free inner node, ``w`` at a sliding node (its
-    velocity ``w t`` along its tangent ``t``), none at a fixed node.  The functional
-    ``sum_T |T| ((div U - r)^2 + (curl U)^2)`` has the P1 Laplace stiffness ``L`` on
-    each component and couples them by ``B``, ``ux . B uy = oint ux d(uy)``: on each
-    boundary edge ``a -> b``, ``(ux_a + ux_b) (uy_b - uy_a) / 2``, whatever the
-    coordinates.  The reduced matrix ``P^T [[L, B], [B^T, L]] P`` is factorised
-    (:class:`.cholesky.Cholesky`) once, and refactorised with new numbers on later
-    solves while its pattern holds.
 
-    Where every sliding node moves along an axis (a box, a grid's square) ``B``
-    couples no two unknowns (a boundary edge's ends are a fixed ``ux`` or ``uy`` on
-    one side, or a corner) and the system is two scalar Laplace problems, each
-    component held where its node may not move that way: they are assembled and
-    solved on meshing's assembly (:class:`.divcurl.Assembler`), one matrix for both
-    where the held sets agree.
+class VelocitySystem:
+    """The paper's div-curl system for the node velocity ``V`` (``U = g V``: ``div U =
+    -dg/dt``, ``curl U = 0``), discretised cell by cell so that its divergence equation
+    is the rate of each cell's mass, in least squares.
+
+    A cell's mass is its P1 integral of the density, ``|K| gbar_K`` (``gbar_K`` the
+    mean of ``g`` at its nodes, where the nodes are): it starts as the cell's reference
+    area (``g = 1``) and is to stay so.  With the nodes moving at ``V`` its rate over
+    ``|K|`` is exactly ``gbar_K div_K V + (1/3) sum_i (dg/dt(x_i) + grad g(x_i) . V_i)``,
+    linear in ``V``; on the path ``g = (1 - t) + t g1`` that is ``gbar_K div_K V +
+    (t/3) sum_i grad g1(x_i) . V_i + (1/3) sum_i (g1(x_i) - 1)``.  The curl equation is
+    the paper's on ``U``: ``sum_i g(x_i) (dphi_i/dx V_iy - dphi_i/dy V_ix) = 0``.  The
+    velocity minimises ``sum_K |K| (rate_K^2 + curl_K^2)``.
+
+    Unknowns: ``(vx, vy)`` at a free inner node, ``w`` at a sliding node (velocity
+    ``w t`` along its tangent ``t``), none at a fixed node, numbered node by node.  Each
+    cell's two rows (six entries over its nodes' unknowns) give a 6 x 6 block of the
+    normal equations, summed into a pattern fixed by the triangles, so the
+    factorisation (:class:`.cholesky.Cholesky`, in a fill-reducing order of the nodes
+    with each node's unknowns together) is analysed once and then only refactorised.
     """
 
     def __init__(self, tri: np.ndarray, fixed: np.ndarray, tangent: np.ndarray):
-        import scipy.sparse as sp
-
         n = len(fixed)
-        self.n = n
-        self.tri = tri
-        slide = np.flatnonzero(tangent.any(axis=1) & ~fixed)
-        inner = np.flatnonzero(~fixed & ~tangent.any(axis=1))
-        ni, ns = len(inner), len(slide)
-        rows = np.concatenate([inner, n + inner, slide, n + slide])
-        cols = np.concatenate([np.arange(2 * ni), 2 * ni + np.arange(ns), 2 * ni + np.arange(ns)])
-        vals = np.concatenate([np.ones(2 * ni), tangent[slide, 0], tangent[slide, 1]])
-        self.P = sp.csr_matrix((vals, (rows, cols)), shape=(2 * n, 2 * ni + ns))
-        self.P.eliminate_zeros()  # (a side parallel to an axis: one component only)
-        e = boundary_edges(tri, n)
-        a, b = e[:, 0], e[:, 1]
-        half = np.full(len(e), 0.5)
-        self.B = sp.csr_matrix(
-            (np.concatenate([half, -half, half, -half]),
-             (np.concatenate([a, a, b, b]), np.concatenate([b, a, b, a]))),
-            shape=(n, n),
-        )  # fmt: skip
-        self._ldl = None
-        along = np.zeros(n, dtype=bool)
-        along[slide] = True
-        self.split = bool((tangent[slide] == 0).any(axis=1).all())
-        if self.split:
-            hold_x = fixed | (along & (tangent[:, 0] == 0))
-            hold_y = fixed | (along & (tangent[:, 1] == 0))
-            x = (Assembler(tri, n, hold_x), Cholesky())
-            same = np.array_equal(hold_x, hold_y)
-            self._parts = [x] if same else [x, (Assembler(tri, n, hold_y), Cholesky())]
-        else:
-            self.asm = Assembler(tri, n, np.zeros(n, dtype=bool))
+        self.n, self.tri = n, tri
+        slide = tangent.any(axis=1) & ~fixed
+        inner = ~fixed & ~slide
+        count = np.where(inner, 2, np.where(slide, 1, 0))
+        first = np.concatenate([[0], np.cumsum(count)[:-1]])
+        self.size = size = int(count.sum())
+        # each node's two unknown slots (-1: none) and the direction each moves it in
+        self.slot = np.column_stack(
+            [np.where(count > 0, first, -1), np.where(count == 2, first + 1, -1)]
+        )
+        self.dirs = np.zeros((n, 2, 2))  # (node, slot, component)
+        self.dirs[inner] = np.eye(2)
+        self.dirs[slide, 0] = tangent[slide]
+        dof = self.slot[tri].reshape(-1, 6)  # (cell, 2 j + slot of its node j)
+        # a cell's rows on its six slots are its rows' x, y parts, but at a sliding node
+        # (slot 2 j: the component along its tangent) and where there is no unknown
+        self._cell, self._corner = np.nonzero(slide[tri])
+        self._tangent = tangent[tri[self._cell, self._corner]]
+        a, b = dof[:, _PAIRS[0]].T.ravel(), dof[:, _PAIRS[1]].T.ravel()  # pair by pair
+        real = (a >= 0) & (b >= 0)
+        keys = np.where(real, np.maximum(a, b) * size + np.minimum(a, b), size * size)
+        # (column by column, rows sorted: CSC of the upper triangle; the last key, for
+        # pairs without an unknown, is dropped)
+        ukeys, self._entry = np.unique(keys, return_inverse=True)
+        if ukeys[-1] == size * size:
+            ukeys = ukeys[:-1]
+        self._indices = (ukeys % size).astype(np.int32)
+        self._indptr = np.searchsorted(ukeys // size, np.arange(size + 1))
+        self._dof = np.where(dof >= 0, dof, size).T.ravel()  # slot by slot (size: dropped)
+        # a fill-reducing order of the nodes (approximate minimum degree on the mesh's
+        # graph), each node's unknowns kept together: its 2 x 2 blocks stay dense
+        node = np.repeat(np.arange(n), count)
+        rank = np.empty(n, dtype=np.int64)
+        rank[node_order(tri, n)] = np.arange(n)
+        self.cholesky = Cholesky(order=np.argsort(rank[node], kind="stable"))
 
-    def velocity(self, points: np.ndarray, r: np.ndarray, geometry=None) -> np.ndarray:
-        """``U`` (N, 2) with ``div U = r`` (per triangle), ``curl U = 0``, in the least-
-        squares sense on the allowed motions (``geometry``: :func:`.divcurl.gradients`
-        of the mesh at ``points``, if the caller has them)."""
+    def rows(self, gx, gy, g, grad, t):
+        """(6, T) each: every cell's rate and curl rows on its six slots."""
+        tri = self.tri
+        gt = g[tri]
+        gbar = gt.mean(axis=1, keepdims=True)
+        out = []
+        for x, y in (
+            (gbar * gx + (t / 3.0) * grad[tri, 0], gbar * gy + (t / 3.0) * grad[tri, 1]),
+            (-gy * gt, gx * gt),
+        ):
+            r = np.empty((6, len(tri)))
+            r[0::2], r[1::2] = x.T, y.T
+            c, j = self._cell, self._corner
+            r[2 * j, c] = x[c, j] * self._tangent[:, 0] + y[c, j] * self._tangent[:, 1]
+            out.append(r)
+        return out
+
+    def velocity(self, geometry, g: np.ndarray, grad: np.ndarray, g1: np.ndarray, t: float):
+        """``V`` (N, 2) at pseudo-time ``t``: ``g`` the path's density at the nodes,
+        ``grad`` the gradient of ``g1`` (its end) there, ``geometry``
+        :func:`.divcurl.gradients` of the mesh where the nodes are."""
         import scipy.sparse as sp
 
-        U = np.zeros((self.n, 2))
-        if self.P.shape[1] == 0:
-            return U
-        if geometry is None:
-            geometry = gradients(points, self.tri)
-        ke = stiffness_entries(points, self.tri, geometry=geometry).ravel()
-        load = divergence_load(self.tri, geometry, r, self.n)
-        if self.split:  # (held components are 0: no Dirichlet load)
-            for k, (asm, chol) in enumerate(self._parts):
-                if asm.n_free:
-                    chol.factorise(asm.matrix(ke).upper())
-                    if len(self._parts) == 1:
-                        U[asm.free] = chol.solve(load[asm.free])
-                    else:
-                        U[asm.free, k] = chol.solve(load[asm.free, k])
-            return U
-        L = self.asm.matrix(ke)
-        L = L.tocsr()
-        A = sp.bmat([[L, self.B], [self.B.T, L]], format="csr")
-        K = (self.P.T @ A @ self.P).tocsr()
-        upper = sp.triu(K, format="csc")
-        upper.sort_indices()
-        if self._ldl is None:
-            self._ldl = Cholesky()
-        self._ldl.factorise(upper)
-        rhs = self.P.T @ np.concatenate([load[:, 0], load[:, 1]])
-        u = self.P @ self._ldl.solve(rhs)
-        U[:, 0], U[:, 1] = u[: self.n], u[self.n :]
-        return U
+        V = np.zeros((self.n, 2))
+        if not self.size:
+            return V
+        gx, gy, a2 = geometry
+        d, c = self.rows(gx, gy, g, grad, t)
+        half = 0.5 * a2
+        block = np.empty((len(_PAIRS[0]), len(half)))
+        for k, (p, q) in enumerate(_PAIRS.T):
+            np.multiply(d[p], d[q], out=block[k])
+            block[k] += c[p] * c[q]
+        block *= half
+        values = np.bincount(self._entry, weights=block.ravel())[: len(self._indices)]
+        self.cholesky.factorise(
+            sp.csc_matrix((values, self._indices, self._indptr), shape=(self.size, self.size))
+        )
+        load = (half * (1.0 - g1[self.tri].mean(axis=1))) * d
+        rhs = np.bincount(self._dof, weights=load.ravel(), minlength=self.size + 1)
+        x = np.concatenate([self.cholesky.solve(rhs[:-1]), [0.0]])  # (slot -1: no unknown)
+        w = x[self.slot]  # (N, 2 slots)
+        return w[:, 0, None] * self.dirs[:, 0] + w[:, 1, None] * self.dirs[:, 1]
+
+
+def node_order(tri: np.ndarray, n: int) -> np.ndarray:
+    """A fill-reducing order of a mesh's nodes: approximate minimum degree on the
+    graph of its edges (SuiteSparse AMD, through cvxopt; an edge twice is one)."""
+    import cvxopt
+    import cvxopt.amd
+
+    e = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
+    rows = cvxopt.matrix(np.concatenate([e[:, 0], np.arange(n)]))
+    cols = cvxopt.matrix(np.concatenate([e[:, 1], np.arange(n)]))
+    graph = cvxopt.spmatrix(1.0, rows, cols, (n, n))
+    return np.array(cvxopt.amd.order(graph, "U"), dtype=np.int64).ravel()
+
+
+def normaliser(tri: np.ndarray, area2: np.ndarray, m: np.ndarray) -> float:
+    """``c`` such that ``g = M / c`` has the mesh's area as its P1 integral (``m``: M at
+    the nodes, ``area2``: twice the cells' areas).  Summed relative to the first
+    node's value, so that M equal at every node gives that value exactly (``g = 1``)."""
+    share = (m[tri] / m[0]).mean(axis=1)
+    return float(m[0]) * float(np.sum(area2 * share) / np.sum(area2))
+
+
+def monitor_gradient(
+    monitor: Callable[[np.ndarray], np.ndarray], q: np.ndarray, step: float, source: str
+) -> np.ndarray:
+    """(k, 2): ``grad M`` at the points ``q``: the monitor's own ``gradient`` if it has
+    one (a P1 field's, :func:`interpolated`), else central differences with ``step``
+    (a :class:`MonitorError` where they are not finite)."""
+    own = getattr(monitor, "gradient", None)
+    if own is not None:
+        return own(q)
+    out = np.empty((len(q), 2))
+    for k in range(2):
+        e = np.zeros(2)
+        e[k] = step
+        out[:, k] = np.asarray(monitor(q + e), dtype=np.float64) - monitor(q - e)
+    out /= 2.0 * step
+    bad = ~np.isfinite(out).all(axis=1)
+    if bad.any():
+        j = int(np.argmax(bad))
+        raise MonitorError(
+            f"{source}: the monitor's gradient is not finite at ({float(q[j, 0]):.6g}, "
+            f"{float(q[j, 1]):.6g}) (central differences {step:.3g} either side); adapt "
+            "needs a monitor differentiable wherever the mesh's nodes go"
+        )
+    return out
 
 
 def adapt(
@@ -279,21 +353,34 @@ def adapt(
 ) -> Adapted:
     """``points`` (the reference mesh) moved to follow ``monitor`` (points (k, 2) -> M
     (k,)); ``tri`` (counter-clockwise) unchanged; boundary nodes as
-    :func:`boundary_motion` says (``held``: a node mask of the user's points)."""
+    :func:`boundary_motion` says (``held``: a node mask of the user's points).  A node
+    no triangle uses stays where it is (the report counts it held)."""
     points = np.asarray(points, dtype=np.float64)
     tri = np.asarray(tri, dtype=np.int64)
     area = check_mesh(points, tri, source)
     if steps < 1:
         raise OptionError(f"--steps must be >= 1, got {steps}")
+    used = np.zeros(len(points), dtype=bool)
+    used[tri.ravel()] = True
+    if not used.all():  # (adapted without them, and put back)
+        keep = np.flatnonzero(used)
+        index = np.full(len(points), -1)
+        index[keep] = np.arange(len(keep))
+        part = adapt(
+            points[keep], index[tri], monitor, steps, source,
+            None if held is None else np.asarray(held, dtype=bool)[keep], slide,
+        )  # fmt: skip
+        out = points.copy()
+        out[keep] = part.points
+        report = part.report
+        report["nodes"] = len(points)
+        report["boundary_nodes_held"] += len(points) - len(keep)
+        return Adapted(out, report)
     m0 = monitor_values(monitor, points, source)
-    # g = M / c, its P1 integral over the domain its area (the reference's cells);
-    # relative to the first node's value and summed alike, so that a monitor equal at
-    # every node gives c that value exactly: g = 1, dg/dt = 0, and no node moves
-    share = (m0[tri] / m0[0]).mean(axis=1)
-    c = float(m0[0]) * float(np.sum(area * share) / np.sum(area))
     fixed, tangent = boundary_motion(points, tri, held, slide)
     before = equidistribution(points, tri, m0, area)
-    system = SlipSystem(tri, fixed, tangent)
+    system = VelocitySystem(tri, fixed, tangent)
+    step = GRADIENT_STEP * float(np.ptp(points, axis=0).max())
 
     neighbours = triangle_neighbours(tri)
     start = np.empty(len(points), dtype=np.int64)
@@ -335,11 +422,16 @@ def adapt(
     pos = points.copy()
     t, halvings, solves = 0.0, 0, 0
     while t < 1.0:
-        g1 = g_at(pos)
+        m = m0 if solves == 0 else monitor_values(monitor, pos, source)
         geometry = gradients(pos, tri)
-        U = system.velocity(pos, (1.0 - g1)[tri].mean(axis=1), geometry)
+        c = normaliser(tri, geometry[2], m)
+        g1 = m / c
+        grad = monitor_gradient(monitor, pos, step, source) / c
+        g = density(g1, t)
+        V = system.velocity(geometry, g, grad, g1, t)
+        U = V * g[:, None]  # (the paper's U, which the path leaves unchanged: frozen)
         solves += 1
-        spread = stretch(tri, geometry, allowed(U / density(g1, t)[:, None]))
+        spread = stretch(tri, geometry, V)
         k = int(np.argmax(spread))
         most = float(spread[k])
         if STRETCH * steps * 2**MAX_HALVINGS < most:
@@ -352,7 +444,7 @@ def adapt(
             )
         span = min(1.0 / steps, 1.0 - t, STRETCH / most if most > 0 else np.inf)
         halved = 0
-        field = FrozenField(pos, tri, U, neighbours, start)
+        field = FrozenField(pos, tri, U, neighbours, start, geometry)
         while True:
             new, worst = substeps(field, pos, g1, t, span)
             if new is not None:
@@ -473,26 +565,30 @@ def triangle_neighbours(tri: np.ndarray) -> np.ndarray:
     return out
 
 
-def frames(points: np.ndarray, tri: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Each triangle's first corner ``a`` (T, 2) and the inverse of ``[b - a, c - a]``
-    (T, 2, 2): the barycentric weights of ``q`` are ``1 - wb - wc, wb, wc`` with
-    ``(wb, wc) = inverse (q - a)``."""
-    a, b, c = (points[tri[:, j]] for j in range(3))
-    e1, e2 = b - a, c - a
-    den = e1[:, 0] * e2[:, 1] - e2[:, 0] * e1[:, 1]
-    inv = np.stack([[e2[:, 1], -e2[:, 0]], [-e1[:, 1], e1[:, 0]]]).transpose(2, 0, 1)
-    return a, inv / den[:, None, None]
+def frames(points: np.ndarray, tri: np.ndarray, geometry=None) -> tuple[np.ndarray, ...]:
+    """Each triangle's first corner ``(ax, ay)`` and the gradients of its second and third
+    barycentric coordinates ``(bx, by, cx, cy)``, (T,) each: the weights of ``q`` are
+    ``1 - wb - wc, wb, wc`` with ``wb = (bx, by) . (q - a)``, ``wc`` alike (``geometry``:
+    :func:`.divcurl.gradients` of the mesh, if the caller has them)."""
+    gx, gy, _ = gradients(points, tri) if geometry is None else geometry
+    a = points[tri[:, 0]]
+    return (
+        np.ascontiguousarray(a[:, 0]), np.ascontiguousarray(a[:, 1]),
+        np.ascontiguousarray(gx[:, 1]), np.ascontiguousarray(gy[:, 1]),
+        np.ascontiguousarray(gx[:, 2]), np.ascontiguousarray(gy[:, 2]),
+    )  # fmt: skip
 
 
-def weights(frame: tuple[np.ndarray, np.ndarray], t: np.ndarray, q: np.ndarray) -> np.ndarray:
+def weights(frame: tuple[np.ndarray, ...], t: np.ndarray, q: np.ndarray) -> np.ndarray:
     """(k, 3): the barycentric weights of the points ``q`` in the triangles ``t``
     (``frame``: :func:`frames` of the mesh)."""
-    a, inv = frame
-    d = q - a[t]
-    m = inv[t]
-    wb = m[:, 0, 0] * d[:, 0] + m[:, 0, 1] * d[:, 1]
-    wc = m[:, 1, 0] * d[:, 0] + m[:, 1, 1] * d[:, 1]
-    return np.column_stack([1.0 - wb - wc, wb, wc])
+    ax, ay, bx, by, cx, cy = frame
+    dx, dy = q[:, 0] - ax[t], q[:, 1] - ay[t]
+    w = np.empty((len(t), 3))
+    w[:, 1] = bx[t] * dx + by[t] * dy
+    w[:, 2] = cx[t] * dx + cy[t] * dy
+    w[:, 0] = 1.0 - w[:, 1] - w[:, 2]
+    return w
 
 
 #: A barycentric weight this far below 0 is 0 up to round-off: a point on a side
@@ -510,42 +606,56 @@ class FrozenField:
     :class:`Locator` (within :data:`ROUND_OFF` of the mesh).  At the mesh's own nodes
     the values are returned to the bit."""
 
-    def __init__(self, points, tri, values, neighbours, start):
+    def __init__(self, points, tri, values, neighbours, start, geometry=None):
         self.points, self.tri, self.values = points, tri, values
         self.neighbours = neighbours
         self.hint = start.copy()
-        self.frame = frames(points, tri)
+        self.frame = frames(points, tri, geometry)
+        self._corner = [np.ascontiguousarray(values[tri[:, k]]) for k in range(3)]
         self._locator = None
 
     def at(self, q: np.ndarray) -> np.ndarray:
         if np.array_equal(q, self.points):
             return self.values.copy()
         t = self.hint
-        w = np.empty((len(q), 3))
-        todo = np.arange(len(q))
+        w = weights(self.frame, t, q)  # (most points are still in their last triangle)
+        least = np.minimum(np.minimum(w[:, 0], w[:, 1]), w[:, 2])  # (not min(axis=1): slow)
+        todo = np.flatnonzero(least < -WEIGHT_ROUND_OFF)
         for _ in range(WALK_LIMIT):
-            ww = weights(self.frame, t[todo], q[todo])
-            j = np.argmin(ww, axis=1)
-            nxt = self.neighbours[t[todo], j]
-            done = (ww[np.arange(len(todo)), j] >= -WEIGHT_ROUND_OFF) | (nxt < 0)
-            w[todo[done]] = ww[done]
-            t[todo[~done]] = nxt[~done]
-            todo = todo[~done]
             if not len(todo):
                 break
-        least = np.minimum(np.minimum(w[:, 0], w[:, 1]), w[:, 2])  # (not min(axis=1): slow)
-        lost = np.union1d(todo, np.flatnonzero(least < -WEIGHT_ROUND_OFF))
+            ww = w[todo]
+            j = np.argmin(ww, axis=1)  # (the first least weight)
+            nxt = self.neighbours[t[todo], j]
+            out = nxt < 0  # (stops at the boundary: the Locator's, below)
+            todo = todo[~out]
+            t[todo] = nxt[~out]
+            w[todo] = weights(self.frame, t[todo], q[todo])
+            ww = w[todo]
+            least[todo] = np.minimum(np.minimum(ww[:, 0], ww[:, 1]), ww[:, 2])
+            todo = todo[least[todo] < -WEIGHT_ROUND_OFF]
+        lost = np.flatnonzero(least < -WEIGHT_ROUND_OFF)  # (the walk's last todo among them)
         if len(lost):
             if self._locator is None:
                 self._locator = Locator(self.points, self.tri)
             t[lost], w[lost] = self._locator.find(q[lost])
-        return p1_values(self.values, self.tri, t, w)
+        a, b, c = self._corner  # (each triangle's corner values: one gather a corner)
+        out = w[:, 0, None] * a[t]
+        out += w[:, 1, None] * b[t]
+        out += w[:, 2, None] * c[t]
+        return out
 
 
 def p1_values(values: np.ndarray, tri: np.ndarray, t: np.ndarray, w: np.ndarray) -> np.ndarray:
     """``values`` (one row per node) interpolated linearly at points in the triangles
     ``t`` with barycentric weights ``w`` (k, 3)."""
-    return np.einsum("mj,mj...->m...", w, values[tri[t]])
+    corners = tri[t]
+    if values.ndim == 1:
+        return (w * values[corners]).sum(axis=1)
+    out = w[:, 0, None] * values[corners[:, 0]]
+    out += w[:, 1, None] * values[corners[:, 1]]
+    out += w[:, 2, None] * values[corners[:, 2]]
+    return out
 
 
 def carry(old: np.ndarray, tri: np.ndarray, new: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -610,15 +720,30 @@ def field_monitor(
     return np.ones(len(u)) if top == 0 else 1.0 + alpha * s / top
 
 
-def interpolated(points: np.ndarray, tri: np.ndarray, values: np.ndarray):
+class interpolated:
     """``values`` at the nodes of the mesh ``(points, tri)`` as a function of points, by
-    P1 interpolation (a point at a node gets that node's value to the bit)."""
-    values = np.asarray(values, dtype=np.float64)
-    locator = Locator(points, tri)
+    P1 interpolation (a point at a node gets that node's value to the bit), with its
+    gradient: that of the triangle each point is found in (the lowest-numbered one on
+    a shared side, as :class:`Locator` finds it)."""
 
-    def at(q: np.ndarray) -> np.ndarray:
-        if q.shape == points.shape and np.array_equal(q, points):
-            return values.copy()
-        return p1_values(values, tri, *locator.find(q))
+    def __init__(self, points: np.ndarray, tri: np.ndarray, values: np.ndarray):
+        self.points, self.tri = points, tri
+        self.values = np.asarray(values, dtype=np.float64)
+        self._locator = Locator(points, tri)
+        gx, gy, _ = gradients(points, tri)
+        vt = self.values[tri]
+        self._cell = np.column_stack([(gx * vt).sum(axis=1), (gy * vt).sum(axis=1)])
+        self._last = None
 
-    return at
+    def _find(self, q: np.ndarray):
+        if self._last is None or not np.array_equal(self._last[0], q):
+            self._last = (q.copy(), *self._locator.find(q))
+        return self._last[1:]
+
+    def __call__(self, q: np.ndarray) -> np.ndarray:
+        if q.shape == self.points.shape and np.array_equal(q, self.points):
+            return self.values.copy()
+        return p1_values(self.values, self.tri, *self._find(q))
+
+    def gradient(self, q: np.ndarray) -> np.ndarray:
+        return self._cell[self._find(q)[0]]

@@ -46,7 +46,8 @@ class Cholesky:
     upper triangles in CSC form (``data``, ``indices``, ``indptr``, ``shape``; rows
     sorted within each column)."""
 
-    def __init__(self):
+    def __init__(self, order: np.ndarray | None = None):
+        self.order = order  # a fill-reducing permutation; None: CHOLMOD's own (AMD)
         self._factor = None
         self._pattern = None
         self._K = None
@@ -68,8 +69,11 @@ class Cholesky:
             rows = cvxopt.matrix(np.asarray(indices, dtype=np.int64))
             cols = cvxopt.matrix(np.repeat(np.arange(n, dtype=np.int64), np.diff(indptr)))
             self._K = cvxopt.spmatrix(values, rows, cols, (n, n))
+            given = {}
+            if self.order is not None:
+                given["p"] = cvxopt.matrix(np.asarray(self.order, dtype=np.int64))
             with _cholmod() as cholmod:
-                self._factor = cholmod.symbolic(self._K, uplo="U")
+                self._factor = cholmod.symbolic(self._K, uplo="U", **given)
             self._pattern = (indices, indptr)
             self.symbolic += 1
         try:

@@ -47,15 +47,12 @@ def divergence_load(tri: np.ndarray, geometry, r: np.ndarray, n: int) -> np.ndar
     return out
 
 
-def stiffness_entries(
-    points: np.ndarray, tri: np.ndarray, out: np.ndarray | None = None, geometry=None
-):
+def stiffness_entries(points: np.ndarray, tri: np.ndarray, out: np.ndarray | None = None):
     """P1 Laplace element matrices, flattened row-major to (t, 9) (into ``out`` if
     given: a caller assembling many times keeps one buffer, rather than faulting a
     fresh one in every time).  A row of three at a time, each entry
-    ``(gx_i gx_j + gy_i gy_j) |T|``.  ``geometry``: :func:`gradients` of the same
-    mesh, if the caller has them."""
-    gx, gy, a2 = gradients(points, tri) if geometry is None else geometry
+    ``(gx_i gx_j + gy_i gy_j) |T|``."""
+    gx, gy, a2 = gradients(points, tri)
     area = (0.5 * a2)[:, None]
     ke = np.empty((len(tri), 9)) if out is None else out
     for i in range(3):

@@ -11,12 +11,13 @@ from deformesh_cli.adapt import (
     ADAPT_STEPS,
     STRETCH,
     FrozenField,
-    SlipSystem,
+    VelocitySystem,
     adapt,
     boundary_motion,
     carry,
     field_monitor,
     interpolated,
+    monitor_gradient,
     stretch,
     triangle_neighbours,
 )
@@ -125,32 +126,75 @@ def test_nodes_slide_along_a_slanted_straight_side():
     assert field.report["sigma_over_mu"] < field.report["sigma_over_mu_before"]
 
 
-@pytest.mark.parametrize("degrees, split", [(0, True), (30, False)])
-def test_the_slip_system_is_the_coupled_least_squares_system(degrees, split):
-    """SlipSystem's solution is the element-by-element coupled system's
-    (assemble_coupled) on the motions allowed, on a moved mesh with a curved side:
-    by two scalar systems where the straight sides are parallel to the axes, by the
-    edge-by-edge coupling where they are not."""
-    from deformesh_cli.adapt import SlipSystem, boundary_motion
-    from deformesh_cli.divcurl import assemble_coupled
-
+def moved_square(degrees: float):
+    """A 6 x 6 grid with its inner nodes moved, its top side bent (those nodes held)
+    and the whole turned by ``degrees``; the ring's density on it at pseudo-time 0.6."""
     p, tri = square_grid(6)
     rng = np.random.default_rng(3)
     inner = ((p > 0) & (p < 1)).all(axis=1)
     p[inner] += rng.uniform(-0.03, 0.03, (inner.sum(), 2))
-    p[:, 1] += 0.3 * p[:, 0] ** 2 * (p[:, 1] > 0)  # the top side bends: its nodes held
+    p[:, 1] += 0.3 * p[:, 0] ** 2 * (p[:, 1] > 0)
     a = np.radians(degrees)
-    p = p @ np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]]).T
+    return p @ np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]]).T, tri
+
+
+@pytest.mark.parametrize("degrees", [0, 30])
+def test_the_velocity_system_is_the_least_squares_solution_of_its_rows(degrees):
+    """VelocitySystem's solution is the least-squares solution of every cell's rate
+    and curl rows, written out here on the motions allowed (inner nodes both ways,
+    sliding nodes along their side, the rest none), on a moved mesh with a curved
+    side, with its sides along the axes and turned."""
+    p, tri = moved_square(degrees)
     fixed, tangent = boundary_motion(p, tri)
-    assert tangent.any(axis=1).sum() > 0 and fixed.sum() > 4
-    system = SlipSystem(tri, fixed, tangent)
-    assert system.split == split
-    r = rng.uniform(-1, 1, len(tri))
-    A, b = assemble_coupled(p, tri, r)
-    P = system.P.toarray()
-    want = np.linalg.solve(P.T @ A.toarray() @ P, P.T @ b)
-    got = system.velocity(p, r)
-    assert np.abs(np.concatenate([got[:, 0], got[:, 1]]) - P @ want).max() < 1e-12
+    slide = tangent.any(axis=1) & ~fixed
+    assert slide.sum() > 0 and fixed.sum() > 4
+    n, t = len(p), 0.6
+    g1 = 1.0 + 2.0 * p[:, 0] * p[:, 1] + np.sin(3 * p[:, 1])
+    grad = np.c_[2.0 * p[:, 1], 2.0 * p[:, 0] + 3 * np.cos(3 * p[:, 1])]
+    g = (1 - t) + t * g1
+    gx, gy, a2 = gradients(p, tri)
+    rows, rhs = [], []
+    for k, (i, j, m) in enumerate(tri):
+        rate, curl = np.zeros(2 * n), np.zeros(2 * n)
+        for c, node in enumerate((i, j, m)):
+            rate[node] = g[tri[k]].mean() * gx[k, c] + t / 3 * grad[node, 0]
+            rate[n + node] = g[tri[k]].mean() * gy[k, c] + t / 3 * grad[node, 1]
+            curl[node], curl[n + node] = -g[node] * gy[k, c], g[node] * gx[k, c]
+        w = np.sqrt(a2[k] / 2)
+        rows += [w * rate, w * curl]
+        rhs += [w * (1 - g1[tri[k]].mean()), 0.0]
+    basis = [np.eye(2 * n)[[v, n + v]] for v in np.flatnonzero(~fixed & ~slide)]
+    basis += [np.r_[np.eye(n)[v] * tangent[v, 0], np.eye(n)[v] * tangent[v, 1]][None]
+              for v in np.flatnonzero(slide)]  # fmt: skip
+    P = np.concatenate(basis).T
+    want = P @ np.linalg.lstsq(np.array(rows) @ P, np.array(rhs), rcond=None)[0]
+    got = VelocitySystem(tri, fixed, tangent).velocity(gradients(p, tri), g, grad, g1, t)
+    assert np.abs(np.concatenate([got[:, 0], got[:, 1]]) - want).max() < 1e-10
+
+
+def test_the_rate_row_is_the_rate_of_each_cells_mass():
+    """Moving the nodes at any V for a short time changes each cell's mass |K| gbar_K
+    (g where the nodes are) at the rate the rate row gives, by central differences."""
+    p, tri = moved_square(10)
+    rng = np.random.default_rng(8)
+    V = rng.normal(size=p.shape)
+    t, c = 0.6, 1.7
+
+    def g(q):
+        return (1 - t) + t * ring(q) / c
+
+    grad = monitor_gradient(ring, p, 2.0**-20, "test") / c
+    gx, gy, a2 = gradients(p, tri)
+    rate = g(p)[tri].mean(axis=1) * (
+        (gx * V[tri, 0]).sum(axis=1) + (gy * V[tri, 1]).sum(axis=1)
+    ) + t / 3 * (grad[tri] * V[tri]).sum(axis=(1, 2))
+
+    def mass(e):
+        q = p + e * V
+        return signed_areas(q, tri) * g(q)[tri].mean(axis=1)
+
+    e = 1e-6
+    assert np.allclose((mass(e) - mass(-e)) / (2 * e), 0.5 * a2 * rate, rtol=1e-5, atol=1e-9)
 
 
 def test_a_constant_monitor_gives_the_mesh_back(run, grid_file, tmp_path):
@@ -267,8 +311,11 @@ def test_the_stretch_rule_keeps_a_real_velocitys_euler_map_within_its_bound():
     fixed, tangent = boundary_motion(p, tri)
     geometry = gradients(p, tri)
     area = signed_areas(p, tri)
-    g = ring(p) / float(np.sum(area * ring(p)[tri].mean(axis=1)) / area.sum())
-    v = SlipSystem(tri, fixed, tangent).velocity(p, (1.0 - g)[tri].mean(axis=1), geometry)
+    c = float(np.sum(area * ring(p)[tri].mean(axis=1)) / area.sum())
+    grad = monitor_gradient(ring, p, 2.0**-20, "test") / c
+    v = VelocitySystem(tri, fixed, tangent).velocity(
+        geometry, np.ones(len(p)), grad, ring(p) / c, 0.0
+    )
     span = STRETCH / stretch(tri, geometry, v).max()
     s = singular_values(p, p + span * v, tri)
     assert s.min() >= 1 - STRETCH - 1e-12 and s.max() <= 1 + STRETCH + 1e-12
@@ -298,11 +345,10 @@ def test_the_frozen_field_walks_to_each_point_and_interpolates_linearly():
 
 
 def test_solves_follow_the_stretch_rule_and_steps_bound_them():
-    """The ring's velocity is steep: its solves are more than --steps asks (the time
+    """The ring's velocity is steep: with --steps 3 its solves are more than 3 (the time
     between them bounded by the stretch); a gentle monitor needs only --steps."""
     p, tri = square_grid(20)
-    steep = adapt(p, tri, ring).report
-    assert steep["solves"] > ADAPT_STEPS
+    assert adapt(p, tri, ring, steps=3).report["solves"] > 3
     gentle = adapt(p, tri, lambda q: 1 + 0.2 * q[:, 0]).report
     assert gentle["solves"] == ADAPT_STEPS
     assert adapt(p, tri, lambda q: 1 + 0.2 * q[:, 0], steps=25).report["solves"] == 25
@@ -322,6 +368,7 @@ def test_adapt_the_library_function():
         ("log(x)", 1, "sq.vtu: the monitor is -inf at (0, 0)"),
         ("1 + d", 2, "d (the distance to a contour) is not defined"),
         ("1 + z", 2, "--monitor"),
+        ("1 + sqrt(x)", 1, "sq.vtu: the monitor's gradient is not finite at (0, 0)"),
     ],
 )
 def test_a_bad_monitor_is_refused_and_no_file(run, grid_file, tmp_path, monitor, code, text):
@@ -543,3 +590,16 @@ def test_a_deformesh_gmsh_file_keeps_its_contour_points(run, tmp_path):
         assert r.exit_code == 0, r.stderr
     a, b, c = (meshio.read(tmp_path / f"ff_a_{s}.vtu").points for s in ("msh", "su2", "vtu"))
     assert np.array_equal(a, c) and np.array_equal(b, c)
+
+
+def test_a_node_no_triangle_uses_stays_where_it_is():
+    """A mesh with a point no triangle uses (meshio reads such files) adapts; the point
+    stays to the bit and the rest moves as without it."""
+    p, tri = square_grid(8)
+    alone = np.r_[p, [[0.5, 0.5]]]
+    with_it = adapt(alone, tri, ring)
+    without = adapt(p, tri, ring)
+    assert np.array_equal(with_it.points[-1], alone[-1])
+    assert np.array_equal(with_it.points[:-1], without.points)
+    assert with_it.report["nodes"] == len(alone)
+    assert with_it.report["boundary_nodes_held"] == without.report["boundary_nodes_held"] + 1

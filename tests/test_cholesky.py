@@ -61,3 +61,16 @@ def test_cvxopts_module_wide_options_are_left_as_they_were():
     finally:
         cholmod.options.clear()
         cholmod.options.update(before)
+
+
+def test_a_given_order_solves_the_same_system():
+    """A fill-reducing order given by the caller (here a random one) is the one CHOLMOD
+    uses, and the solution is the same to round-off."""
+    K = spd(300, 6)
+    b = np.random.default_rng(7).random(300)
+    order = np.random.default_rng(8).permutation(300)
+    chol = Cholesky(order=order)
+    chol.factorise(upper(K))
+    assert np.allclose(chol.solve(b), spla.spsolve(K, b), rtol=1e-9, atol=1e-12)
+    with pytest.raises(ValueError):
+        Cholesky(order=np.zeros(300, dtype=np.int64)).factorise(upper(K))  # (not a permutation)

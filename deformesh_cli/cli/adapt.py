@@ -80,7 +80,7 @@ _WRITE_OPTIONS = {"gmsh22": {"binary": False}}
     default=_adapt.ADAPT_STEPS,
     show_default=True,
     help="Solves of the velocity at least: the pseudo-time between two solves is at most "
-    "1/N (and short enough that no cell stretches by more than half in it).",
+    "1/N (and short enough that no cell's shape changes by more than 0.8 in it).",
 )
 @click.option(
     "--png",
