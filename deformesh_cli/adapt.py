@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .cholesky import Cholesky
+from .cholesky import Cholesky, amd_order
 from .divcurl import gradients
 from .errors import FoldError, InputError, MonitorError, OptionError
 from .geometry import boundary_edges, signed_areas
@@ -297,15 +297,11 @@ class VelocitySystem:
 
 def node_order(tri: np.ndarray, n: int) -> np.ndarray:
     """A fill-reducing order of a mesh's nodes: approximate minimum degree on the
-    graph of its edges (SuiteSparse AMD, through cvxopt; an edge twice is one)."""
-    import cvxopt
-    import cvxopt.amd
-
+    graph of its edges (an edge twice is one)."""
     e = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
-    rows = cvxopt.matrix(np.concatenate([e[:, 0], np.arange(n)]))
-    cols = cvxopt.matrix(np.concatenate([e[:, 1], np.arange(n)]))
-    graph = cvxopt.spmatrix(1.0, rows, cols, (n, n))
-    return np.array(cvxopt.amd.order(graph, "U"), dtype=np.int64).ravel()
+    return amd_order(
+        np.concatenate([e[:, 0], np.arange(n)]), np.concatenate([e[:, 1], np.arange(n)]), n
+    )
 
 
 def normaliser(tri: np.ndarray, area2: np.ndarray, m: np.ndarray) -> float:

@@ -6,7 +6,7 @@ import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from deformesh_cli.cholesky import Cholesky
+from deformesh_cli.cholesky import Cholesky, _runs_haswell_kernels, cvxopt_module
 from deformesh_cli.errors import SolverError
 
 
@@ -47,7 +47,7 @@ def test_a_matrix_that_is_not_positive_definite_is_refused():
 
 def test_cvxopts_module_wide_options_are_left_as_they_were():
     """Another cvxopt user's CHOLMOD options survive a factorisation and a solve."""
-    import cvxopt.cholmod as cholmod
+    cholmod = cvxopt_module().cholmod
 
     before = dict(cholmod.options)
     cholmod.options["supernodal"] = 0  # simplicial, as another user might ask
@@ -74,3 +74,24 @@ def test_a_given_order_solves_the_same_system():
     assert np.allclose(chol.solve(b), spla.spsolve(K, b), rtol=1e-9, atol=1e-12)
     with pytest.raises(ValueError):
         Cholesky(order=np.zeros(300, dtype=np.int64)).factorise(upper(K))  # (not a permutation)
+
+
+def test_cvxopts_blas_is_held_to_the_same_kernels_on_every_avx2_processor():
+    """In a fresh process (no OPENBLAS_CORETYPE of the user's), cvxopt's OpenBLAS runs
+    its Haswell kernels wherever the processor has AVX2 and FMA, and the environment is
+    left as it was."""
+    import os
+    import subprocess
+    import sys
+
+    if not _runs_haswell_kernels():
+        pytest.skip("this processor has no AVX2 and FMA: OpenBLAS keeps its own kernels")
+    code = (
+        "import os; from deformesh_cli.cholesky import cvxopt_module; cvxopt_module(); "
+        "from threadpoolctl import threadpool_info; "
+        "print([d['architecture'] for d in threadpool_info() if 'cvxopt' in d['filepath']], "
+        "'OPENBLAS_CORETYPE' in os.environ)"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_CORETYPE"}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert out.stdout.strip() == "['Haswell'] False", out.stderr
