@@ -316,7 +316,7 @@ def monitor_gradient(
     monitor: Callable[[np.ndarray], np.ndarray], q: np.ndarray, step: float, source: str
 ) -> np.ndarray:
     """(k, 2): ``grad M`` at the points ``q``: the monitor's own ``gradient`` if it has
-    one (a P1 field's, :func:`interpolated`), else central differences with ``step``
+    one (a P1 field's, :class:`P1Field`), else central differences with ``step``
     (a :class:`MonitorError` where they are not finite)."""
     own = getattr(monitor, "gradient", None)
     if own is not None:
@@ -716,7 +716,13 @@ def field_monitor(
     return np.ones(len(u)) if top == 0 else 1.0 + alpha * s / top
 
 
-class interpolated:
+def interpolated(points: np.ndarray, tri: np.ndarray, values: np.ndarray) -> P1Field:
+    """``values`` at the nodes of the mesh ``(points, tri)`` as a function of points (a
+    :class:`P1Field`)."""
+    return P1Field(points, tri, values)
+
+
+class P1Field:
     """``values`` at the nodes of the mesh ``(points, tri)`` as a function of points, by
     P1 interpolation (a point at a node gets that node's value to the bit), with its
     gradient: that of the triangle each point is found in (the lowest-numbered one on
