@@ -379,8 +379,7 @@ def adapt(
     step = GRADIENT_STEP * float(np.ptp(points, axis=0).max())
 
     neighbours = triangle_neighbours(tri)
-    start = np.empty(len(points), dtype=np.int64)
-    start[tri.ravel()] = np.repeat(np.arange(len(tri)), 3)  # a triangle at each node
+    start = start_triangles(tri, len(points))
     slides = np.flatnonzero(tangent.any(axis=1))
 
     def allowed(v: np.ndarray) -> np.ndarray:
@@ -592,27 +591,24 @@ def weights(frame: tuple[np.ndarray, ...], t: np.ndarray, q: np.ndarray) -> np.n
 WEIGHT_ROUND_OFF = 1e-12
 
 
-class FrozenField:
-    """A P1 field on a fixed mesh (``values`` at its nodes), evaluated at points that
-    each started at a node and move a little between calls: every point walks from
-    the triangle it was found in last (at first, one at its node), across the side
-    of its most negative barycentric weight, until all weights are >= 0 (to
+class Walk:
+    """Finds points in a fixed triangle mesh that each started at a node and move a
+    little between calls (point ``i`` of every call is the same moving point): each
+    walks from the triangle it was found in last (at first, one at its node), across
+    the side of its most negative barycentric weight, until all weights are >= 0 (to
     :data:`WEIGHT_ROUND_OFF`) or the walk meets the boundary; a point that stops
     outside the mesh, or walks :data:`WALK_LIMIT` steps, is found by the
-    :class:`Locator` (within :data:`ROUND_OFF` of the mesh).  At the mesh's own nodes
-    the values are returned to the bit."""
+    :class:`Locator` (within :data:`ROUND_OFF` of the mesh)."""
 
-    def __init__(self, points, tri, values, neighbours, start, geometry=None):
-        self.points, self.tri, self.values = points, tri, values
+    def __init__(self, points, tri, neighbours, start, geometry=None):
+        self.points, self.tri = points, tri
         self.neighbours = neighbours
         self.hint = start.copy()
         self.frame = frames(points, tri, geometry)
-        self._corner = [np.ascontiguousarray(values[tri[:, k]]) for k in range(3)]
         self._locator = None
 
-    def at(self, q: np.ndarray) -> np.ndarray:
-        if np.array_equal(q, self.points):
-            return self.values.copy()
+    def find(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each point's triangle (N,) and barycentric weights there (N, 3)."""
         t = self.hint
         w = weights(self.frame, t, q)  # (most points are still in their last triangle)
         least = np.minimum(np.minimum(w[:, 0], w[:, 1]), w[:, 2])  # (not min(axis=1): slow)
@@ -635,6 +631,30 @@ class FrozenField:
             if self._locator is None:
                 self._locator = Locator(self.points, self.tri)
             t[lost], w[lost] = self._locator.find(q[lost])
+        return t.copy(), w
+
+
+def start_triangles(tri: np.ndarray, n: int) -> np.ndarray:
+    """(n,): a triangle at each node (a node no triangle uses: triangle 0)."""
+    start = np.zeros(n, dtype=np.int64)
+    start[tri.ravel()] = np.repeat(np.arange(len(tri)), 3)
+    return start
+
+
+class FrozenField:
+    """A P1 field on a fixed mesh (``values`` at its nodes), evaluated at points that
+    each started at a node and move a little between calls (found by a :class:`Walk`).
+    At the mesh's own nodes the values are returned to the bit."""
+
+    def __init__(self, points, tri, values, neighbours, start, geometry=None):
+        self.points, self.values = points, values
+        self.walk = Walk(points, tri, neighbours, start, geometry)
+        self._corner = [np.ascontiguousarray(values[tri[:, k]]) for k in range(3)]
+
+    def at(self, q: np.ndarray) -> np.ndarray:
+        if np.array_equal(q, self.points):
+            return self.values.copy()
+        t, w = self.walk.find(q)
         a, b, c = self._corner  # (each triangle's corner values: one gather a corner)
         out = w[:, 0, None] * a[t]
         out += w[:, 1, None] * b[t]
@@ -725,21 +745,33 @@ def interpolated(points: np.ndarray, tri: np.ndarray, values: np.ndarray) -> P1F
 class P1Field:
     """``values`` at the nodes of the mesh ``(points, tri)`` as a function of points, by
     P1 interpolation (a point at a node gets that node's value to the bit), with its
-    gradient: that of the triangle each point is found in (the lowest-numbered one on
-    a shared side, as :class:`Locator` finds it)."""
+    gradient: that of the triangle each point is found in.  Called with one point per
+    node (the nodes of a mesh with this one's triangles, moving: adapt's calls), the
+    points are found by a :class:`Walk` from where they were last; other points by the
+    :class:`Locator` (the lowest-numbered triangle on a shared side)."""
 
     def __init__(self, points: np.ndarray, tri: np.ndarray, values: np.ndarray):
         self.points, self.tri = points, tri
         self.values = np.asarray(values, dtype=np.float64)
-        self._locator = Locator(points, tri)
         gx, gy, _ = gradients(points, tri)
         vt = self.values[tri]
         self._cell = np.column_stack([(gx * vt).sum(axis=1), (gy * vt).sum(axis=1)])
+        self._walk = None
+        self._locator = None
         self._last = None
 
     def _find(self, q: np.ndarray):
         if self._last is None or not np.array_equal(self._last[0], q):
-            self._last = (q.copy(), *self._locator.find(q))
+            if len(q) == len(self.points):
+                if self._walk is None:
+                    start = start_triangles(self.tri, len(self.points))
+                    self._walk = Walk(self.points, self.tri, triangle_neighbours(self.tri), start)
+                found = self._walk.find(q)
+            else:
+                if self._locator is None:
+                    self._locator = Locator(self.points, self.tri)
+                found = self._locator.find(q)
+            self._last = (q.copy(), *found)
         return self._last[1:]
 
     def __call__(self, q: np.ndarray) -> np.ndarray:

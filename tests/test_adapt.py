@@ -638,3 +638,21 @@ def test_random_meshes_adapt_to_a_bump_and_even_out(seed):
     rep = adapt(p, tri, bump).report
     assert rep["tangled"] == 0
     assert rep["sigma_over_mu"] < rep["sigma_over_mu_before"]
+
+
+def test_a_p1_field_follows_moving_nodes_and_any_points():
+    """A P1 field (a --field monitor) read at the nodes as they move (one point per
+    node: walked to) and at other points (located): a linear field and its gradient
+    come back exactly, to round-off, both ways."""
+    p, tri = square_grid(8)
+    field = interpolated(p, tri, 3 * p[:, 0] - 2 * p[:, 1] + 1)
+    rng = np.random.default_rng(5)
+    q = p.copy()
+    inner = ((p > 0) & (p < 1)).all(axis=1)
+    for _ in range(3):  # (each call walks on from where the last one ended)
+        q[inner] = np.clip(q[inner] + rng.uniform(-0.1, 0.1, (inner.sum(), 2)), 0.01, 0.99)
+        assert np.abs(field(q) - (3 * q[:, 0] - 2 * q[:, 1] + 1)).max() < 1e-12
+        assert np.abs(field.gradient(q) - [3.0, -2.0]).max() < 1e-12
+    few = rng.random((7, 2))
+    assert np.abs(field(few) - (3 * few[:, 0] - 2 * few[:, 1] + 1)).max() < 1e-12
+    assert np.array_equal(field(p), 3 * p[:, 0] - 2 * p[:, 1] + 1)
