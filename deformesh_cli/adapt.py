@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .cholesky import Cholesky, amd_order
-from .divcurl import gradients
+from .divcurl import gradients, unique_inverse
 from .errors import FoldError, InputError, MonitorError, OptionError
 from .geometry import boundary_edges, signed_areas
 from .quality import measures
@@ -237,7 +237,7 @@ class VelocitySystem:
         keys = np.where(real, np.maximum(a, b) * size + np.minimum(a, b), size * size)
         # (column by column, rows sorted: CSC of the upper triangle; the last key, for
         # pairs without an unknown, is dropped)
-        ukeys, self._entry = np.unique(keys, return_inverse=True)
+        ukeys, self._entry = unique_inverse(keys)
         if ukeys[-1] == size * size:
             ukeys = ukeys[:-1]
         self._indices = (ukeys % size).astype(np.int32)

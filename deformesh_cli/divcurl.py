@@ -127,6 +127,20 @@ class SymmetricCSR(CSR):
         return sp.csr_matrix((self.data, self.indices, self.indptr), shape=self.shape)
 
 
+def unique_inverse(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(keys, return_inverse=True)``, by a stable sort: the keys of a mesh's
+    element entries come in runs (triangles in grid order), which a merge sort takes
+    fast (0.25 s against 0.54 s for 3.8 million)."""
+    order = np.argsort(keys, kind="stable")
+    sk = keys[order]
+    new = np.empty(len(sk), dtype=bool)
+    new[:1] = True
+    np.not_equal(sk[1:], sk[:-1], out=new[1:])
+    inverse = np.empty(len(sk), dtype=np.int64)
+    inverse[order] = np.cumsum(new) - 1
+    return sk[new], inverse
+
+
 class Assembler:
     """Assemble the split div-curl system on a fixed connectivity, many times.
 
@@ -149,16 +163,7 @@ class Assembler:
         ff = (fr >= 0) & (fc >= 0)
         self._ff = np.flatnonzero(ff)
         keys = fr[ff] * nf + fc[ff]
-        # np.unique(keys, return_inverse=True), by a stable sort: the keys come in runs
-        # (grid-ordered triangles), which a merge sort takes fast
-        order = np.argsort(keys, kind="stable")
-        sk = keys[order]
-        new = np.empty(len(sk), dtype=bool)
-        new[:1] = True
-        np.not_equal(sk[1:], sk[:-1], out=new[1:])
-        ukeys = sk[new]
-        self._slot = np.empty(len(sk), dtype=np.int64)
-        self._slot[order] = np.cumsum(new) - 1
+        ukeys, self._slot = unique_inverse(keys)
         self._indices = (ukeys % nf).astype(np.int32)
         rows = ukeys // nf
         self._indptr = np.searchsorted(rows, np.arange(nf + 1)).astype(np.int32)
