@@ -41,7 +41,7 @@ import numpy as np
 from .cholesky import Cholesky, amd_order
 from .divcurl import gradients, unique_inverse
 from .errors import FoldError, InputError, MonitorError, OptionError
-from .geometry import boundary_edges, signed_areas
+from .geometry import boundary_edges, edge_uses, signed_areas
 from .quality import measures
 from .size import positive_values
 
@@ -297,11 +297,9 @@ class VelocitySystem:
 
 def node_order(tri: np.ndarray, n: int) -> np.ndarray:
     """A fill-reducing order of a mesh's nodes: approximate minimum degree on the
-    graph of its edges (an edge twice is one)."""
-    e = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
-    return amd_order(
-        np.concatenate([e[:, 0], np.arange(n)]), np.concatenate([e[:, 1], np.arange(n)]), n
-    )
+    graph of its edges."""
+    lo, hi, _, _ = edge_uses(tri, n)
+    return amd_order(np.concatenate([lo, np.arange(n)]), np.concatenate([hi, np.arange(n)]), n)
 
 
 def normaliser(tri: np.ndarray, area2: np.ndarray, m: np.ndarray) -> float:
@@ -647,19 +645,13 @@ class FrozenField:
     At the mesh's own nodes the values are returned to the bit."""
 
     def __init__(self, points, tri, values, neighbours, start, geometry=None):
-        self.points, self.values = points, values
+        self.points, self.tri, self.values = points, tri, values
         self.walk = Walk(points, tri, neighbours, start, geometry)
-        self._corner = [np.ascontiguousarray(values[tri[:, k]]) for k in range(3)]
 
     def at(self, q: np.ndarray) -> np.ndarray:
         if np.array_equal(q, self.points):
             return self.values.copy()
-        t, w = self.walk.find(q)
-        a, b, c = self._corner  # (each triangle's corner values: one gather a corner)
-        out = w[:, 0, None] * a[t]
-        out += w[:, 1, None] * b[t]
-        out += w[:, 2, None] * c[t]
-        return out
+        return p1_values(self.values, self.tri, *self.walk.find(q))
 
 
 def p1_values(values: np.ndarray, tri: np.ndarray, t: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -753,9 +745,7 @@ class P1Field:
     def __init__(self, points: np.ndarray, tri: np.ndarray, values: np.ndarray):
         self.points, self.tri = points, tri
         self.values = np.asarray(values, dtype=np.float64)
-        gx, gy, _ = gradients(points, tri)
-        vt = self.values[tri]
-        self._cell = np.column_stack([(gx * vt).sum(axis=1), (gy * vt).sum(axis=1)])
+        self._cell = np.column_stack(cell_gradients(tri, gradients(points, tri), self.values))
         self._walk = None
         self._locator = None
         self._last = None

@@ -34,19 +34,6 @@ def gradients(points: np.ndarray, tri: np.ndarray):
     return b / a2[:, None], c / a2[:, None], a2
 
 
-def divergence_load(tri: np.ndarray, geometry, r: np.ndarray, n: int) -> np.ndarray:
-    """The divergence load ``sum_T |T| r_T (gx, gy)`` at every node, (n, 2) (``r`` per
-    triangle; ``geometry``: :func:`gradients` of the mesh).  Each node sums its
-    triangles in their order, so a subset of the rows is the same as summed alone."""
-    gx, gy, a2 = geometry
-    w = (0.5 * a2 * r)[:, None]
-    nodes = tri.ravel()
-    out = np.empty((n, 2))
-    for comp, g in enumerate((gx, gy)):
-        out[:, comp] = np.bincount(nodes, weights=(w * g).ravel(), minlength=n)
-    return out
-
-
 def stiffness_entries(points: np.ndarray, tri: np.ndarray, out: np.ndarray | None = None):
     """P1 Laplace element matrices, flattened row-major to (t, 9) (into ``out`` if
     given: a caller assembling many times keeps one buffer, rather than faulting a
@@ -182,7 +169,15 @@ class Assembler:
 
     def load(self, points: np.ndarray, r: np.ndarray) -> np.ndarray:
         """The divergence load ``sum_T |T| r_T (gx, gy)`` on the free dofs, (n_free, 2)."""
-        return divergence_load(self.tri, gradients(points, self.tri), r, len(self._fidx))[self.free]
+        gx, gy, a2 = gradients(points, self.tri)
+        w = (0.5 * a2 * r)[:, None]
+        nodes = self.tri.ravel()
+        free = self._fidx[nodes]
+        ok = free >= 0
+        out = np.empty((self.n_free, 2))
+        for comp, g in enumerate((gx, gy)):
+            out[:, comp] = np.bincount(free[ok], weights=(w * g).ravel()[ok], minlength=self.n_free)
+        return out
 
     def system(self, points: np.ndarray, u_dirichlet: np.ndarray):
         """``K_ff`` (:class:`SymmetricCSR`) and right-hand sides (n_free, 2) for given
@@ -191,20 +186,9 @@ class Assembler:
         ``u_dirichlet`` is (N, 2); only its rows at Dirichlet nodes are read.
         """
         ke = stiffness_entries(points, self.tri, out=self._ke).ravel()
-        K = self.matrix(ke)
-        w = ke[self._fd]
-        rhs = np.empty((self.n_free, 2))
-        for comp in range(2):
-            rhs[:, comp] = -np.bincount(
-                self._fd_row, weights=w * u_dirichlet[self._fd_col, comp], minlength=self.n_free
-            )
-        return K, rhs
-
-    def matrix(self, ke: np.ndarray) -> SymmetricCSR:
-        """``K_ff`` from the element entries ``ke`` (:func:`stiffness_entries`, raveled)."""
         np.take(ke, self._ff, out=self._ke_ff)
         data = np.bincount(self._slot, weights=self._ke_ff, minlength=self._nnz)
-        return SymmetricCSR(
+        K = SymmetricCSR(
             data,
             self._indices,
             self._indptr,
@@ -213,3 +197,10 @@ class Assembler:
             self._up_indices,
             self._up_indptr,
         )
+        w = ke[self._fd]
+        rhs = np.empty((self.n_free, 2))
+        for comp in range(2):
+            rhs[:, comp] = -np.bincount(
+                self._fd_row, weights=w * u_dirichlet[self._fd_col, comp], minlength=self.n_free
+            )
+        return K, rhs

@@ -299,6 +299,18 @@ def test_adapt_numbers_in_the_docs_are_the_benchmark_file():
     assert (
         f"(180,000 triangles) takes {big[8]} s as a whole process, {big[9]} MB ({big[10]} solves)"
     ) in limits
+    profile = {
+        cells[0]: cells
+        for cells in (
+            [c.strip() for c in row.strip().strip("|").split("|")] for row in part.splitlines()
+        )
+        if len(cells) == 4 and cells[0] in ("20 x 20", "40 x 40", "71 x 71")
+    }
+    assert (
+        f"falls from {profile['20 x 20'][1]} to {profile['20 x 20'][2]}, on 40 x 40 squares "
+        f"from {profile['40 x 40'][1]} to {profile['40 x 40'][2]}, on 71 x 71 from "
+        f"{profile['71 x 71'][1]} to {profile['71 x 71'][2]}"
+    ) in limits
     million = next(v for k, v in rows.items() if k[0] == "ring, 707 x 707")
     assert f"on a million triangles {million[8]} s, {int(million[9]):,} MB" in limits
 
