@@ -58,6 +58,10 @@ class FoldError(DeformeshError):
     """The deformation could not proceed without folding a triangle."""
 
 
+class DegradedError(DeformeshError):
+    """A moving mesh's frame fell under its floor on the smallest angle (``move --min-angle``)."""
+
+
 class BandError(DeformeshError):
     """A node that must move lies on the edge of the narrow band: the band is too narrow."""
 
@@ -99,3 +103,53 @@ def printable(text: str, limit: int = 60) -> str:
     """A value from a file, quoted, control characters escaped, cut at ``limit``."""
     text = one_line(text)
     return "'" + (text if len(text) <= limit else text[: limit - 3] + "...") + "'"
+
+
+class naming:
+    """Context manager: a :class:`DeformeshError` raised inside that does not name
+    ``source`` yet is raised again with ``source: `` in front, so every message that
+    reaches a user names the file it is about (a stage deep in the construction knows
+    points and nodes, not files).  Re-entrant: a message is prefixed once."""
+
+    def __init__(self, source: str | None):
+        self.source = source
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, exc, tb) -> bool:
+        src = self.source
+        named = not src or src[0] == "<" or _names_a_file(str(exc), src)
+        if isinstance(exc, DeformeshError) and not named:
+            exc.args = (f"{src}: {exc}",)
+        return False
+
+
+def _names_a_file(message: str, source: str) -> bool:
+    """``message`` names ``source``, or starts with another file's name (``FILE: ...``,
+    as a message about a size field or a frame does)."""
+    import os
+
+    head, sep, _ = message.partition(": ")
+    return source in message or (bool(sep) and os.path.exists(head))
+
+
+def names_its_file(fn):
+    """Decorator: :class:`naming` the ``source`` of the function's first argument (a
+    contour, or anything that has one: :class:`~.pipeline.Laid`'s ``fine``, a
+    :class:`~.pipeline.Deformed`'s selection)."""
+    import functools
+
+    @functools.wraps(fn)
+    def wrapper(first, *args, **kwargs):
+        with naming(source_of(first)):
+            return fn(first, *args, **kwargs)
+
+    return wrapper
+
+
+def source_of(obj) -> str | None:
+    """The file ``obj`` came from: its ``source``, or its ``contour``'s."""
+    while obj is not None and not isinstance(getattr(obj, "source", None), str):
+        obj = getattr(obj, "contour", None)
+    return None if obj is None else obj.source

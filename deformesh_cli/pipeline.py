@@ -27,6 +27,7 @@ from .errors import (
     OptionError,
     SelectionError,
     SolverError,
+    names_its_file,
 )
 from .geometry import next_on_ring
 from .mesh import Mesh
@@ -117,6 +118,7 @@ class Laid:
         return set(zip(a[chord].tolist(), b[chord].tolist()))
 
 
+@names_its_file
 def lay(contour: Contour, o: MeshOptions, graded: bool | None = None) -> Laid:
     """:class:`Laid` for ``contour`` under options ``o`` (``graded``: the grid is the
     graded one; default: as ``o`` asks)."""
@@ -129,6 +131,7 @@ def lay(contour: Contour, o: MeshOptions, graded: bool | None = None) -> Laid:
     return Laid(contour, fine, given, grid, kept, ears)
 
 
+@names_its_file
 def run_select(
     contour: Contour,
     options: MeshOptions | None = None,
@@ -173,6 +176,7 @@ def run_select(
         ) from None
 
 
+@names_its_file
 def run_deform(
     contour: Contour,
     sel: Selection,
@@ -222,7 +226,13 @@ def run_deform(
         "solver": o.solver,
         "keep_folds": keep_folds,
     }
-    args = (pts0, tri, sel.path_nodes, sel.path_targets, grid.boundary_nodes())
+    held = grid.boundary_nodes()
+    if sel.mends_folds and not sel.exterior:
+        # the domain's side of an interior mesh is bounded by the loops alone, whose
+        # nodes all go to contour points: a loop node where the coarse cells along a
+        # long edge reach the box's side is a path node like any other, not held
+        held = np.setdiff1d(held, sel.path_nodes)
+    args = (pts0, tri, sel.path_nodes, sel.path_targets, held)
     try:
         if sel.mends_folds:  # (the domain's side only; stage 3 meshes flat triangles again)
             kept = sel.kept_triangles()
@@ -271,6 +281,7 @@ def _describer(contour: Contour, sel: Selection):
     return describe
 
 
+@names_its_file
 def run_triangulate(
     laid: Laid,
     d: Deformed,
@@ -402,6 +413,7 @@ def _paper_form(o: MeshOptions) -> bool:
     return o.grid == "uniform" or o.h is not None
 
 
+@names_its_file
 def mesh_contour(
     contour: Contour,
     options: MeshOptions | None = None,

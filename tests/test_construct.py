@@ -257,3 +257,34 @@ def test_recover_clears_the_disk_one_star_at_a_time():
     _recovered_pocket(mesh, taken)
     inner = mesh.points[3:]
     assert len(inner) == 2 and (np.hypot(*(inner - [2, 0]).T) > 2).all()  # (w1, w2)
+
+
+def _rounded_rectangle(w: float, h: float, r: float, per_corner: int) -> np.ndarray:
+    """A ``w`` by ``h`` rectangle with corners rounded by ``r``, each corner
+    ``per_corner`` points: long straight sides between closely spaced fillets (an icon's
+    outline)."""
+    out = []
+    for cx, cy, a0 in ((w - r, r, -90), (w - r, h - r, 0), (r, h - r, 90), (r, r, 180)):
+        a = np.radians(a0 + np.linspace(0, 90, per_corner))
+        out.append(np.column_stack([cx + r * np.cos(a), cy + r * np.sin(a)]))
+    return np.vstack(out)
+
+
+@pytest.mark.parametrize(
+    "w, h, r, k", [(400, 300, 20, 10), (250, 250, 3, 8), (300, 500, 4, 7), (800, 300, 15, 9)]
+)
+def test_long_sides_whose_cells_reach_the_box_still_mesh(w, h, r, k):
+    """Along a long straight side the cells grow from its ends (nothing there asks for
+    small ones) to wider than the margin the points' sizes give the box, so the
+    domain's loop runs along the box's side.  The domain's side is bounded by its loops
+    alone, whose nodes all go to contour points: such a loop node is a path node like
+    any other, and the mesh is made, strict."""
+    c = make_contour(_rounded_rectangle(w, h, r, k), None, "rounded.csv")
+    sel = pipeline.run_select(c, pipeline.MeshOptions())
+    on_box = np.intersect1d(sel.grid.boundary_nodes(), sel.path_nodes)
+    assert len(on_box) > 0  # (the case this test is about)
+    res = pipeline.mesh_contour(c, strict=True)
+    m = res.mesh
+    assert res.report["contract"] == "ok"
+    assert np.array_equal(m.points[: c.n], c.points)
+    assert (signed_areas(m.points, m.triangles) > 0).all()

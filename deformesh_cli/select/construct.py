@@ -262,7 +262,10 @@ def _clearance(x, x_arc, x_ring, own, qi, si, a, b, arc, length, ring, perimeter
 
 
 def feature_samples(
-    contour: Contour, max_nodes: int | None = None, exterior: bool = False
+    contour: Contour,
+    max_nodes: int | None = None,
+    exterior: bool = False,
+    box: tuple[float, float, float, float] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(points, sizes, point_sizes, edge)``: where the cells must be how small, and
     the contour point (for an edge's sample, the edge's first point) each belongs to.
@@ -277,7 +280,9 @@ def feature_samples(
     than that end's point size.  A sample's size is :data:`CLEARANCE_FACTOR` times
     its clearance, at most its piece's length.  A thin gap of the outside (a slot,
     two parts a hair apart) asks for no small cells: the region keeps its two sides
-    apart (:func:`across_gaps`, :func:`bridges`).  More samples than ``max_nodes``
+    apart (:func:`across_gaps`, :func:`bridges`).  ``box``: the sides of an exterior
+    mesh's box, another part of the boundary, whose distance counts as a clearance
+    like the contour's own (so the loops stay off the box).  More samples than ``max_nodes``
     (each asks for a cell of its own) is a :class:`LimitError`.
     """
     p = contour.points
@@ -307,6 +312,8 @@ def feature_samples(
     qi, si = tree.query(shapely.points(p), predicate="dwithin", distance=s)
     own = np.column_stack([np.arange(m), prv])
     np.minimum.at(s, qi, _clearance(p, arc, ring, own, qi, si, *geo, at_point))
+    if box is not None:
+        s = np.minimum(s, _to_box(p, box))
     floor = FLOOR * float(np.ptp(p, axis=0).max())
     seg = np.arange(m)
     t0 = np.zeros(m)
@@ -331,6 +338,8 @@ def feature_samples(
         own = np.column_stack([seg, seg])  # (an adjacent edge counts where it turned back)
         np.minimum.at(c, qi, _clearance(mid, x_arc, ring[seg], own, qi, si, *geo,
                                       (along_edge[0][seg], along_edge[1][seg])))  # fmt: skip
+        if box is not None:
+            c = np.minimum(c, _to_box(mid, box))
         end_size = np.minimum(
             np.where(t0 == 0, s[seg], np.inf), np.where(t1 == 1, s[nxt[seg]], np.inf)
         )
@@ -345,6 +354,14 @@ def feature_samples(
         seg = np.repeat(seg, 2)
         t0, t1 = np.column_stack([t0, tm]).ravel(), np.column_stack([tm, t1]).ravel()
     return np.concatenate(out_xy), np.concatenate(out_size), s, np.concatenate(out_edge)
+
+
+def _to_box(q: np.ndarray, box: tuple[float, float, float, float]) -> np.ndarray:
+    """Each point's distance to the nearest side of ``box`` (it lies inside)."""
+    return np.minimum(
+        np.minimum(q[:, 0] - box[0], box[2] - q[:, 0]),
+        np.minimum(q[:, 1] - box[1], box[3] - q[:, 1]),
+    )
 
 
 def region(
@@ -422,18 +439,26 @@ def select_constructed(
     (the module's steps).  ``size_function`` (a :class:`~..size.SizeFunction`): the
     cells also follow it, at most ``lambda sqrt(f)`` wide, ``lambda`` the median over
     the contour's points of :data:`CELL_FACTOR` times their size over ``sqrt(f)``."""
-    xy, size, s, edge, field = _wanted(contour, exterior, max_nodes, size_function)
     prv = prev_on_ring(contour.ring)
     lo, hi = contour.points.min(axis=0), contour.points.max(axis=0)
     given = box is not None
-    if box is None:
-        if margin is None:
-            margin = float((hi - lo).max()) if exterior else 3.0 * float(s.max())
-        box = (lo[0] - margin, lo[1] - margin, hi[0] + margin, hi[1] + margin)
-    else:
-        box = _checked_box(contour, box, exterior)
-        if not exterior:  # (the background only: room for the loop around the contour)
-            room = 3.0 * float(s.max())
+    if exterior:  # (the box is part of the domain's boundary: the sizes see its sides)
+        if box is None:
+            margin = float((hi - lo).max()) if margin is None else margin
+            box = _checked_box(
+                contour, (lo[0] - margin, lo[1] - margin, hi[0] + margin, hi[1] + margin), True
+            )
+        else:
+            box = _checked_box(contour, box, True)
+        xy, size, s, edge, field = _wanted(contour, True, max_nodes, size_function, box)
+    else:  # (the background only: at least the room for the loop around the contour)
+        xy, size, s, edge, field = _wanted(contour, False, max_nodes, size_function)
+        room = 3.0 * float(s.max())
+        if box is None:
+            margin = room if margin is None else max(margin, room)
+            box = (lo[0] - margin, lo[1] - margin, hi[0] + margin, hi[1] + margin)
+        else:
+            box = _checked_box(contour, box, False)
             box = (min(box[0], lo[0] - room), min(box[1], lo[1] - room),
                    max(box[2], hi[0] + room), max(box[3], hi[1] + room))  # fmt: skip
     factor = np.full(len(xy), CELL_FACTOR)
@@ -459,10 +484,10 @@ def select_constructed(
     )
 
 
-def _wanted(contour: Contour, exterior: bool, max_nodes: int | None, size_function):
-    """:func:`feature_samples` of ``contour``, and the cells' size field of the size
-    function (None without one)."""
-    xy, size, s, edge = feature_samples(contour, max_nodes or DEFAULT_MAX_NODES, exterior)
+def _wanted(contour: Contour, exterior: bool, max_nodes: int | None, size_function, box=None):
+    """:func:`feature_samples` of ``contour`` (``box``: an exterior mesh's), and the
+    cells' size field of the size function (None without one)."""
+    xy, size, s, edge = feature_samples(contour, max_nodes or DEFAULT_MAX_NODES, exterior, box)
     field = None
     if size_function is not None:
         at = np.sqrt(size_function.values(contour.points))
@@ -738,8 +763,12 @@ def _select_on(contour: Contour, tree: graded.Quadtree, exterior: bool, size) ->
     points, tri, cell = tree.triangulate(diagonals)
     grid = GradedGrid(tree, points)
     n = len(points)
+    # the box's nodes: an exterior mesh's box sides are a boundary of its own, never a
+    # loop; an interior mesh's region is bounded by its loops alone, which may run along
+    # the box's side where the cells of a long edge are wider than the margin
     fixed = np.zeros(n, dtype=bool)
-    fixed[grid.boundary_nodes()] = True
+    if exterior:
+        fixed[grid.boundary_nodes()] = True
     rings = [contour.points[contour.ring_order(r)] for r in range(contour.n_rings)]
     from ..geometry import domain
 
