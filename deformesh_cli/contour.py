@@ -316,10 +316,21 @@ def _check_rings_apart(c: Contour) -> tuple[int, ...]:
             f"{c.source}: {c.ring_labels[j]} touches or crosses {c.ring_labels[i]} near "
             f"({x:.6g}, {y:.6g}); rings must be apart"
         )
-    polys = shapely.polygons(geoms)
+    return tuple(ring_nesting(rings)[0].tolist())
+
+
+def ring_nesting(rings: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """``(depth, parent)`` of rings that are apart: how many rings hold each, and the
+    innermost of them (-1: none).  One spatial index query: the cost grows with the
+    pairs that nest, not with all pairs."""
+    polys = shapely.polygons([shapely.LinearRing(q) for q in rings])
     first = shapely.points([q[0] for q in rings])
-    inside = shapely.contains(polys[:, None], first[None, :])  # [outer, inner]
-    return tuple(int(inside[:, r].sum()) for r in range(R))
+    inner, outer = shapely.STRtree(polys).query(first, predicate="within")
+    depth = np.bincount(inner, minlength=len(rings))
+    parent = np.full(len(rings), -1, dtype=np.int64)
+    order = np.argsort(depth[outer], kind="stable")  # (the deepest holder written last)
+    parent[inner[order]] = outer[order]
+    return depth, parent
 
 
 def _check_simple(c: Contour, where=None) -> None:
@@ -384,6 +395,16 @@ def ring_corners(p: np.ndarray) -> np.ndarray:
     return np.flatnonzero(turn > CORNER_DEGREES)
 
 
+def count_words(x: float) -> str:
+    """A count for a message: ``12,345``, or ``6.28e+20`` when it is too long to read."""
+    return f"{x:,.0f}" if x < 1e12 else f"{x:.3g}"
+
+
+#: The most points :func:`resample` makes (a contour of more asks for more grid nodes than
+#: the default ``--max-nodes``).
+MAX_RESAMPLED = 8_000_000
+
+
 def resample(contour: Contour, spacing: float) -> Contour:
     """The contour re-spaced: each ring's corners (turning > :data:`CORNER_DEGREES`) kept,
     the pieces between them cut into equal chords about ``spacing`` long.
@@ -391,6 +412,12 @@ def resample(contour: Contour, spacing: float) -> Contour:
     The given points are no longer the boundary nodes (a note says so); the result is
     validated like any contour.
     """
+    wanted = float(contour.edge_lengths().sum()) / spacing  # (counted before any array)
+    if not wanted <= MAX_RESAMPLED:
+        raise LimitError(
+            f"{contour.source}: --resample {spacing:g} would give about "
+            f"{count_words(wanted)} points, over {MAX_RESAMPLED:,}; give a larger spacing"
+        )
     pts, starts, notes = [], [0], []
     for r in range(contour.n_rings):
         p = contour.points[contour.ring_order(r)]
@@ -450,15 +477,17 @@ def split_edges(
     p = c.points
     nxt = next_on_ring(c.ring)
     length = np.hypot(*(p[nxt] - p).T)
-    pieces = np.maximum(1, np.ceil(length / h)).astype(np.int64)
+    wanted = np.maximum(1.0, np.ceil(length / h))  # (floats: counted before any array)
+    total_f = float(wanted.sum())
+    if max_points is not None and total_f > max_points:
+        raise LimitError(
+            f"{c.source}: --max-h {h:g} splits the contour into {count_words(total_f)} "
+            f"boundary nodes, over --max-nodes {max_points:,}"
+        )
+    pieces = wanted.astype(np.int64)
     total = int(pieces.sum())
     if total == len(p):
         return c, None
-    if max_points is not None and total > max_points:
-        raise LimitError(
-            f"{c.source}: --max-h {h:g} splits the contour into {total:,} boundary nodes, "
-            f"over --max-nodes {max_points:,}"
-        )
     given = np.cumsum(pieces) - pieces
     edge = np.repeat(np.arange(len(p)), pieces)
     t = (np.arange(total) - given[edge]) / pieces[edge]

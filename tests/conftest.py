@@ -27,7 +27,8 @@ settings.load_profile("dev")
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLES = ROOT / "samples"
-CONTOURS = ROOT / "tests" / "data" / "contours"
+DATA = ROOT / "tests" / "data"
+CONTOURS = DATA / "contours"
 
 
 def contour_file(name: str) -> Path:

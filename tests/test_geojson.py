@@ -2,6 +2,7 @@
 container type; other geometries and broken files refused in one line."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -169,3 +170,72 @@ def test_a_real_coastline_with_a_hole_meshes_with_the_contract(run, tmp_path):
     assert c.n_rings == 3 and sorted(c.depth) == [0, 0, 1]  # (the hole inside the mainland)
     m = meshio.read(tmp_path / "m.msh")
     assert contract_problems(m.points, m.cells_dict["triangle"], c.points, c.ring) == []
+
+
+# --- roles, not nesting alone: RFC 7946's region (a polygon is its outer ring minus its
+# holes, a MultiPolygon or a set of features the union of its polygons)
+
+OUTER = [[0, 0], [3, 0], [3, 3], [0, 3], [0, 0]]
+INNER = [[1, 1], [1, 2], [2, 2], [2, 1], [1, 1]]
+ISLAND = [[1.2, 1.2], [1.8, 1.2], [1.8, 1.8], [1.2, 1.8], [1.2, 1.2]]
+
+
+def _feature(coords):
+    return {"type": "Feature", "properties": {}, "geometry": {"type": "Polygon",
+                                                               "coordinates": coords}}  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "geo",
+    [
+        {"type": "MultiPolygon", "coordinates": [[OUTER, INNER], [ISLAND]]},
+        {"type": "FeatureCollection", "features": [_feature([OUTER, INNER]), _feature([ISLAND])]},
+        {"type": "FeatureCollection", "features": [_feature([ISLAND]), _feature([OUTER, INNER])]},
+    ],
+)
+def test_a_polygon_in_another_ones_hole_is_a_solid_of_its_own(run, tmp_path, geo):
+    f = tmp_path / "c.geojson"
+    f.write_text(json.dumps(geo))
+    r = run("all", f, "-o", tmp_path / "m.vtk", "--json")
+    assert r.exit_code == 0, r.stderr
+    rec = json.loads(r.stdout)
+    assert rec["contract"] == "ok"
+    assert rec["area"] == pytest.approx(9 - 1 + 0.36, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    "geo, message",
+    [
+        (
+            {"type": "Polygon", "coordinates": [OUTER, [[4, 0], [5, 0], [5, 1], [4, 1], [4, 0]]]},
+            r"polygon hole 1 lies outside every ring \(its first position \(4, 0\)\)",
+        ),
+        (
+            {"type": "Polygon", "coordinates": [[[0, 0], [5, 0], [5, 5], [0, 5], [0, 0]],
+                                                [[1, 1], [1, 4], [4, 4], [4, 1], [1, 1]],
+                                                [[2, 2], [2, 3], [3, 3], [3, 2], [2, 2]]]},
+            r"polygon hole 2 lies inside polygon hole 1",
+        ),
+        (
+            {"type": "MultiPolygon", "coordinates": [[OUTER], [INNER]]},
+            r"polygon 2 outer ring lies inside polygon 1 outer ring .*overlap",
+        ),
+        (
+            {"type": "FeatureCollection", "features": [_feature([OUTER]), _feature([INNER])]},
+            r"feature 2 outer ring lies inside feature 1 outer ring .*overlap",
+        ),
+        (  # a hole of one polygon inside another polygon
+            {"type": "MultiPolygon", "coordinates": [[OUTER], [[[5, 0], [6, 0], [6, 1], [5, 1],
+                                                               [5, 0]], INNER]]},
+            r"polygon 2 hole 1 lies inside polygon 1 outer ring",
+        ),
+    ],
+)  # fmt: skip
+def test_rings_whose_nesting_is_not_their_role_are_refused(run, tmp_path, geo, message):
+    f = tmp_path / "c.geojson"
+    f.write_text(json.dumps(geo))
+    r = run("all", f, "-o", tmp_path / "m.vtk")
+    assert r.exit_code == 1
+    assert r.stderr.startswith(f"deformesh: error: {f}: ") and r.stderr.count("\n") == 1
+    assert re.search(message, r.stderr), r.stderr
+    assert not (tmp_path / "m.vtk").exists()

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from deformesh_cli.errors import InputError, OptionError
 from deformesh_cli.readers.svg import parse_svg
 
-from .conftest import SAMPLES
+from .conftest import DATA, SAMPLES
 
 SVG = '<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" {extra}>{body}</svg>'
 
@@ -237,28 +237,83 @@ def test_sample_svg_meshes_with_the_contract(run, tmp_path):
     assert json.loads(r.stdout)["contract"] == "ok"
 
 
-def test_sample_svg_mesh_covers_what_resvg_paints(run, tmp_path):
-    """Rasterise our mesh and resvg's rendering of the SVG; they must agree pixel for pixel
-    except along the edges (chord tolerance, anti-aliasing)."""
+def _disagreement(src, mesh_file, zoom):
+    """resvg's rendering of ``src`` against our mesh rasterised on the same pixels:
+    ``(painted, ours, far)``, ``far`` the pixels where they disagree farther than 1.5
+    pixels from the mesh's boundary (anti-aliasing and the chord tolerance live nearer)."""
     import matplotlib.image as mpimg
     import meshio
     import resvg_py
 
-    src = SAMPLES / "bracket.svg"
-    out = tmp_path / "b.vtk"
-    assert run("all", src, "-o", out, "-q").exit_code == 0
-    zoom = 4
     png = bytes(resvg_py.svg_to_bytes(svg_path=str(src), background="#ffffff", zoom=zoom))
     img = mpimg.imread(io.BytesIO(png), format="png")
     painted = img[..., :3].mean(axis=2) < 0.5
-    m = meshio.read(out)
+    m = meshio.read(mesh_file)
     domain = shapely.union_all(shapely.polygons(m.points[:, :2][m.cells_dict["triangle"]]))
     height = img.shape[0] / zoom  # the viewport height, which the y flip used
     i, j = np.mgrid[: img.shape[0], : img.shape[1]]
-    ours = shapely.contains_xy(domain, (j + 0.5) / zoom, height - (i + 0.5) / zoom)
+    x, y = (j + 0.5) / zoom, height - (i + 0.5) / zoom
+    ours = shapely.contains_xy(domain, x, y)
+    off = painted != ours
+    near = shapely.dwithin(domain.boundary, shapely.points(x[off], y[off]), 1.5 / zoom)
+    return painted, ours, int((~near).sum())
+
+
+def test_sample_svg_mesh_covers_what_resvg_paints(run, tmp_path):
+    """Rasterise our mesh and resvg's rendering of the SVG; they must agree pixel for pixel
+    except along the edges (chord tolerance, anti-aliasing)."""
+    src = SAMPLES / "bracket.svg"
+    out = tmp_path / "b.vtk"
+    assert run("all", src, "-o", out, "-q").exit_code == 0
+    painted, ours, far = _disagreement(src, out, 4)
     iou = (painted & ours).sum() / (painted | ours).sum()
     assert painted.sum() > 0.2 * painted.size
     assert iou > 0.99, iou
+    assert far == 0
+
+
+OPEN_ICONS = DATA / "open_icons"
+
+
+@pytest.mark.parametrize(
+    "name",
+    ["square", *sorted(p.stem for p in OPEN_ICONS.glob("*.svg"))],
+)
+def test_open_subpaths_are_filled_as_svg_fills_them(run, tmp_path, name):
+    """A subpath without Z is closed by a straight edge, as a renderer fills it: the mesh
+    covers what resvg paints, to the pixels along the edges, with a note."""
+    if name == "square":
+        src = tmp_path / "square.svg"
+        src.write_text(
+            '<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 24 24">'
+            '<path d="M2 2 L22 2 L22 22 L2 22"/></svg>'
+        )
+    else:
+        src = OPEN_ICONS / f"{name}.svg"
+    out = tmp_path / "m.vtk"
+    r = run("all", src, "-o", out, "--strict", "--json")
+    assert r.exit_code == 0, r.stderr
+    assert json.loads(r.stdout)["contract"] == "ok"
+    assert "as SVG fills it: a straight edge from its end" in r.stderr
+    painted, ours, far = _disagreement(src, out, 16)
+    assert painted.sum() > 0.05 * painted.size
+    assert far == 0, far
+
+
+@pytest.mark.parametrize(
+    "body",
+    [
+        '<path d="M2 2 L22 22"/>',  # an open line: nothing to fill
+        '<path d="M2 2 L22 2 L22 22 L2 22" fill="none" stroke="black"/>',  # not filled
+    ],
+)
+def test_svg_with_nothing_a_renderer_fills_is_refused(run, tmp_path, body):
+    src = tmp_path / "nothing.svg"
+    src.write_text(f'<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 24 24">{body}</svg>')
+    r = run("all", src, "-o", tmp_path / "m.vtk")
+    assert r.exit_code == 1
+    assert r.stderr.startswith(f"deformesh: error: {src}: ") and r.stderr.count("\n") == 1
+    assert not (tmp_path / "m.vtk").exists()
 
 
 # --- real icons: matplotlib's toolbar SVGs (installed with the test extra, never downloaded)
@@ -294,8 +349,9 @@ def test_nearly_closed_subpath_is_closed_within_the_tolerance():
     body = '<path d="M10 10 L20 10 L20 20 L10 20 L10.001 10.001"/>'
     c = parse_svg(svg(body), "n.svg")
     assert c.n == 4 and any("closed subpath 1" in n for n in c.notes)
-    with pytest.raises(InputError, match="is not closed"):
-        parse_svg(svg(body), "n.svg", tolerance=1e-4)
+    # with a finer tolerance it is closed as SVG fills it: by a straight edge
+    c = parse_svg(svg(body), "n.svg", tolerance=1e-4)
+    assert c.n == 5 and any("as SVG fills it" in n for n in c.notes)
 
 
 def test_vertices_closer_than_the_tolerance_are_merged():

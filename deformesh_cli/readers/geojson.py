@@ -16,7 +16,7 @@ import json
 
 import numpy as np
 
-from ..contour import Contour, make_contour
+from ..contour import Contour, make_contour, ring_nesting
 from ..errors import InputError
 from ..files import parse_json
 
@@ -57,6 +57,7 @@ def read_geojson(data: bytes, source: str) -> Contour:
         ring_labels=labels,
         clockwise_by_convention=holes,
     )
+    _check_roles(c, rings, labels, source)
     note = f"read {len(rings)} ring(s) from GeoJSON"
     return Contour(
         c.points,
@@ -128,3 +129,32 @@ def _polygon(coords, where: str, source: str, rings: list, labels: list) -> None
             p = p[:-1]  # (GeoJSON closes every ring: no note for the repeat)
         rings.append(p)
         labels.append(name)
+
+
+def _check_roles(c: Contour, rings: list, labels: list, source: str) -> None:
+    """Refuse rings whose nesting is not their roles' (RFC 7946: a Polygon is its outer
+    ring minus its holes, a MultiPolygon or a set of features the union of its
+    polygons).  The contour's region is the rings' nesting (even-odd), which is that
+    union exactly when every hole lies directly in its own outer ring and every outer
+    ring lies in no other ring but, directly, a hole of another polygon."""
+    if len(rings) == 1:
+        return
+    _, parent = ring_nesting([c.points[c.starts[r] : c.starts[r + 1]] for r in range(len(rings))])
+    outer = np.array([label.endswith("outer ring") for label in labels])
+    own = np.maximum.accumulate(np.where(outer, np.arange(len(rings)), -1))  # each one's shell
+    for r in range(len(rings)):
+        up = int(parent[r])
+        x, y = c.points[c.starts[r]]
+        at = f"(its first position ({x:.6g}, {y:.6g}))"
+        if not outer[r] and up != own[r]:
+            where = "outside every ring" if up < 0 else f"inside {labels[up]}"
+            raise InputError(
+                f"{source}: {labels[r]} lies {where} {at}, not directly in "
+                f"{labels[own[r]]}: a hole lies in its own outer ring and in none of its "
+                "other holes (RFC 7946)"
+            )
+        if outer[r] and up >= 0 and outer[up]:
+            raise InputError(
+                f"{source}: {labels[r]} lies inside {labels[up]} {at}: the polygons "
+                "overlap; merge them into one polygon for the region that is their union"
+            )

@@ -169,9 +169,8 @@ def _collect_rings(shapes, tol: float, height: float, eps: float, source: str):
     """Every subpath of every shape as a ring, flipped, repeats dropped, flat ones skipped.
 
     Returns parallel lists: rings, labels, owning shape, evenodd?, and notes.
-    A subpath left open (no ``Z``) whose ends differ is refused: SVG would
-    fill it closed, but a contour that does not close is more likely a
-    mistake than a wish for a straight closing edge.
+    A subpath left open (no ``Z``) is closed by a straight edge from its end to its
+    start, as SVG fills it (a note says so).
     """
     rings, labels, element, evenodd, notes = [], [], [], [], []
     for k, shape in enumerate(shapes):
@@ -203,12 +202,13 @@ def _collect_rings(shapes, tol: float, height: float, eps: float, source: str):
                 notes.append(f"skipped subpath {j + 1} of {name}: it encloses no area")
                 continue
             if not closed and gap > eps:
+                # SVG fills an open subpath as if a closepath joined its end to its start
+                # (SVG 2, 'fill' painting): so does the contour, and says so
                 (x0, y0), (x1, y1) = ring[0], ring[-1]
-                raise InputError(
-                    f"{source}: {name} subpath {j + 1} is not closed: it ends at "
-                    f"({x1:.6g}, {y1:.6g}), {gap:.3g} from its start at ({x0:.6g}, {y0:.6g}); "
-                    "end it with Z (or draw a polygon); ends closer than --tolerance are "
-                    "taken as closed"
+                notes.append(
+                    f"closed {name} subpath {j + 1} as SVG fills it: a straight edge from its "
+                    f"end at ({x1:.6g}, {y1:.6g}) back to its start at ({x0:.6g}, {y0:.6g}), "
+                    f"{gap:.3g} long"
                 )
             rings.append(ring)
             labels.append(f"{name} subpath {j + 1}")
