@@ -52,6 +52,10 @@ from .size import positive_values
 #: grid 10 at 0.183, 5 at 0.202 (``benchmarks/MEASURED.md``).
 ADAPT_STEPS = 10
 
+#: The most ``steps`` taken: the least number of solves bounds the work a run may ask
+#: for (each solve factorises the whole mesh's system).
+MAX_ADAPT_STEPS = 1000
+
 #: The time between two solves is also at most ``STRETCH / max_K |grad v|_K``, the
 #: velocity's P1 gradient on each cell at the solve (spectral norm): the field's own
 #: Euler map over that time keeps every cell's singular values within ``[1 - STRETCH,
@@ -352,8 +356,8 @@ def adapt(
     points = np.asarray(points, dtype=np.float64)
     tri = np.asarray(tri, dtype=np.int64)
     area = check_mesh(points, tri, source)
-    if steps < 1:
-        raise OptionError(f"--steps must be >= 1, got {steps}")
+    if not 1 <= steps <= MAX_ADAPT_STEPS:
+        raise OptionError(f"--steps must be from 1 to {MAX_ADAPT_STEPS:,}, got {steps}")
     used = np.zeros(len(points), dtype=bool)
     used[tri.ravel()] = True
     if not used.all():  # (adapted without them, and put back)

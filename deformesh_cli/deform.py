@@ -28,6 +28,10 @@ from .geometry import signed_areas
 #: Default number of pseudo-time steps (the paper's example uses 10).
 DEFAULT_STEPS = 10
 
+#: The most pseudo-time steps taken: each is a solve, so the work a run may ask for is
+#: bounded (ten thousand solves are hours on a large grid).
+MAX_STEPS = 10_000
+
 #: A triangle whose signed area is within this times the mean of theirs of zero is
 #: flat: its sign, and whether its centroid lies in the domain, are round-off (a free
 #: node carried onto the line through two path nodes, or three path nodes onto one
@@ -319,8 +323,8 @@ def deform_(
 
     Returns the new coordinates and :class:`DeformStats`.
     """
-    if steps < 1:
-        raise OptionError(f"--steps must be >= 1, got {steps}")
+    if not 1 <= steps <= MAX_STEPS:
+        raise OptionError(f"--steps must be from 1 to {MAX_STEPS:,}, got {steps}")
     n = len(points)
     pos = np.array(points, dtype=np.float64, copy=True)
     dirichlet = np.zeros(n, dtype=bool)

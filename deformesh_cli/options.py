@@ -18,16 +18,24 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
-from .deform import DEFAULT_STEPS, SOLVERS, SOLVES
+from .deform import DEFAULT_STEPS, MAX_STEPS, SOLVERS, SOLVES
 from .formats import FORMATS, MSH_VERSIONS
-from .select import DEFAULT_MAX_NODES, GRIDS
+from .select import DEFAULT_MAX_NODES, GRIDS, MAX_NODES_CEILING
 from .select.graded import DEFAULT_GROWTH
 
 #: The kinds of value a field's ``kind`` metadata names (the command line checks them):
 #: ``text``, ``flag`` (``--x``), ``switch`` (``--x/--no-x``), ``choice`` (one of
-#: ``choices``), ``positive`` (a float > 0), ``float``, ``count`` (an int >= ``min``),
+#: ``choices``), ``positive`` (a finite float > 0), ``float``, ``count`` (an int >= ``min``
+#: and <= ``max`` where given),
 #: ``box`` (XMIN,YMIN,XMAX,YMAX), ``path`` (an existing file).
 KINDS = ("text", "flag", "switch", "choice", "positive", "float", "count", "box", "path")
+
+
+#: ``deformesh move``'s default floor on a frame's smallest angle, in degrees: the
+#: condition number of a P1 stiffness matrix grows as 1 / sin of its smallest angle
+#: (Shewchuk, "What is a good linear finite element?"), 29 times a right triangle's
+#: at 2 degrees.
+DEFAULT_MIN_ANGLE = 2.0
 
 
 def _opt(default: Any, help: str, kind: str = "text", **meta: Any) -> Any:
@@ -104,7 +112,7 @@ class MeshOptions:
         None,
         "Gap between the contour's bounding box and the background box, in "
         "contour units. Default: 3 grid steps.",
-        "float",
+        "positive",
     )
     strict: bool = _opt(
         False,
@@ -117,6 +125,7 @@ class MeshOptions:
         "Refuse grids with more nodes than this (memory guard).",
         "count",
         min=4,
+        max=MAX_NODES_CEILING,
     )
     exterior: bool = _opt(
         False,
@@ -149,7 +158,7 @@ class MeshOptions:
         metavar="H",
     )
     # stage 2: deform
-    steps: int = _opt(DEFAULT_STEPS, _STEPS_HELP, "count", min=1)
+    steps: int = _opt(DEFAULT_STEPS, _STEPS_HELP, "count", min=1, max=MAX_STEPS)
     solver: str = _opt("auto", _SOLVER_HELP, "choice", choices=SOLVERS)
     solve: str = _opt(
         "band",
@@ -243,7 +252,7 @@ class MoveOptions:
         "Time between frames: the .pvd's time step; velocity = displacement / dt.",
         "positive",
     )
-    steps: int = _opt(DEFAULT_STEPS, _STEPS_HELP, "count", min=1)
+    steps: int = _opt(DEFAULT_STEPS, _STEPS_HELP, "count", min=1, max=MAX_STEPS)
     solver: str = _opt("auto", _SOLVER_HELP, "choice", choices=SOLVERS)
     solve: str = _opt(
         "full",
@@ -262,6 +271,21 @@ class MoveOptions:
     )
     decimal: str = _opt(
         ".", "Decimal mark of the frames' CSV numbers.", "choice", choices=(".", ",")
+    )
+    min_angle: float = _opt(
+        DEFAULT_MIN_ANGLE,
+        "Floor on each frame's smallest angle, in degrees (a mesh that starts below it, "
+        "as its contour forces, is held to its own start): the first frame under it "
+        "stops the run, frames before it kept, or is meshed afresh with --remesh. "
+        "0: no floor.",
+        "float",
+    )
+    remesh: bool = _opt(
+        False,
+        "Mesh a frame whose smallest angle falls under --min-angle afresh from its "
+        "contour (new triangles from that frame on; the velocity carried over by "
+        "linear interpolation) and go on.",
+        "flag",
     )
 
 

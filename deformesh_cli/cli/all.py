@@ -44,7 +44,7 @@ from .report import check_mesh_output, check_outputs, finish
 @click.option(
     "-j",
     "--jobs",
-    type=click.IntRange(min=1),
+    type=click.IntRange(min=1, max=1024),
     default=None,
     help="Batch: processes to run at once. Default: the number of cores.",
 )

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import math
 import sys
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -35,12 +36,14 @@ class BoxType(click.ParamType):
             self.fail(f"{value!r} is not four numbers XMIN,YMIN,XMAX,YMAX", param, ctx)
         if len(v) != 4:
             self.fail(f"{value!r} has {len(v)} numbers, expected XMIN,YMIN,XMAX,YMAX", param, ctx)
+        if not all(math.isfinite(x) for x in v):
+            self.fail(f"{value!r} is not four finite numbers", param, ctx)
         return v
 
 
 def _positive(ctx, param, value):
-    if value is not None and not value > 0:
-        raise click.BadParameter("must be > 0")
+    if value is not None and not (value > 0 and math.isfinite(value)):
+        raise click.BadParameter("must be a finite number > 0")
     return value
 
 
@@ -65,7 +68,7 @@ def click_option(f: dataclasses.Field, help: str | None = None) -> Callable:
     elif kind == "float":
         kw["type"] = float
     elif kind == "count":
-        kw.update(type=click.IntRange(min=meta["min"]), show_default=True)
+        kw.update(type=click.IntRange(min=meta["min"], max=meta.get("max")), show_default=True)
     elif kind == "box":
         kw["type"] = BoxType()
     elif kind == "path":

@@ -18,6 +18,7 @@ from .uniform import (
     DIAG_SLASH,
     EVEN_SPACING_RATIO,
     GRIDS,
+    MAX_NODES_CEILING,
     Grid,
     NoFreeNode,
     Selection,
@@ -35,6 +36,7 @@ from .uniform import (
 __all__ = [
     "DEFAULT_MARGIN_CELLS",
     "DEFAULT_MAX_NODES",
+    "MAX_NODES_CEILING",
     "DIAG_BACKSLASH",
     "DIAG_SLASH",
     "EVEN_SPACING_RATIO",

@@ -31,6 +31,10 @@ from ..geometry import next_on_ring, signed_area, signed_areas
 #: this machine's 24 GiB while leaving room for the rest of the pipeline.
 DEFAULT_MAX_NODES = 8_000_000
 
+#: The largest ``--max-nodes`` taken: beyond it no machine holds the grid anyway, and
+#: counts stay well inside the integers the arrays index with.
+MAX_NODES_CEILING = 1_000_000_000
+
 #: ``--grid`` choices: ``graded`` is the constructed graded quadtree grid
 #: (:mod:`.construct`); ``uniform`` is Appendix A's grid; ``auto`` is ``graded``, or
 #: ``uniform`` when ``--h`` is given.
