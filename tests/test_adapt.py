@@ -656,3 +656,65 @@ def test_a_p1_field_follows_moving_nodes_and_any_points():
     few = rng.random((7, 2))
     assert np.abs(field(few) - (3 * few[:, 0] - 2 * few[:, 1] + 1)).max() < 1e-12
     assert np.array_equal(field(p), 3 * p[:, 0] - 2 * p[:, 1] + 1)
+
+
+def test_an_xdmf_output_is_the_same_bytes_every_run_and_leaves_nothing_else(
+    run, grid_file, tmp_path
+):
+    """The sidecar is named after the output (``a.xdmf`` -> ``a.h5``), written through a
+    folder of its own and moved into place: two runs give the same bytes, and the folder
+    holds the two files and nothing else, also after a run that fails."""
+    out = tmp_path / "out"
+    out.mkdir()
+    hashes = []
+    for _ in range(2):
+        r = run("adapt", grid_file[0], "-o", out / "a.xdmf", "--monitor", RING, "--force", "-q")
+        assert r.exit_code == 0, r.stderr
+        assert sorted(p.name for p in out.iterdir()) == ["a.h5", "a.xdmf"]
+        assert "a.h5:/" in (out / "a.xdmf").read_text()
+        hashes.append([(out / n).read_bytes() for n in ("a.xdmf", "a.h5")])
+    assert hashes[0] == hashes[1]
+    r = run("adapt", grid_file[0], "-o", out / "b.xdmf", "--monitor", "1 + sqrt(x - 2)", "-q")
+    assert r.exit_code != 0
+    assert sorted(p.name for p in out.iterdir()) == ["a.h5", "a.xdmf"]
+
+
+@pytest.mark.parametrize(
+    "name, refused, written",
+    [
+        ("a b", [".vtk"], [".vtu", ".msh", ".xdmf"]),
+        ('a"b', [".vtk", ".vtu", ".msh", ".xdmf"], []),
+        ("a\nb", [".vtk", ".vtu", ".msh", ".xdmf"], []),
+        ("a<b>", [".vtu", ".xdmf"], [".msh"]),
+    ],
+)
+def test_data_names_an_output_cannot_hold_are_refused_the_others_read_back(
+    run, grid_file, tmp_path, name, refused, written
+):
+    """A point-data name goes into the file as it is: where it would break the file (a
+    newline, a quote, white space in legacy VTK, markup in XML) the run is refused in one
+    line naming it and writes nothing; elsewhere the file reads back with the name."""
+    p, tri = grid_file[1], grid_file[2]
+    tmp_path = tmp_path / "named"
+    tmp_path.mkdir()
+    src = tmp_path / "named.vtu"
+    meshio.write(
+        src, meshio.Mesh(np.c_[p, np.zeros(len(p))], [("triangle", tri)], {"u": p[:, 0]}),
+        binary=False,
+    )  # fmt: skip
+    escaped = name.replace("&", "&amp;").replace('"', "&quot;").replace("<", "&lt;")
+    escaped = escaped.replace(">", "&gt;").replace("\n", "&#10;")  # (a valid XML file)
+    src.write_text(src.read_text().replace('Name="u"', f'Name="{escaped}"'))
+    assert name in meshio.read(src).point_data
+    for suffix in refused:
+        out = tmp_path / f"o{suffix}"
+        r = run("adapt", src, "-o", out, "--monitor", "1", "-q")
+        assert r.exit_code == 1, (suffix, r.stderr)
+        assert r.stderr.startswith(f"deformesh: error: {src}: point data name ")
+        assert r.stderr.count("\n") == 1
+        assert sorted(q.name for q in tmp_path.iterdir()) == [src.name]
+    for suffix in written:
+        out = tmp_path / f"w{suffix}"
+        r = run("adapt", src, "-o", out, "--monitor", "1", "-q")
+        assert r.exit_code == 0, (suffix, r.stderr)
+        assert name in meshio.read(out).point_data

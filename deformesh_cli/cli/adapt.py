@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import os
 import re
 import time
 
@@ -12,8 +13,8 @@ import numpy as np
 
 from .. import adapt as _adapt
 from .. import files, formats
-from ..errors import InputError, OptionError, WriteError
-from ..formats._common import GROUP_DATA
+from ..errors import InputError, OptionError, WriteError, printable
+from ..formats._common import GROUP_DATA, PHYSICAL_DATA
 from ..formats.read import checked, read_meshio
 from .errors import handle_errors
 from .options import OutputPath, json_option, quiet_option, say
@@ -76,7 +77,7 @@ _WRITE_OPTIONS = {"gmsh22": {"binary": False}}
 )
 @click.option(
     "--steps",
-    type=click.IntRange(min=1),
+    type=click.IntRange(min=1, max=_adapt.MAX_ADAPT_STEPS),
     default=_adapt.ADAPT_STEPS,
     show_default=True,
     help="Solves of the velocity at least: the pseudo-time between two solves is at most "
@@ -124,6 +125,7 @@ def command(
     outputs = [output] + ([png] if png else [])
     files.check_outputs(outputs, [mesh_path] + ([reference_path] if reference_path else []))
     m = _read(mesh_path)
+    _check_names(m, mesh_path, suffix)
     if suffix == ".msh":  # (refused before the work, not after it)
         for k, v in m.point_data.items():
             _node_data(k, v, output)
@@ -177,29 +179,22 @@ def command(
     import meshio
 
     fmt = _MESHIO_FORMATS[suffix]
-    # the group names as meshio's Gmsh convention has them (name -> [tag, dimension])
-    names = {k: np.asarray(v).ravel() for k, v in m.field_data.items()}
-    cell_data = dict(m.cell_data)
-    if fmt == "gmsh22" and "gmsh:physical" not in cell_data and GROUP_DATA in cell_data:
-        # (a deformesh .vtk or .vtu: its group tags are the .msh physical tags)
-        tags = [np.asarray(t, dtype=np.int32) for t in cell_data[GROUP_DATA]]
-        cell_data.update({"gmsh:physical": tags, "gmsh:geometrical": tags})
+    tags, names = _groups(m, mesh_path)
+    cell_data = {k: v for k, v in m.cell_data.items() if k not in _GROUP_ARRAYS}
+    if tags is not None:  # the same groups in every output, under each format's names
+        if fmt == "gmsh22":
+            cell_data.update({"gmsh:physical": tags, "gmsh:geometrical": tags})
+        else:
+            cell_data.update({GROUP_DATA: tags, PHYSICAL_DATA: tags})
     if fmt == "gmsh22":  # the groups, and the point data as $NodeData
         cell_data = {k: v for k, v in cell_data.items() if k.startswith("gmsh:")}
         data = {k: _node_data(k, v, output) for k, v in data.items() if not k.startswith("gmsh:")}
     out = meshio.Mesh(xyz, m.cells, point_data=data, cell_data=cell_data, field_data=names)
-    with files.atomic_path(output) as staged:
-        try:  # (meshio's console chatter kept off stdout, where --json goes)
-            with (
-                contextlib.redirect_stdout(io.StringIO()),
-                contextlib.redirect_stderr(io.StringIO()),
-            ):
-                meshio.write(staged, out, file_format=fmt, **_WRITE_OPTIONS.get(fmt, {}))
-        except OSError as exc:
-            raise WriteError(f"{output}: cannot write: {exc.strerror or exc}") from None
-        if fmt in ("vtu", "vtk42"):  # (meshio writes no field data there: the group names)
-            add = formats.vtu.add_field_data if fmt == "vtu" else formats.vtk.add_field_data
-            add(staged, m.field_data)
+    if fmt == "xdmf":  # (its sidecar named after the output, never after a staged file)
+        main, side = formats.xdmf.render_meshio(out, os.path.basename(output))
+        formats.write_pair(output, formats.xdmf.FORMAT.sidecar, main, side)
+    else:
+        _write_meshio(out, output, fmt, names)
     if picture is not None:
         files.write_bytes(picture, png)
     report = {"input": mesh_path, "output": output}
@@ -222,6 +217,80 @@ def command(
         f"sigma/mu {r['sigma_over_mu_before']:.3f} -> {r['sigma_over_mu']:.3f}, volume ratio "
         f"{r['volume_ratio_before']:.2f} -> {r['volume_ratio']:.2f} ({r['seconds']:.2f} s)",
     )
+
+
+#: Per output, what a point-data or group name may not hold to be copied into the file
+#: as it is: a control character (a newline ends a .msh or .vtk line) or a double quote
+#: (it ends a .msh name and an XML attribute) anywhere; white space in a legacy VTK name;
+#: markup in an XML attribute (.vtu, .xdmf).
+_NOT_IN_NAME = {
+    ".msh": r'["\x00-\x1f\x7f-\x9f]',
+    ".vtk": r'["\s\x00-\x1f\x7f-\x9f]',
+    ".vtu": r'["<>&\x00-\x1f\x7f-\x9f]',
+    ".xdmf": r'["<>&\x00-\x1f\x7f-\x9f]',
+}
+
+
+def _check_names(m, path: str, suffix: str) -> None:
+    """Refuse, before any work, a point-data or group name that the output cannot hold as
+    it is (:data:`_NOT_IN_NAME`), naming it: a file written with it would not read back."""
+    bad = re.compile(_NOT_IN_NAME[suffix])
+    for what, names in (("point data", m.point_data), ("group", m.field_data)):
+        for name in names:
+            found = bad.search(name)
+            if found is not None:
+                raise InputError(
+                    f"{path}: {what} name {printable(name)} cannot be written into a {suffix} "
+                    f"file as it is (it holds {printable(found[0])}); rename it or write "
+                    "another format"
+                )
+
+
+#: The cell data arrays that carry physical groups, in the formats adapt reads.
+_GROUP_ARRAYS = (GROUP_DATA, PHYSICAL_DATA, "gmsh:geometrical", "su2:tag")
+
+
+def _groups(m, path: str) -> tuple[list[np.ndarray] | None, dict[str, np.ndarray]]:
+    """The input's physical groups: per cell block, each cell's tag, and the names (name
+    -> ``[tag, dimension]``, meshio's Gmsh convention); ``(None, {})`` for a mesh without
+    groups.  From ``gmsh:physical`` (.msh, and deformesh's .vtu and .xdmf), ``group``
+    (deformesh's .vtk, and its older files), or an SU2 file's markers (named in its
+    ``MARKER_TAG`` lines, in order, as meshio numbers them 1, 2, ...; its triangles,
+    tagged 0, become the group ``domain``)."""
+    names = {k: np.asarray(v).ravel()[:2] for k, v in m.field_data.items()}
+    for key in (PHYSICAL_DATA, GROUP_DATA):
+        if key in m.cell_data:
+            return [np.asarray(t, dtype=np.int32).ravel() for t in m.cell_data[key]], names
+    if "su2:tag" in m.cell_data and path.lower().endswith(".su2"):
+        with open(path, errors="replace") as f:
+            found = re.findall(r"^\s*MARKER_TAG\s*=\s*(\S+)", f.read(), re.M)
+        names = {name: np.array([k + 1, 1]) for k, name in enumerate(found)}
+        domain = len(found) + 1
+        names.setdefault("domain", np.array([domain, 2]))
+        tags = []
+        for block, t in zip(m.cells, m.cell_data["su2:tag"]):
+            t = np.asarray(t, dtype=np.int32).ravel()
+            tags.append(np.where(t == 0, domain, t) if block.type == "triangle" else t)
+        return tags, names
+    return None, names
+
+
+def _write_meshio(out, output: str, fmt: str, field_data) -> None:
+    """meshio's writer for ``fmt`` into ``output``, atomically (a failure leaves no file)."""
+    import meshio
+
+    with files.atomic_path(output) as staged:
+        try:  # (meshio's console chatter kept off stdout, where --json goes)
+            with (
+                contextlib.redirect_stdout(io.StringIO()),
+                contextlib.redirect_stderr(io.StringIO()),
+            ):
+                meshio.write(staged, out, file_format=fmt, **_WRITE_OPTIONS.get(fmt, {}))
+        except OSError as exc:
+            raise WriteError(f"{output}: cannot write: {exc.strerror or exc}") from None
+        if fmt in ("vtu", "vtk42"):  # (meshio writes no field data there: the group names)
+            add = formats.vtu.add_field_data if fmt == "vtu" else formats.vtk.add_field_data
+            add(staged, field_data)
 
 
 def _monitor(text: str):
@@ -279,16 +348,9 @@ def _contour_nodes(m, n: int, path: str) -> np.ndarray | None:
 
     if "contour_point" in m.point_data:
         return np.asarray(m.point_data["contour_point"]).ravel() >= 0
-    names = {int(np.ravel(v)[0]): k for k, v in m.field_data.items() if np.ravel(v)[-1] == 1}
-    tags = m.cell_data.get("gmsh:physical", m.cell_data.get(GROUP_DATA))
-    if "su2:tag" in m.cell_data and path.lower().endswith(".su2"):
-        # (meshio numbers SU2's markers 1, 2, ... in the order of their MARKER_TAG lines)
-        with open(path, errors="replace") as f:
-            found = re.findall(r"^\s*MARKER_TAG\s*=\s*(\S+)", f.read(), re.M)
-        names, tags = {k + 1: name for k, name in enumerate(found)}, m.cell_data["su2:tag"]
-    if "contour" not in names.values():
-        return None
-    if tags is None:
+    tags, names = _groups(m, path)
+    names = {int(v[0]): k for k, v in names.items() if v[-1] == 1}
+    if tags is None or "contour" not in names.values():
         return None
     held = np.zeros(n, dtype=bool)
     for block, tag in zip(m.cells, tags):

@@ -152,17 +152,24 @@ def _write_with_sidecar(form: Format, mesh: Mesh, path: str) -> None:
     """Make both files in memory, write them into a temporary folder next to ``path``,
     then move them into place: the sidecar first, created new (a symbolic link in its
     place is replaced by the file, never written through)."""
+    main, second = _render(form, mesh, output_target(path).name, path)
+    write_pair(path, form.sidecar, main, second)
+
+
+def write_pair(path: str, sidecar: str, main: bytes, second: bytes) -> None:
+    """Write ``main`` to ``path`` and ``second`` to its sidecar (``path`` with the suffix
+    ``sidecar``) through a temporary folder next to them, then move them into place,
+    the sidecar first: a failure leaves neither, and nothing else is left behind."""
     target = output_target(path)
     folder = check_folder(str(target))
-    side = target.with_suffix(form.sidecar)
-    main, second = _render(form, mesh, target.name, path)
+    side = target.with_suffix(sidecar)
     try:
         with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=folder) as d:
             tmp = Path(d) / target.name
-            for data, dst in ((second, tmp.with_suffix(form.sidecar)), (main, tmp)):
+            for data, dst in ((second, tmp.with_suffix(sidecar)), (main, tmp)):
                 dst.write_bytes(data)
                 os.chmod(dst, 0o644)
-            os.replace(tmp.with_suffix(form.sidecar), side)
+            os.replace(tmp.with_suffix(sidecar), side)
             os.replace(tmp, target)
     except OSError as exc:
         raise WriteError(f"{path}: cannot write: {exc.strerror or exc}") from None

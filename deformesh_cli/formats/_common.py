@@ -40,6 +40,18 @@ def cell_groups(mesh: Mesh) -> list[np.ndarray]:
 #: The cell data array that carries :func:`cell_groups` in .vtk, .vtu and .xdmf files.
 GROUP_DATA = "group"
 
+#: The same tags under the name meshio gives a .msh file's physical groups: readers built
+#: on meshio (scikit-fem's ``Mesh.load``) take the boundaries' names from it and the
+#: field data (.vtu, .xdmf).
+PHYSICAL_DATA = "gmsh:physical"
+
+
+def group_cell_data(mesh: Mesh) -> dict[str, list[np.ndarray]]:
+    """:func:`cell_groups` as the cell data of a .vtu or .xdmf file: ``group``, and the
+    same tags as ``gmsh:physical``."""
+    tags = cell_groups(mesh)
+    return {GROUP_DATA: tags, PHYSICAL_DATA: tags}
+
 
 def meshio_mesh(mesh: Mesh, dim3: bool = False, cell_data: dict | None = None):
     """The mesh as a ``meshio.Mesh``: triangles, then the boundary lines; point data

@@ -1,7 +1,8 @@
 """VTK XML unstructured grid (meshio): triangles and boundary lines, point data, and
-each cell's physical group tag as in .msh (cell data ``group``), the groups' names in
-the grid's field data (per name, its ``(tag, dimension)``; meshio writes no field
-data, so it is put in after)."""
+each cell's physical group tag as in .msh (cell data ``group``, and the same as
+``gmsh:physical``, where meshio-based readers look), the groups' names in the grid's
+field data (per name, its ``(tag, dimension)``; meshio writes no field data, so it is
+put in after)."""
 
 from __future__ import annotations
 
@@ -11,14 +12,14 @@ import numpy as np
 
 from ..errors import WriteError
 from ..mesh import Mesh
-from ._common import GROUP_DATA, cell_groups, group_table, meshio_mesh
+from ._common import group_cell_data, group_table, meshio_mesh
 from .format import Format
 
 
 def write(mesh: Mesh, path: str, version: str | None = None) -> None:
     import meshio
 
-    m = meshio_mesh(mesh, dim3=True, cell_data={GROUP_DATA: cell_groups(mesh)})
+    m = meshio_mesh(mesh, dim3=True, cell_data=group_cell_data(mesh))
     meshio.write(path, m, file_format="vtu")
     add_field_data(path, group_table(mesh))
 
@@ -33,9 +34,11 @@ def add_field_data(path: str, table: dict) -> None:
     grid = b"<UnstructuredGrid>"
     if data.count(grid) != 1:  # (meshio's layout changed: the names would go astray)
         raise WriteError(f"{path}: unexpected VTU layout from meshio (no single {grid!r})")
+    # (one component, a tuple per number: meshio reads it back as the flat array
+    # ``[tag, dimension]`` it reads a .msh's groups into)
     arrays = "".join(
-        f'<DataArray type="Int32" Name={quoteattr(name)} NumberOfComponents="{tag.size}" '
-        f'NumberOfTuples="1" format="ascii">{" ".join(map(str, tag.ravel().tolist()))}'
+        f'<DataArray type="Int32" Name={quoteattr(name)} NumberOfComponents="1" '
+        f'NumberOfTuples="{tag.size}" format="ascii">{" ".join(map(str, tag.ravel().tolist()))}'
         "</DataArray>\n"
         for name, tag in ((k, np.asarray(v, dtype=np.int32)) for k, v in table.items())
     )

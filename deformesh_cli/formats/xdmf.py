@@ -1,5 +1,6 @@
 """XDMF 3 with an HDF5 sidecar (meshio's layout; needs h5py): triangles and boundary lines
-with ``group`` tags, point data.
+with ``group`` tags (and the same as ``gmsh:physical``), the groups' names where meshio
+reads them (an ``Information`` element), point data.
 
 The tags are those of the .msh physical groups (boundaries 1.., domain
 last).  The sidecar is named after the file (``mesh.xdmf`` -> ``mesh.h5``).
@@ -16,9 +17,11 @@ import io
 import os
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import DependencyError
 from ..mesh import Mesh
-from ._common import GROUP_DATA, cell_groups, meshio_mesh
+from ._common import group_cell_data, group_table, meshio_mesh
 from .format import Format
 
 #: The first bytes of every sidecar deformesh writes (in the HDF5 user block).
@@ -38,6 +41,13 @@ def _h5py(path: str):
 
 def render(mesh: Mesh, name: str) -> tuple[bytes, bytes]:
     """The bytes of ``name`` (an ``.xdmf`` file name) and of its sidecar."""
+    m = meshio_mesh(mesh, dim3=True, cell_data=group_cell_data(mesh))
+    m.field_data = group_table(mesh)
+    return render_meshio(m, name)
+
+
+def render_meshio(m, name: str) -> tuple[bytes, bytes]:
+    """:func:`render` of a ``meshio.Mesh`` (its points, cells, point and cell data)."""
     h5py = _h5py(name)
     from xml.etree import ElementTree as ET
 
@@ -59,16 +69,30 @@ def render(mesh: Mesh, name: str) -> tuple[bytes, bytes]:
                 self.write_cells(m.cells, grid)
                 self.write_point_data(m.point_data, grid)
                 self.write_cell_data(m.cell_data, grid)
+                if m.field_data:  # the groups' names, where meshio's reader takes them
+                    _information(grid, m.field_data)
             out = io.BytesIO()
             ET.ElementTree(root).write(out)
             self.xml = out.getvalue()
 
-    m = meshio_mesh(mesh, dim3=True, cell_data={GROUP_DATA: cell_groups(mesh)})
     buf = io.BytesIO()
     w = _InMemory(os.path.basename(name), m, buf)
     side = bytearray(buf.getvalue())
     side[: len(MARK)] = MARK
     return w.xml, bytes(side)
+
+
+def _information(grid, field_data: dict) -> None:
+    """The groups' names (name -> ``(tag, dimension)``) as the ``Information`` element
+    meshio's XDMF reader takes them from: ``<main><map key=NAME dim=D>TAG</map>...``."""
+    from xml.etree import ElementTree as ET
+
+    info = ET.Element("main")
+    for key, value in field_data.items():
+        tag, dim = np.ravel(value)[:2]
+        ET.SubElement(info, "map", key=key, dim=str(int(dim))).text = str(int(tag))
+    element = ET.SubElement(grid, "Information", Name="Information", Value=str(len(field_data)))
+    element.text = ET.tostring(info).decode()
 
 
 FORMAT = Format(
