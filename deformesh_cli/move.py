@@ -39,7 +39,15 @@ import numpy as np
 from . import files, formats, geometry, quality
 from .contour import Contour, make_contour
 from .deform import ADVICE, DEFAULT_STEPS, DeformStats, deform, deform_band
-from .errors import BandError, ContractError, FoldError, InputError
+from .errors import (
+    BandError,
+    ContractError,
+    DegradedError,
+    FoldError,
+    InputError,
+    OptionError,
+    printable,
+)
 from .mesh import Mesh
 from .options import MoveOptions
 from .readers import load_contour
@@ -384,6 +392,28 @@ def frame_mesh(motion: Motion, points: np.ndarray, point_data: dict | None = Non
     )
 
 
+def remeshed(
+    motion: Motion, points: np.ndarray, velocity: np.ndarray, frame: Contour
+) -> tuple[Motion, np.ndarray]:
+    """``frame`` meshed afresh (:func:`.pipeline.mesh_contour` at default options, in the
+    same box for a far field) as a new :class:`Motion`, and ``velocity`` (one row per node
+    of the motion's mesh at ``points``, the frame reached with the old triangles) carried
+    to its nodes by linear interpolation in that mesh (the contour's own and the box's
+    nodes: their velocity exactly)."""
+    from .adapt import Locator, p1_values
+    from .pipeline import mesh_contour
+
+    exterior = motion.box is not None
+    fresh = mesh_contour(frame, exterior=exterior, box=motion.box).mesh
+    tri = motion.mesh.triangles
+    first, w = Locator(points, tri).find(fresh.points)
+    carried = p1_values(np.asarray(velocity, dtype=np.float64), tri, first, w)
+    carried[: frame.n] = velocity[: frame.n]  # (the contour points: the same nodes)
+    new = prepare(fresh.points, fresh.triangles, frame, frame.source)
+    carried[new.held] = 0.0  # (the box is held: its nodes do not move, to the bit)
+    return new, carried
+
+
 #: What a fold message advises when a frame cannot be reached: at the last pseudo-time
 #: step, and before it.
 FRAME_ADVICE = (
@@ -415,9 +445,18 @@ def move_frames(
     naming the frame that cannot be reached, and the frames already written.
     """
     o = MoveOptions() if options is None else options
+    if not 0.0 <= o.min_angle < 60.0:  # (no triangle has all its angles above 60)
+        raise OptionError(f"--min-angle must be from 0 to under 60 degrees, got {o.min_angle}")
     t0 = time.perf_counter()
     fmt = o.fmt.lower()
     stem = name or os.path.splitext(os.path.basename(mesh_path))[0]
+    if name is not None and (
+        not name or name in (".", "..") or os.sep in name or "/" in name or "\0" in name
+    ):
+        raise OptionError(
+            f"--name {printable(name)}: a file name stem, without a folder (the frames go "
+            "into --out-dir)"
+        )
     points, tri = formats.read_mesh(mesh_path)
     contours = [load_contour(f, None, o.decimal) for f in frame_paths]
     motion = prepare(points, tri, contours[0], mesh_path)
@@ -441,7 +480,9 @@ def move_frames(
         written.append((k * o.dt, file))
         records.append({"frame": k, "input": source, "output": file, **report})
 
-    write(0, motion.mesh.points, np.zeros((len(points), 3)), mesh_path, quality.stats(motion.mesh))
+    first = quality.stats(motion.mesh)
+    write(0, motion.mesh.points, np.zeros((len(points), 3)), mesh_path, first)
+    floor = min(o.min_angle, first["min_angle"])  # (a mesh its contour holds lower)
     pts = motion.mesh.points
     try:
         for k, c in enumerate(contours, start=1):
@@ -453,14 +494,28 @@ def move_frames(
                     f"folding: {exc}; frames 0-{k - 1} are in {out_dir}"
                 ) from None
             velocity = np.column_stack([(step.points - pts) / o.dt, np.zeros(len(pts))])
-            write(k, step.points, velocity, c.source, step.report)
-            pts = step.points
+            report = dict(step.report, remeshed=False)
+            if step.report["min_angle"] < floor:
+                if not o.remesh:
+                    raise DegradedError(
+                        f"{c.source}: frame {k} of {len(contours)}: its smallest angle "
+                        f"{step.report['min_angle']:.3g} deg is under the floor {floor:.3g} "
+                        f"(--min-angle); frames 0-{k - 1} are in {out_dir} (--remesh meshes "
+                        "such a frame afresh and goes on)"
+                    )
+                motion, velocity = remeshed(motion, step.points, velocity, c)
+                report = dict(step.report, **quality.stats(motion.mesh), remeshed=True)
+                floor = min(o.min_angle, report["min_angle"])
+            write(k, motion.mesh.points if report["remeshed"] else step.points, velocity,
+                  c.source, report)  # fmt: skip
+            pts = motion.mesh.points if report["remeshed"] else step.points
             if on_frame is not None:
                 on_frame(k, len(contours), c, records[-1])
     finally:  # the time series of the frames written so far
         if pvd and written:
             files.write_bytes(formats.pvd_bytes(written), pvd[0])
     lowest = min(records, key=lambda r: r["min_angle"])
+    again = [int(r["frame"]) for r in records if r.get("remeshed")]
     return {
         "mesh": mesh_path,
         "out_dir": out_dir,
@@ -472,6 +527,8 @@ def move_frames(
         "min_angle": lowest["min_angle"],
         "min_angle_first": records[0]["min_angle"],
         "min_angle_frame": int(lowest["frame"]),
+        "min_angle_floor": o.min_angle,
+        "remeshed_frames": again,
         "seconds": round(time.perf_counter() - t0, 3),
         "per_frame": records,
     }

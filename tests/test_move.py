@@ -1,6 +1,7 @@
 """Moving boundaries: ``deformesh move``, one connectivity for every frame."""
 
 import json
+import re
 import xml.etree.ElementTree as ET
 
 import meshio
@@ -315,3 +316,68 @@ def test_random_motions_keep_the_contract_or_say_which_frame_folds(case, exterio
         assert np.array_equal(pts[: c.n], frame.points)
         assert (signed_areas(pts, m.triangles) > 0).all()
         check_contract(move.frame_mesh(motion, pts), frame, motion.box)
+
+
+def _body_in_a_box(folder):
+    """An ellipse in a far-field box, shifted by 0.08 and turned 9 degrees a frame for 10
+    frames: its smallest angle falls frame after frame (below 1 degree by frame 6)."""
+    t = np.linspace(0, 2 * np.pi, 48, endpoint=False)
+    p = np.column_stack([0.3 * np.cos(t), 0.12 * np.sin(t)])
+    np.savetxt(folder / "body.csv", p, delimiter=",")
+    frames = []
+    for k in range(1, 11):
+        a = np.radians(9 * k)
+        turn = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+        frames.append(folder / f"frame_{k:02d}.csv")
+        np.savetxt(frames[-1], p @ turn.T + [0.08 * k, 0.0], delimiter=",")
+    r = _invoke("all", folder / "body.csv", "--exterior", "--box=-1,-1,2,1", "-o",
+                folder / "body.vtu", "-q")  # fmt: skip
+    assert r.exit_code == 0, r.stderr
+    return folder / "body.vtu", frames
+
+
+def test_a_frame_under_the_angle_floor_stops_the_run_with_the_frames_before_kept(tmp_path):
+    mesh, frames = _body_in_a_box(tmp_path)
+    out = tmp_path / "out"
+    r = _invoke("move", mesh, *frames, "--out-dir", out)
+    assert r.exit_code == 1
+    last = r.stderr.strip().splitlines()[-1]
+    assert last.startswith(f"deformesh: error: {frames[5]}: frame 6 of 10: its smallest angle ")
+    assert "under the floor 2 (--min-angle); frames 0-5 are in" in last
+    # each frame's line gives its smallest angle, every one above the floor
+    angles = [float(x) for x in re.findall(r"min angle ([\d.]+) deg", r.stderr)]
+    assert len(angles) == 5 and min(angles) >= 2.0
+    assert sorted(p.name for p in out.glob("*.vtu")) == [f"body_{k:04d}.vtu" for k in range(6)]
+    # no floor: the run goes on to the end, down to a fraction of a degree
+    r = _invoke("move", mesh, *frames, "--out-dir", tmp_path / "all", "--min-angle", "0",
+                "--json")  # fmt: skip
+    assert r.exit_code == 0
+    assert json.loads(r.stdout)["min_angle"] < 1.0
+
+
+def test_remesh_meshes_a_frame_afresh_and_carries_the_velocity(tmp_path):
+    mesh, frames = _body_in_a_box(tmp_path)
+    out = tmp_path / "out"
+    r = _invoke("move", mesh, *frames, "--out-dir", out, "--remesh", "--json")
+    assert r.exit_code == 0, r.stderr
+    s = json.loads(r.stdout)
+    assert s["frames"] == 11 and s["remeshed_frames"] and s["min_angle"] >= 2.0
+    assert all(f["min_angle"] >= 2.0 for f in s["per_frame"])
+    assert "meshed afresh under the floor" in r.stderr
+    k = s["remeshed_frames"][0]
+    before = meshio.read(out / f"body_{k - 1:04d}.vtu")
+    after = meshio.read(out / f"body_{k:04d}.vtu")
+    assert len(after.cells_dict["triangle"]) != len(before.cells_dict["triangle"])
+    # the velocity carried over: the body's nodes move with it, the box's stay
+    v = after.point_data["velocity"]
+    frame = np.loadtxt(frames[k - 1], delimiter=",")
+    previous = np.loadtxt(frames[k - 2], delimiter=",")
+    assert np.allclose(v[: len(frame), :2], frame - previous)
+    box = (np.abs(after.points[:, 0] - 0.5) == 1.5) | (np.abs(after.points[:, 1]) == 1.0)
+    assert np.abs(v[box]).max() == 0.0
+    assert np.isfinite(v).all() and np.abs(v[len(frame) :]).max() > 0.0
+    # every frame after it keeps the new triangles, and the contract on its own contour
+    for j in range(k, 11):
+        m = meshio.read(out / f"body_{j:04d}.vtu")
+        assert np.array_equal(m.cells_dict["triangle"], after.cells_dict["triangle"])
+        assert (signed_areas(m.points[:, :2], m.cells_dict["triangle"]) > 0).all()

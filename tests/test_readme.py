@@ -235,12 +235,14 @@ def test_moving_numbers_in_the_docs_are_the_benchmark_file():
     rows = {}
     for row in moving.splitlines():
         cells = [c.strip() for c in row.strip().strip("|").split("|")]
-        if len(cells) == 11 and cells[1].isdigit():
+        if len(cells) == 12 and cells[1].isdigit():
             rows[cells[0]] = cells
     pitch, peanut = rows["pitching sample (README)"], rows["pulsating peanut (README)"]
     naca = rows["pitching NACA 0012, 160 points, box -2..3"]
-    shape = rows["pulsating NACA 0012 (amplitude 0.1), whole mesh"]
-    band = rows["pulsating NACA 0012 (amplitude 0.1), --solve band"]
+    shape = rows["pulsating NACA 0012 (amplitude 0.1), whole mesh, --min-angle 0"]
+    band = rows["pulsating NACA 0012 (amplitude 0.1), --solve band, --min-angle 0"]
+    free = rows["ellipse in a box, 0.08 and 9 degrees a frame, --min-angle 0"]
+    again = rows["ellipse in a box, 0.08 and 9 degrees a frame, --remesh"]
     commands = " ".join(DOCS["commands.md"].split())
     limits = " ".join(DOCS["limits.md"].split())
 
@@ -260,6 +262,17 @@ def test_moving_numbers_in_the_docs_are_the_benchmark_file():
     assert f"goes to {shape[7]} degrees on the whole mesh" in limits
     hole = rows["square_hole_100, the hole turning 10 degrees"]
     assert f"`square_hole_100`: {hole[6]} to {hole[7]})" in limits
+    # the floor: the ellipse's frames, one by one, without it and with --remesh
+    angles = {
+        line.split(": ")[0][2:]: line.split(": ")[1].split()
+        for line in moving.splitlines()
+        if line.startswith("- ellipse")
+    }
+    without = angles[free[0]]
+    assert f"down to {without[-1]} degrees at frame {len(without) - 1}" in commands
+    assert f"`{' '.join(without)}`" in commands
+    assert f"`{' '.join(angles[again[0]])}`" in commands
+    assert f"meshed afresh at frame {again[11]}" in commands
 
 
 def test_adapt_numbers_in_the_docs_are_the_benchmark_file():

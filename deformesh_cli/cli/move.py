@@ -24,7 +24,7 @@ from .options import fields, force_option, json_option, quiet_option, say, take
     "and NAME.pvd, the time series ParaView opens (.vtu only).",
 )
 @click.option("--name", default=None, help="File name stem.  Default: MESH's.")
-@fields(MoveOptions, "dt", "steps", "solver", "solve", "fmt", "decimal")
+@fields(MoveOptions, "dt", "steps", "solver", "solve", "fmt", "decimal", "min_angle", "remesh")
 @force_option
 @json_option()
 @quiet_option
@@ -41,6 +41,14 @@ def command(mesh_path, frames, out_dir, name, force, as_json, quiet, **kwargs) -
     o = take(MoveOptions, kwargs)
 
     def progress(k, count, contour, r):
+        if r["remeshed"]:
+            say(
+                quiet,
+                f"frame {k}/{count} {contour.source}: meshed afresh under the floor "
+                f"(--min-angle), new triangles from here on: {r['triangles']} triangles, "
+                f"min angle {r['min_angle']:.1f} deg",
+            )
+            return
         say(
             quiet,
             f"frame {k}/{count} {contour.source}: min angle {r['min_angle']:.1f} deg, "
@@ -55,7 +63,12 @@ def command(mesh_path, frames, out_dir, name, force, as_json, quiet, **kwargs) -
     say(
         quiet,
         f"{s['frames']} frames -> {out_dir}"
-        f"{'/' + s['pvd'] if s['pvd'] else ''}: same {s['triangles']} triangles "
-        f"in every frame, min angle {s['min_angle']:.1f} deg over all frames (frame 0: "
+        f"{'/' + s['pvd'] if s['pvd'] else ''}: "
+        + (
+            f"same {s['triangles']} triangles in every frame"
+            if not s["remeshed_frames"]
+            else f"meshed afresh at frame(s) {', '.join(map(str, s['remeshed_frames']))}"
+        )
+        + f", min angle {s['min_angle']:.1f} deg over all frames (frame 0: "
         f"{s['min_angle_first']:.1f}) ({s['seconds']:.2f} s)",
     )
