@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import glob
+import os
+import stat
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -67,17 +69,33 @@ def expand_inputs(args: list[str]) -> list[tuple[str, str | None]]:
     for a in args:
         p = Path(a)
         if a != "-" and p.is_dir():
-            found = sorted(q for q in p.iterdir() if q.is_file() and not q.name.startswith("."))
+            # every entry but hidden ones and folders: one that is no regular file (a
+            # pipe, a device, a link to nothing) is named, never read, never dropped
+            found = sorted(q for q in p.iterdir() if not q.name.startswith(".") and not q.is_dir())
             if not any(q.suffix.lower() in CONTOUR_SUFFIXES for q in found):
                 raise OptionError(
                     f"{a}: folder holds no contour files ({', '.join(CONTOUR_SUFFIXES)})"
                 )
             out += [(str(q), _passed_over(q)) for q in found]
-        elif a != "-" and not p.exists() and any(ch in a for ch in "*?["):
-            out += [(f, None) for f in sorted(glob.glob(a)) or [a]]
+        elif a != "-" and not os.path.lexists(a) and any(ch in a for ch in "*?["):
+            matches = sorted(f for f in glob.glob(a) if not os.path.isdir(f))
+            out += [(f, None) for f in matches or [a]]
         else:
             out.append((a, None))
     return out
+
+
+def not_regular(path: str) -> str | None:
+    """Why a file a folder or a pattern found is not read: it is no regular file (a
+    pipe would wait for a writer forever, a device never ends, a link leads nowhere);
+    None for a regular file."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return f"{path}: is a symbolic link that leads to no file (dangling, or a loop)"
+    if stat.S_ISREG(mode):
+        return None
+    return f"{path}: is not a regular file (a pipe, a device or a socket); it is not read"
 
 
 def _passed_over(path: Path) -> str | None:
@@ -104,12 +122,17 @@ def prepare(
     fmt = formats.format_for(f"x.{options.fmt or 'msh'}", None)
     _size.check_options(options.size, options.size_field)
     found = expand_inputs(inputs)
+    named = set(inputs)  # (a pipe named on the command line is read: <(command))
+    unread = {
+        f: why for f, over in found if over is None and f not in named and (why := not_regular(f))
+    }
     if strict_inputs:  # (each is then a failed input, not one passed over)
         passed = {}
         errors = {f: why.replace(": not meshed: ", ": ") for f, why in found if why}
     else:
         passed = {f: why for f, why in found if why}
         errors = {}
+    errors.update(unread)  # (a contour file's name: it fails, named, and is never read)
     tasks = make_tasks([f for f, _ in found], out_dir, options.replace(fmt=fmt), passed, errors)
     inputs = [t.source for t in tasks] + [options.size_field]
     outputs = [t.output for t in tasks if t.output]  # (a file passed over or failed names none)

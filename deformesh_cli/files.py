@@ -218,6 +218,10 @@ def existing_file(path: str) -> Path:
     is a file here, as ``<(command)`` gives one."""
     p = Path(path)
     if not p.exists():
+        if os.path.islink(path):  # (lstat sees it; stat does not)
+            raise ReadError(
+                f"{path}: is a symbolic link that leads to no file (dangling, or a loop)"
+            )
         raise ReadError(f"{path}: no such file")
     if p.is_dir():
         raise ReadError(f"{path}: is a directory")

@@ -11,7 +11,7 @@ import io as _io
 import numpy as np
 
 from . import files, geometry, quality
-from .errors import DeformeshError
+from .errors import DeformeshError, OptionError
 
 #: Colour map of the radius ratio: red = poor (sliver), green = equilateral.
 CMAP = "RdYlGn"
@@ -59,14 +59,35 @@ def zoom_window(xy: np.ndarray) -> tuple[float, float, float, float]:
     return (lo[0] - pad, lo[1] - pad, hi[0] + pad, hi[1] + pad)
 
 
+#: A window side shorter than this share of the mesh's extent draws nothing one can see.
+MIN_WINDOW = 1e-9
+
+
+def clipped_window(points: np.ndarray, window, path: str) -> tuple[float, float, float, float]:
+    """``--window`` cut to the mesh's box grown by its extent on every side (a window
+    further out shows only white); one that then holds none of that, or has a side
+    under :data:`MIN_WINDOW` of the extent, is an :class:`OptionError` naming the file."""
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    ext = float(max(np.ptp(points, axis=0).max(), np.finfo(float).tiny))
+    x0, y0 = max(window[0], lo[0] - ext), max(window[1], lo[1] - ext)
+    x1, y1 = min(window[2], hi[0] + ext), min(window[3], hi[1] + ext)
+    if not (x1 - x0 >= MIN_WINDOW * ext and y1 - y0 >= MIN_WINDOW * ext):
+        raise OptionError(
+            f"{path}: --window {','.join(f'{v:g}' for v in window)} shows none of the mesh "
+            f"(its box is {lo[0]:g},{lo[1]:g},{hi[0]:g},{hi[1]:g}), or a side under "
+            f"{MIN_WINDOW:g} of its extent"
+        )
+    return float(x0), float(y0), float(x1), float(y1)
+
+
 def contour_window(
-    points: np.ndarray, contour_point: np.ndarray | None, contour: np.ndarray | None = None
+    points: np.ndarray, marked: np.ndarray | None, contour: np.ndarray | None = None
 ) -> tuple[float, float, float, float] | None:
     """``--zoom contour``'s window: :func:`zoom_window` around the contour's points
-    (``contour``, else the nodes whose ``contour_point`` is >= 0), or None (the whole
-    mesh) where neither says which they are."""
-    if contour is None and contour_point is not None:
-        contour = points[np.ravel(contour_point) >= 0]
+    (``contour``, else the nodes ``marked``: :func:`.formats.read.contour_nodes`), or
+    None (the whole mesh) where neither says which they are."""
+    if contour is None and marked is not None:
+        contour = points[marked]
     return None if contour is None or not len(contour) else zoom_window(contour)
 
 

@@ -551,3 +551,43 @@ def test_batch_usage_errors_come_first_and_create_nothing(run, tmp_path):
     r = run("all", SAMPLES / "circle.csv", SAMPLES / "circle.csv", "--out-dir", out)
     assert r.exit_code == 2 and "would both write" in r.stderr
     assert not out.exists()
+
+
+def _odd_folder(tmp_path):
+    """A folder of one contour and entries with a contour extension that are no regular
+    files: a pipe with no writer, a link loop, a dangling link, a link to /dev/zero."""
+    import os
+
+    d = tmp_path / "in"
+    d.mkdir()
+    (d / "a.csv").write_text((SAMPLES / "circle.csv").read_text())
+    os.mkfifo(d / "fifo.csv")
+    os.symlink("loop.csv", d / "loop.csv")
+    os.symlink("nowhere.csv", d / "dangling.csv")
+    os.symlink("/dev/zero", d / "zero.csv")
+    (d / "notes.md").write_text("not a contour")
+    return d
+
+
+@pytest.mark.parametrize("how", ["folder", "glob", "folder-strict", "folder-quiet"])
+def test_entries_that_are_no_regular_files_are_named_never_read(run, tmp_path, how):
+    d = _odd_folder(tmp_path)
+    what = str(d / "*.csv") if how == "glob" else str(d)
+    extra = {"folder-strict": ["--strict-inputs"], "folder-quiet": ["-q"]}.get(how, [])
+    r = run("all", what, "--out-dir", tmp_path / "out", *extra)  # (a read would hang here)
+    assert r.exit_code == 1
+    assert f"{d}/fifo.csv: is not a regular file" in r.stderr
+    assert f"{d}/zero.csv: is not a regular file" in r.stderr
+    assert f"{d}/loop.csv: is a symbolic link that leads to no file" in r.stderr
+    assert f"{d}/dangling.csv: is a symbolic link that leads to no file" in r.stderr
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["a.msh"]
+    assert ("notes.md: not meshed" in r.stderr) == (how in ("folder",))
+
+
+def test_a_link_loop_given_by_name_is_called_one(run, tmp_path):
+    import os
+
+    os.symlink("loop.csv", tmp_path / "loop.csv")
+    r = run("all", tmp_path / "loop.csv", "-o", tmp_path / "m.vtk")
+    assert r.exit_code == 1
+    assert f"{tmp_path}/loop.csv: is a symbolic link that leads to no file" in r.stderr

@@ -100,3 +100,39 @@ def test_text_from_a_state_cannot_break_the_line(run, tmp_path):
     r = run("deform", bad, "-o", tmp_path / "d.state")  # (its notes on stderr: one line each)
     assert r.exit_code == 0 and "\x1b" not in r.stderr
     assert all(ln.startswith("deformesh: ") for ln in r.stderr.splitlines()), r.stderr
+
+
+@pytest.mark.parametrize("command", ["plot", "adapt"])
+@pytest.mark.parametrize(
+    "values", [np.c_[np.arange(4), np.arange(4)], np.array([0.0, 1.0, np.nan, -1.0])]
+)
+def test_a_contour_point_array_that_is_not_one_number_a_node_is_one_line(
+    run, tmp_path, command, values
+):
+    mesh = tmp_path / "m.vtu"
+    meshio.write(
+        mesh,
+        meshio.Mesh(np.c_[POINTS, np.zeros(4)], [("triangle", TRIANGLES)],
+                    point_data={"contour_point": values}),
+    )  # fmt: skip
+    out = tmp_path / ("o.png" if command == "plot" else "o.vtu")
+    extra = ["--monitor", "1"] if command == "adapt" else []
+    r = run(command, mesh, "-o", out, *extra)
+    assert r.exit_code == 1, r.stderr
+    assert r.stderr.startswith(f"deformesh: error: {mesh}: its point data 'contour_point' is ")
+    assert r.stderr.count("\n") == 1 and not out.exists()
+
+
+@pytest.mark.parametrize(
+    "window, code",
+    [("0,0,1e308,1", 0), ("-1e308,-1e308,1e308,1e308", 0), ("0,0,1e300,1e-300", 2),
+     ("5,5,6,6", 2), ("0.2,0.2,0.8,0.8", 0)],
+)  # fmt: skip
+def test_a_window_far_out_or_thin_is_cut_to_the_mesh_or_refused(run, tmp_path, window, code):
+    mesh = _mesh(tmp_path / "m.vtu")
+    out = tmp_path / "o.png"
+    r = run("plot", mesh, "-o", out, f"--window={window}")
+    assert r.exit_code == code, r.stderr
+    assert out.exists() == (code == 0)
+    if code:
+        assert f"{mesh}: --window" in r.stderr and "shows none of the mesh" in r.stderr

@@ -13,9 +13,9 @@ import numpy as np
 
 from .. import adapt as _adapt
 from .. import files, formats
-from ..errors import InputError, OptionError, WriteError, printable
+from ..errors import InputError, OptionError, WriteError, naming, printable
 from ..formats._common import GROUP_DATA, PHYSICAL_DATA
-from ..formats.read import checked, read_meshio
+from ..formats.read import checked, contour_nodes, read_meshio
 from .errors import handle_errors
 from .options import OutputPath, json_option, quiet_option, say
 
@@ -154,11 +154,18 @@ def command(
         )
         code = _adapt.interpolated(points, tri, nodal)
     held = _contour_nodes(m, len(points), mesh_path)
-    res = _adapt.adapt(
-        start, tri, code, steps, source=reference_path or mesh_path, held=held,
-        slide=boundary == "slide",
-    )  # fmt: skip
-    new = res.points
+    with naming(reference_path or mesh_path):  # (the solver's own words name no file)
+        res = _adapt.adapt(
+            start, tri, code, steps, source=reference_path or mesh_path, held=held,
+            slide=boundary == "slide",
+        )  # fmt: skip
+        new = res.points
+        carried = {
+            k: v
+            if np.issubdtype(np.asarray(v).dtype, np.integer)
+            else _adapt.carry(points, tri, new, v)
+            for k, v in m.point_data.items()
+        }
     picture = None
     if png:  # (drawn before any file is written: no mesh without its picture)
         from .. import plot
@@ -170,12 +177,7 @@ def command(
         )  # fmt: skip
     xyz = np.array(m.points, dtype=np.float64, copy=True)
     xyz[:, :2] = new
-    data = {
-        k: v
-        if np.issubdtype(np.asarray(v).dtype, np.integer)
-        else _adapt.carry(points, tri, new, v)
-        for k, v in m.point_data.items()
-    }
+    data = carried
     import meshio
 
     fmt = _MESHIO_FORMATS[suffix]
@@ -346,8 +348,9 @@ def _contour_nodes(m, n: int, path: str) -> np.ndarray | None:
     None for any other mesh."""
     from ..triangulate import BOX_SIDES
 
-    if "contour_point" in m.point_data:
-        return np.asarray(m.point_data["contour_point"]).ravel() >= 0
+    marked = contour_nodes(m.point_data, n, path)
+    if marked is not None:
+        return marked
     tags, names = _groups(m, path)
     names = {int(v[0]): k for k, v in names.items() if v[-1] == 1}
     if tags is None or "contour" not in names.values():

@@ -137,7 +137,7 @@ def _batch(tasks, out_dir, jobs, scheduler, fail_fast, as_json, quiet, t0) -> No
             clear = "\r\033[K" if bar is not None else ""
             if rec["status"] == "failed":
                 click.echo(f"{clear}deformesh: error: {one_line(rec['error'])}", err=True)
-            elif task.passed is not None:
+            elif task.passed is not None and not quiet:
                 click.echo(f"{clear}deformesh: {one_line(rec['error'])}", err=True)
             records[task.index] = rec
             while printed < len(records) and records[printed] is not None:

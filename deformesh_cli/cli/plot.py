@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from .. import files, formats
+from ..formats.read import contour_nodes
 from ..options import MeshOptions
 from ..readers import load_contour
 from .errors import handle_errors
@@ -78,8 +79,11 @@ def command(
             contour_path, None, o.decimal, o.tolerance, o.element_id, o.resample, o.stroke
         )
         cpts = c.points
+    if window is not None:
+        window = plot.clipped_window(points, window, mesh_path)
     if window is None and zoom == "contour":
-        window = plot.contour_window(points, data.get("contour_point"), cpts)
+        marked = contour_nodes(data, len(points), mesh_path)
+        window = plot.contour_window(points, marked, cpts)
     plot.draw(
         points,
         tri,

@@ -45,6 +45,24 @@ def read_mesh(path: str, fmt: str | None = None, *, point_data: bool = False):
     return pts, tri
 
 
+def contour_nodes(point_data: dict, n: int, path: str) -> np.ndarray | None:
+    """The nodes a deformesh mesh's ``contour_point`` array marks (>= 0) as a mask of
+    ``n``, or None where the file has no such array; one that is not one finite number
+    per node is an :class:`InputError` naming the file."""
+    if "contour_point" not in point_data:
+        return None
+    v = np.asarray(point_data["contour_point"])
+    if v.ndim == 2 and v.shape[1] == 1:
+        v = v[:, 0]
+    if v.shape != (n,) or v.dtype.kind not in "iuf" or not np.isfinite(v).all():
+        raise InputError(
+            f"{path}: its point data 'contour_point' is {v.shape} {v.dtype} values, not one "
+            f"finite number for each of its {n} nodes (a deformesh mesh's numbers its "
+            "contour points)"
+        )
+    return v >= 0
+
+
 def checked(m, path: str) -> tuple[np.ndarray, np.ndarray]:
     """A ``meshio.Mesh``'s 2D points and triangles, checked as :func:`read_mesh` says."""
     tri = [c.data for c in m.cells if c.type == "triangle"]
