@@ -122,6 +122,22 @@ def monitor_values(
     return m
 
 
+class ScaledMonitor:
+    """``monitor`` times ``2**exponent`` (exactly: a power of two), its ``gradient`` too
+    where it has one."""
+
+    def __init__(self, monitor, exponent: int):
+        self.monitor, self.exponent = monitor, exponent
+        if getattr(monitor, "gradient", None) is not None:
+            self.gradient = lambda q: np.ldexp(monitor.gradient(q), exponent)
+
+    def __call__(self, q: np.ndarray) -> np.ndarray:
+        v = np.asarray(self.monitor(q), dtype=np.float64)
+        if v.ndim == 0:  # (a constant expression gives one number for all points)
+            v = np.full(len(q), float(v))
+        return np.ldexp(v, self.exponent)
+
+
 def equidistribution(
     points: np.ndarray, tri: np.ndarray, m_nodes: np.ndarray, ref_area: np.ndarray
 ) -> tuple[float, float]:
@@ -375,6 +391,11 @@ def adapt(
         report["boundary_nodes_held"] += len(points) - len(keep)
         return Adapted(out, report)
     m0 = monitor_values(monitor, points, source)
+    # M by a power of two near its largest value at the nodes: everything here depends
+    # on M / c only, and a power of two scales each product and sum exactly, so the
+    # result is the same bits, while a monitor of 1e300 or 5e-324 stays in range
+    monitor = ScaledMonitor(monitor, -int(np.frexp(m0.max())[1]))
+    m0 = monitor(points)
     fixed, tangent = boundary_motion(points, tri, held, slide)
     before = equidistribution(points, tri, m0, area)
     system = VelocitySystem(tri, fixed, tangent)
@@ -721,15 +742,25 @@ def field_monitor(
     if not np.isfinite(u).all():
         k = int(np.argmax(~np.isfinite(u)))
         raise InputError(f"{name} is {u[k]} at node {k}; it must be finite")
-    grad = recovered_gradient(points, tri, u)
+    # (each derivative scaled by a power of two near its largest value: exact, and the
+    # monitor, a ratio, is the same bits, while a field of 1e-310 or 1e308 neither
+    # underflows nor overflows when squared)
+    grad = _unit(recovered_gradient(points, tri, _unit(u)))
     if kind == "gradient":
         s = (grad**2).sum(axis=1)
     else:
         hx = recovered_gradient(points, tri, grad[:, 0])
         hy = recovered_gradient(points, tri, grad[:, 1])
-        s = np.sqrt((hx**2).sum(axis=1) + (hy**2).sum(axis=1))
+        h = _unit(np.column_stack([hx, hy]))  # (one scale for the four)
+        s = np.sqrt((h[:, :2] ** 2).sum(axis=1) + (h[:, 2:] ** 2).sum(axis=1))
     top = s.max()
     return np.ones(len(u)) if top == 0 else 1.0 + alpha * s / top
+
+
+def _unit(a: np.ndarray) -> np.ndarray:
+    """``a`` times the power of two that brings its largest magnitude into [0.5, 1)."""
+    top = float(np.abs(a).max(initial=0.0))
+    return a if top == 0.0 else np.ldexp(a, -int(np.frexp(top)[1]))
 
 
 def interpolated(points: np.ndarray, tri: np.ndarray, values: np.ndarray) -> P1Field:

@@ -220,6 +220,10 @@ class Expression:
                 finite = bool(np.isfinite(v))
             except (ArithmeticError, ValueError, TypeError):
                 finite = False
+            if np.iscomplexobj(v):  # ((-1)**0.5: Python's power of a negative number)
+                raise OptionError(
+                    self._say(f"has a part that is not a real number ({self._source(node)})")
+                )
             if not finite:
                 v = math.nan
             return self._constant(v, self._source(node))

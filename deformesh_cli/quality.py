@@ -52,10 +52,17 @@ def measures(
     smallest = np.degrees(np.arctan2(two, total - 2 * np.minimum(np.minimum(s0, s1), s2)))
     largest = np.degrees(np.arctan2(two, total - 2 * np.maximum(np.maximum(s0, s1), s2)))
     a, b, c = np.sqrt(s0), np.sqrt(s1), np.sqrt(s2)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(all="ignore"):
         # 2 r_in / r_circ = 2 (A / s) / (a b c / 4 A) = 16 A^2 / (2 s a b c)
-        rr = np.nan_to_num(4.0 * twice * twice / ((a + b + c) * a * b * c))
-    return smallest, largest, 0.5 * cross, rr
+        rr = 4.0 * twice * twice / ((a + b + c) * a * b * c)
+        far = np.flatnonzero(~np.isfinite(rr) & (twice > 0))
+        if len(far):  # (A^2 or a b c beyond a double: the triangle scaled by a power
+            # of two, which changes no bit of a ratio that fits)
+            k = -np.frexp(np.sqrt(np.maximum(np.maximum(s0[far], s1[far]), s2[far])))[1]
+            t = np.ldexp(twice[far], 2 * k)
+            a, b, c = np.ldexp(a[far], k), np.ldexp(b[far], k), np.ldexp(c[far], k)
+            rr[far] = 4.0 * t * t / ((a + b + c) * a * b * c)
+    return smallest, largest, 0.5 * cross, np.nan_to_num(rr)
 
 
 #: The measures of :func:`report` that a meshing summary (``--json``) carries.

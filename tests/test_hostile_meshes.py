@@ -136,3 +136,75 @@ def test_a_window_far_out_or_thin_is_cut_to_the_mesh_or_refused(run, tmp_path, w
     assert out.exists() == (code == 0)
     if code:
         assert f"{mesh}: --window" in r.stderr and "shows none of the mesh" in r.stderr
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e150, 1e-150])
+def test_quality_measures_shapes_at_any_accepted_scale(run, tmp_path, scale):
+    """A right isosceles triangle's radius ratio is 2 (sqrt 2 - 1) however large or
+    small it is drawn (its area squared, or the product of its sides, beyond a double)."""
+    mesh = tmp_path / "m.vtu"
+    meshio.write(mesh, meshio.Mesh(np.c_[POINTS * scale, np.zeros(4)], [("triangle", TRIANGLES)]))
+    r = run("quality", mesh, "--json")
+    assert r.exit_code == 0, r.stderr
+    rec = _strict(r.stdout)
+    assert rec["min_radius_ratio"] == pytest.approx(2 * (np.sqrt(2) - 1), rel=1e-12)
+    assert rec["min_angle"] == pytest.approx(45.0)
+
+
+@pytest.mark.parametrize(
+    "monitor", ["1e300", "5e-324", "2**900 * (1 + x)", "2**-1000 * (1 + x)", "1e-310 * (1 + x)"]
+)
+def test_a_monitors_scale_changes_nothing(run, tmp_path, monitor):
+    """Cells follow M up to a constant: a monitor of 1e300 or 5e-324 moves nothing and
+    measures evenly (sigma/mu 0 to round-off, not inf or nan); 2**900 (1 + x) moves the
+    nodes as 1 + x does, to the bit, and a subnormal one (fewer digits) moves them too."""
+    p, tri = np.meshgrid(np.linspace(0, 1, 9), np.linspace(0, 1, 9)), None
+    pts = np.c_[p[0].ravel(), p[1].ravel()]
+    k = np.arange(81).reshape(9, 9)[:-1, :-1].ravel()
+    tri = np.concatenate([np.c_[k, k + 1, k + 10], np.c_[k, k + 10, k + 9]])
+    mesh = tmp_path / "g.vtu"
+    meshio.write(mesh, meshio.Mesh(np.c_[pts, np.zeros(len(pts))], [("triangle", tri)]))
+    r = run("adapt", mesh, "-o", tmp_path / "a.vtu", "--monitor", monitor, "--json")
+    assert r.exit_code == 0, r.stderr
+    rec = _strict(r.stdout)
+    if "x" not in monitor:
+        assert rec["sigma_over_mu"] < 1e-12 and rec["moved_nodes"] == 0
+        return
+    assert rec["moved_nodes"] > 0 and np.isfinite(rec["sigma_over_mu"])
+    if monitor.startswith("2**"):
+        r = run("adapt", mesh, "-o", tmp_path / "b.vtu", "--monitor", "1 + x")
+        assert r.exit_code == 0
+        moved = meshio.read(tmp_path / "a.vtu").points
+        assert np.array_equal(moved, meshio.read(tmp_path / "b.vtu").points)
+
+
+@pytest.mark.parametrize("scale", [1e-310, 1e308, 2.0**1000])
+def test_a_fields_scale_changes_nothing(run, tmp_path, scale):
+    """--field follows the field's shape, not its size: u and 2**1000 u move the nodes
+    the same, to the bit; 1e308 u and a subnormal 1e-310 u (fewer digits) move them
+    too, and nothing is refused."""
+    x, y = np.meshgrid(np.linspace(0, 1, 9), np.linspace(0, 1, 9))
+    pts = np.c_[x.ravel(), y.ravel()]
+    k = np.arange(81).reshape(9, 9)[:-1, :-1].ravel()
+    tri = np.concatenate([np.c_[k, k + 1, k + 10], np.c_[k, k + 10, k + 9]])
+    u = np.tanh(5 * (pts[:, 0] + pts[:, 1] - 1))
+    outs = []
+    for name, values in (("one", u), ("scaled", u * scale)):
+        mesh = tmp_path / f"{name}.vtu"
+        meshio.write(mesh, meshio.Mesh(np.c_[pts, np.zeros(81)], [("triangle", tri)],
+                                       point_data={"u": values}))  # fmt: skip
+        r = run("adapt", mesh, "-o", tmp_path / f"a_{name}.vtu", "--field", "u", "--json")
+        assert r.exit_code == 0, r.stderr
+        assert _strict(r.stdout)["moved_nodes"] > 0
+        outs.append(meshio.read(tmp_path / f"a_{name}.vtu").points)
+    if scale == 2.0**1000:
+        assert np.array_equal(outs[0], outs[1])
+
+
+def test_an_expression_with_a_complex_part_is_refused(run, tmp_path):
+    mesh = _mesh(tmp_path / "m.vtu")
+    r = run("adapt", mesh, "-o", tmp_path / "a.vtu", "--monitor", "2 + x*(-1)**0.5")
+    assert r.exit_code == 2
+    assert "has a part that is not a real number ((-1)**0.5)" in r.stderr
+    r = run("all", SAMPLES / "circle.csv", "-o", tmp_path / "c.vtk", "--size", "(-8)**(1/3) + 3")
+    assert r.exit_code == 2 and "not a real number" in r.stderr
