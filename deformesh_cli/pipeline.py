@@ -19,7 +19,7 @@ from . import deform as _deform
 from . import improve as _improve
 from . import recover as _recover
 from . import size as _size
-from .contour import Contour, split_edges
+from .contour import Contour, count_words, split_edges
 from .deform import SOLVES, DeformStats
 from .errors import (
     FoldError,
@@ -122,6 +122,8 @@ class Laid:
 def lay(contour: Contour, o: MeshOptions, graded: bool | None = None) -> Laid:
     """:class:`Laid` for ``contour`` under options ``o`` (``graded``: the grid is the
     graded one; default: as ``o`` asks)."""
+    if o.max_h is not None:
+        _check_max_h_work(contour, o)
     fine, given = split_edges(contour, o.max_h, o.max_nodes)
     if graded is None:
         graded = grid_mode(o.grid, o.h) == "graded"
@@ -129,6 +131,30 @@ def lay(contour: Contour, o: MeshOptions, graded: bool | None = None) -> Laid:
         return Laid(contour, fine, given, fine)
     grid, kept, ears = _construct.cut_ears(fine, o.exterior)
     return Laid(contour, fine, given, grid, kept, ears)
+
+
+def _check_max_h_work(contour: Contour, o: MeshOptions) -> None:
+    """Refuse, before any work, a ``--max-h`` whose mesh cannot fit ``--max-nodes``: a
+    triangle whose sides are at most ``H`` covers at most ``sqrt(3)/4 H^2``, so a domain
+    of area ``A`` needs at least ``A / (sqrt(3)/4 H^2)`` triangles, and a triangulation
+    has at least half as many nodes as triangles."""
+    if o.exterior:
+        if o.box is not None:
+            x0, y0, x1, y1 = o.box
+        else:  # (the default far field: the contour's box grown by its larger extent)
+            lo, hi = contour.points.min(axis=0), contour.points.max(axis=0)
+            m = float((hi - lo).max()) if o.margin is None else o.margin
+            x0, y0, x1, y1 = lo[0] - m, lo[1] - m, hi[0] + m, hi[1] + m
+        area = (x1 - x0) * (y1 - y0) - contour.area
+    else:
+        area = contour.area
+    nodes = area / (3.0**0.5 / 4.0 * o.max_h**2) / 2.0
+    if not nodes <= o.max_nodes:
+        raise LimitError(
+            f"{contour.source}: --max-h {o.max_h:g} needs at least {count_words(nodes)} "
+            f"nodes for its area {area:.3g}, over --max-nodes {o.max_nodes:,}; give a "
+            "larger --max-h"
+        )
 
 
 @names_its_file

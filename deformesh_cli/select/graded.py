@@ -449,6 +449,11 @@ def _lay(points, s, box, growth, max_h, box_given, max_nodes, roots, field) -> Q
             f"smaller than the box ({max(w, h):.3g}): a grid cannot hold both scales in "
             "double precision; mesh its small part and its large one apart"
         )
+    if max_nodes is not None and nx * ny > max_nodes:  # (before any array of them)
+        raise LimitError(
+            f"the graded grid would need more than {max_nodes} cells ({nx:,} x {ny:,} root "
+            "cells); raise --max-nodes or give a larger --max-h"
+        )
     if box_given:
         hx, hy = w / (nx * 2**top), h / (ny * 2**top)
         x0, y0 = xmin, ymin
