@@ -143,7 +143,10 @@ def names_its_file(fn):
     @functools.wraps(fn)
     def wrapper(first, *args, **kwargs):
         with naming(source_of(first)):
-            return fn(first, *args, **kwargs)
+            try:
+                return fn(first, *args, **kwargs)
+            except MemoryError:  # (one line naming the file, as any other failure)
+                raise LimitError(OUT_OF_MEMORY) from None
 
     return wrapper
 

@@ -208,3 +208,34 @@ def test_an_expression_with_a_complex_part_is_refused(run, tmp_path):
     assert "has a part that is not a real number ((-1)**0.5)" in r.stderr
     r = run("all", SAMPLES / "circle.csv", "-o", tmp_path / "c.vtk", "--size", "(-8)**(1/3) + 3")
     assert r.exit_code == 2 and "not a real number" in r.stderr
+
+
+def test_a_vtu_that_would_inflate_past_the_bound_is_refused_before_it_is(run, tmp_path):
+    """A compressed .vtu is read only after its arrays' headers say how large they inflate:
+    a few MB that would inflate to 4 GiB are refused in one line, unread."""
+    import base64
+    import struct
+    import zlib
+
+    small = tmp_path / "small.vtu"
+    meshio.write(
+        small, meshio.Mesh(np.c_[POINTS, np.zeros(4)], [("triangle", TRIANGLES)]),
+        compression="zlib",
+    )  # fmt: skip
+    block, blocks = 2**26, 64  # (64 blocks of 64 MiB of zeros: 4 GiB)
+    one = zlib.compress(bytes(block), 9)
+    header = struct.pack(f"<{3 + blocks}I", blocks, block, 0, *[len(one)] * blocks)
+    payload = base64.b64encode(header) + base64.b64encode(one * blocks)
+    array = (b'<PointData><DataArray type="Float64" Name="bomb" format="binary">' + payload
+             + b"</DataArray></PointData>")  # fmt: skip
+    bomb = tmp_path / "bomb.vtu"
+    bomb.write_bytes(small.read_bytes().replace(b"<Points>", array + b"<Points>", 1))
+    assert bomb.stat().st_size < 8 * 2**20
+    for args in (["quality"], ["plot", "-o", tmp_path / "p.png"],
+                 ["adapt", "-o", tmp_path / "a.vtu", "--monitor", "1"]):  # fmt: skip
+        r = run(args[0], bomb, *args[1:])
+        assert r.exit_code == 1, r.stderr
+        assert r.stderr.startswith(f"deformesh: error: {bomb}: its compressed arrays would ")
+        assert r.stderr.count("\n") == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bomb.vtu", "small.vtu"]
+    assert run("quality", small).exit_code == 0

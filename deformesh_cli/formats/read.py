@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import re
 
 import numpy as np
 
@@ -18,6 +19,8 @@ def read_meshio(path: str, fmt: str | None = None):
     import meshio
 
     existing_file(path)
+    if (fmt or "").lower() == "vtu" or (fmt is None and path.lower().endswith(".vtu")):
+        check_vtu_inflation(path)
     try:
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
             return meshio.read(path, file_format=fmt)
@@ -27,6 +30,64 @@ def read_meshio(path: str, fmt: str | None = None):
         raise ReadError(f"{path}: cannot read mesh: {exc}") from None
     except Exception as exc:  # parsers of malformed files raise anything
         raise ReadError(f"{path}: cannot read mesh: {type(exc).__name__}: {exc}") from None
+
+
+#: The most bytes the compressed arrays of a .vtu file may inflate to (what meshio would
+#: allocate for them): a file of a few MB must not take the machine's memory.
+MAX_INFLATED = 2**31
+
+_BINARY_ARRAY = re.compile(rb"<DataArray\b([^>]*)>\s*([A-Za-z0-9+/=]{16,})", re.S)
+_APPENDED = re.compile(rb"<AppendedData[^>]*encoding=[\"']raw[\"'][^>]*>\s*_", re.S)
+_OFFSET = re.compile(rb"<DataArray\b[^>]*\boffset=[\"'](\d+)[\"']", re.S)
+
+
+def check_vtu_inflation(path: str) -> None:
+    """Refuse a compressed .vtu whose arrays would inflate past :data:`MAX_INFLATED`,
+    before meshio inflates them: each compressed array starts with its block count,
+    block size and last block's size (VTK's layout), which give its inflated size
+    without inflating it (inline base64 arrays, and raw appended data)."""
+    import base64
+
+    with open(path, "rb") as f:
+        data = f.read()
+    head = data[:4096]
+    if b"compressor=" not in head:
+        return
+    wide = b'header_type="UInt64"' in head or b"header_type='UInt64'" in head
+    size, code = (8, "<Q") if wide else (4, "<I")
+    total = 0
+    blob = None
+    m = _APPENDED.search(data)
+    if m is not None:
+        blob = memoryview(data)[m.end() :]
+    for offset in _OFFSET.findall(data) if blob is not None else []:
+        at = int(offset)
+        if at + 3 * size <= len(blob):
+            total += _inflated(bytes(blob[at : at + 3 * size]), size, code)
+    for attrs, text in _BINARY_ARRAY.findall(data):
+        if b"binary" not in attrs:
+            continue
+        n = 4 * -(-3 * size // 3)  # (base64 characters of the three first numbers)
+        try:
+            total += _inflated(base64.b64decode(text[:n] + b"=" * (-n % 4))[: 3 * size], size, code)
+        except ValueError:
+            continue  # (meshio names what is wrong with it)
+    if total > MAX_INFLATED:
+        raise ReadError(
+            f"{path}: its compressed arrays would inflate to {total:,} bytes, over "
+            f"{MAX_INFLATED:,}; not read"
+        )
+
+
+def _inflated(header: bytes, size: int, code: str) -> int:
+    """An array's inflated bytes from its compression header (blocks, block size, last
+    block's size: 0 for a full one)."""
+    import struct
+
+    if len(header) < 3 * size:
+        return 0
+    blocks, block, last = struct.unpack(code[0] + 3 * code[1], header)
+    return max(blocks - 1, 0) * block + (last or block) if blocks else 0
 
 
 def read_mesh(path: str, fmt: str | None = None, *, point_data: bool = False):
