@@ -214,6 +214,7 @@ class Expression:
         args = tuple(self._build(c, depth + 1) for c in children)
         out = _Node(fn=fn, args=args)
         if all(a.value is not None for a in args):  # no variable below: compute it now
+            v = math.nan
             try:
                 with np.errstate(all="ignore"):
                     v = out({})  # kept as computed (a bool, a numpy scalar), as eval has it

@@ -148,7 +148,8 @@ def _check_max_h_work(contour: Contour, o: MeshOptions) -> None:
         area = (x1 - x0) * (y1 - y0) - contour.area
     else:
         area = contour.area
-    nodes = area / (3.0**0.5 / 4.0 * o.max_h**2) / 2.0
+    with np.errstate(over="ignore"):  # (a tiny H: inf, refused below)
+        nodes = float(np.float64(area) / o.max_h / o.max_h / (3.0**0.5 / 4.0) / 2.0)
     if not nodes <= o.max_nodes:
         raise LimitError(
             f"{contour.source}: --max-h {o.max_h:g} needs at least {count_words(nodes)} "

@@ -6,6 +6,7 @@ import gzip
 import re
 import time
 
+import numpy as np
 import pytest
 
 from .conftest import SAMPLES
@@ -168,3 +169,33 @@ def test_a_size_field_of_anything_but_real_numbers_is_one_line(run, tmp_path, ki
     assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
     assert r.stderr.startswith(f"deformesh: error: {f}: a size field holds real numbers")
     assert list(out.iterdir()) == []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--max-h", "1e-4"], "needs at least"),
+        (["--max-h", "3e-4", "--max-nodes", "100000"], "needs at least"),
+        (["--max-h", "1e-6"], "needs at least"),
+        (["--max-h", "1e-20"], "needs at least"),
+        (["--resample", "1e-300"], "would give about"),
+    ],
+)
+def test_memory_guards_refuse_before_the_memory_is_taken(sh, tmp_path, args, message):
+    """Whole processes under a 4 GB address-space limit: asked for more than
+    --max-nodes allows, a run is refused in one line within seconds, before it allocates
+    (each of these reached gigabytes, or the machine's 24 GB, before)."""
+    t = np.linspace(0, 2 * np.pi, 64, endpoint=False)
+    src = tmp_path / "c64.csv"
+    np.savetxt(src, np.c_[np.cos(t), np.sin(t)], delimiter=",")
+    out = tmp_path / "m.vtk"
+    r = sh(
+        f"ulimit -v 4000000; deformesh all {src} -o {out} {' '.join(args)}",
+        cwd=tmp_path,
+        check=False,
+    )
+    err = r.stderr.decode()
+    assert r.returncode == 1, err
+    assert err.startswith(f"deformesh: error: {src}: ") and message in err
+    assert err.count("\n") == 1 and not out.exists()
