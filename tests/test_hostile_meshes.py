@@ -239,3 +239,24 @@ def test_a_vtu_that_would_inflate_past_the_bound_is_refused_before_it_is(run, tm
         assert r.stderr.count("\n") == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bomb.vtu", "small.vtu"]
     assert run("quality", small).exit_code == 0
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "1e300", "0.5"])
+@pytest.mark.parametrize("suffix", [".vtu", ".msh", ".xdmf", ".vtk"])
+def test_field_data_that_is_no_group_is_left_out(run, tmp_path, value, suffix):
+    """A .vtu's field data that is not a group's (tag, dimension) (a NaN, a time value)
+    names no group: adapt leaves it out and writes a file that reads back."""
+    src = tmp_path / "m.vtu"
+    r = run("all", SAMPLES / "circle.csv", "-o", src, "-q")
+    assert r.exit_code == 0
+    text = src.read_text()
+    start = text.index('Name="contour"')
+    end = text.index("</DataArray>", start)
+    head = text[:start].rsplit("<DataArray", 1)
+    src.write_text(head[0] + '<DataArray type="Float64" Name="contour" NumberOfComponents="1" '
+                   f'NumberOfTuples="2" format="ascii">{value} 1' + text[end:])  # fmt: skip
+    out = tmp_path / f"a{suffix}"
+    r = run("adapt", src, "-o", out, "--monitor", "1 + x * x", "-q")
+    assert r.exit_code == 0, r.stderr
+    m = meshio.read(out)
+    assert "contour" not in m.field_data and len(m.points) > 0

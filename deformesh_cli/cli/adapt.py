@@ -258,8 +258,14 @@ def _groups(m, path: str) -> tuple[list[np.ndarray] | None, dict[str, np.ndarray
     groups.  From ``gmsh:physical`` (.msh, and deformesh's .vtu and .xdmf), ``group``
     (deformesh's .vtk, and its older files), or an SU2 file's markers (named in its
     ``MARKER_TAG`` lines, in order, as meshio numbers them 1, 2, ...; its triangles,
-    tagged 0, become the group ``domain``)."""
-    names = {k: np.asarray(v).ravel()[:2] for k, v in m.field_data.items()}
+    tagged 0, become the group ``domain``).  Field data that is not a group's
+    ``(tag, dimension)`` (two whole numbers) is left out."""
+    names = {}
+    for k, v in m.field_data.items():  # (other field data, not groups: left out)
+        v = np.asarray(v).ravel()
+        pair = v[:2] if len(v) >= 2 and v.dtype.kind in "iuf" else np.array([np.nan])
+        if (np.abs(pair) < 2**31).all() and (pair == np.round(pair)).all():
+            names[k] = pair.astype(np.int64)
     for key in (PHYSICAL_DATA, GROUP_DATA):
         if key in m.cell_data:
             return [np.asarray(t, dtype=np.int32).ravel() for t in m.cell_data[key]], names
