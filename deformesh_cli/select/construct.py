@@ -1074,6 +1074,15 @@ EAR_ANGLE = 30.0
 EAR_SHARE = 1.0 / 3.0
 
 
+#: A side whose forced bound (:func:`.forced.edge_angles`) is under this (degrees) lies
+#: along a thin part: every mesh of these points has a triangle on it under this angle,
+#: so the grid, whose cells there would be about the part's width, could add only
+#: slivers along it, about ``4 / tan`` of its forced angle of them (230 at 1 degree,
+#: 400,000 for a part 1e-5 wide and 1 long).  An empty ear on such a side whose angles
+#: are at least :data:`EAR_SHARE` of that bound is cut off, as a sharp corner's is.
+THIN_ANGLE = 1.0
+
+
 def _angle_between(u: np.ndarray, v: np.ndarray) -> float:
     """The angle between the vectors ``u`` and ``v`` (degrees, 0 to 180)."""
     return float(np.degrees(np.arctan2(abs(u[0] * v[1] - u[1] * v[0]), u @ v)))
@@ -1141,15 +1150,23 @@ def cut_ears(contour: Contour, exterior: bool = False):
         u, v = p[a] - p[k], p[b] - p[k]
         cross = u[1] * v[0] - u[0] * v[1]  # (b to a, counter-clockwise about k)
         ang = np.degrees(np.arctan2(cross, u @ v)) % 360.0
-        if not 0.0 < ang < EAR_ANGLE or left[contour.ring[k]] <= 3:
+        if not 0.0 < ang < 180.0 or left[contour.ring[k]] <= 3:
             return None
         # the ear's angles at a and b
         rest = [
             _angle_between(p[k] - p[a], p[b] - p[a]),
             _angle_between(p[a] - p[b], p[k] - p[b]),
         ]
-        if min(rest) < EAR_SHARE * min(ang, room(a, k), room(k, b)):
-            return None
+        if ang < EAR_ANGLE:  # a sharp corner
+            if min(rest) < EAR_SHARE * min(ang, room(a, k), room(k, b)):
+                return None
+        else:  # a thin part's end: the side at its sharp end forced under THIN_ANGLE
+            if not min(rest) < EAR_ANGLE <= max(rest):  # (a flat ear has two sharp ends)
+                return None
+            side = room(a, k) if rest[0] < rest[1] else room(k, b)  # (the sharp end's)
+            if not (side < THIN_ANGLE and min(rest) >= EAR_SHARE * side):
+                return None
+            ang = min(rest)
         ear = shapely.Polygon(p[[a, k, b]])
         near = tree.query(ear, predicate="intersects")
         near = near[alive[near]]
