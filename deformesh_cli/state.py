@@ -373,7 +373,9 @@ def _parse(zf: zipfile.ZipFile, meta: dict, stage: str) -> State:
     for key, n in same.items():
         if rows[key] != n:
             raise _Damaged(f"{key} has {rows[key]} rows, expected {n}")
-    if not 3 <= rows["contour_points"] <= p <= nodes:
+    # (a path covers the points the grid was laid for, which the contour's cut ears
+    # leave out: :func:`_check_path` matches it to them once they are known)
+    if not (rows["contour_points"] >= 3 and 3 <= p <= nodes):
         raise _Damaged("the path and the contour do not match the grid's size")
     if not 2 <= rows["contour_starts"] <= rows["contour_points"] // 3 + 1:
         raise _Damaged("the ring starts do not match the contour")

@@ -329,3 +329,47 @@ def test_a_side_forced_no_thinner_than_the_thin_angle_keeps_the_grid():
     c = make_contour(np.array([[0, 0], [1, 0], [1, 0.02], [0, 0.02]]), None, "r.csv")
     res = pipeline.mesh_contour(c)
     assert res.report["ears"] == 0 and res.report["contract"] == "ok"
+
+
+@pytest.mark.parametrize("width", [1e-5, 1e-6, 1e-7])
+def test_a_thin_rectangle_is_its_own_two_triangles(run, tmp_path, width):
+    """A rectangle 1 long and far thinner: one ear is cut as a thin part's end, and the
+    triangle left is meshed as itself (construct.own_triangles), not laid on a grid that
+    would resolve its width along its length; the stages give all's bytes."""
+    pts = np.array([[0, 0], [1, 0], [1, width], [0, width]])
+    c = make_contour(pts, None, "thin.csv")
+    res = pipeline.mesh_contour(c, strict=True)
+    m = res.mesh
+    assert res.report["contract"] == "ok" and len(m.triangles) == 2
+    assert res.report["path_rule"] == construct.OWN_TRIANGLES and res.report["grid_nodes"] == 4
+    assert np.array_equal(m.points, pts) and (signed_areas(m.points, m.triangles) > 0).all()
+    src = tmp_path / "thin.csv"
+    np.savetxt(src, pts, delimiter=",")
+    state = tmp_path / "s.npz"
+    assert run("select", src, "-o", tmp_path / "a.state", "-q").exit_code == 0
+    assert run("deform", tmp_path / "a.state", "-o", state, "-q").exit_code == 0
+    assert run("triangulate", state, "-o", tmp_path / "p.vtk", "-q").exit_code == 0
+    assert run("all", src, "-o", tmp_path / "a.vtk", "-q").exit_code == 0
+    assert (tmp_path / "p.vtk").read_bytes() == (tmp_path / "a.vtk").read_bytes()
+
+
+def test_several_thin_parts_are_each_their_own_triangles():
+    """Two thin triangles and a thin rectangle, apart: each is meshed as itself."""
+    rings = [
+        [[0, 0], [1, 0], [0, 1e-4]],
+        [[2, 0], [3, 0], [3, 1e-6], [2, 1e-6]],
+        [[0, 1], [0.5, 1.00001], [0, 1.00002]],
+    ]
+    starts = np.cumsum([0] + [len(r) for r in rings])[:-1]
+    c = make_contour(np.concatenate(rings), None, "parts.csv", ring_starts=starts)
+    res = pipeline.mesh_contour(c, strict=True)
+    assert res.report["contract"] == "ok" and len(res.mesh.triangles) == 4
+    assert res.report["path_rule"] == construct.OWN_TRIANGLES
+
+
+def test_a_fat_triangle_keeps_the_grid():
+    """A triangle with no side forced under the thin angle is meshed on the grid."""
+    c = make_contour(np.array([[0, 0], [1, 0], [0.4, 0.5]]), None, "t.csv")
+    res = pipeline.mesh_contour(c)
+    assert res.report["path_rule"] != construct.OWN_TRIANGLES
+    assert len(res.mesh.triangles) >= 1 and res.report["contract"] == "ok"

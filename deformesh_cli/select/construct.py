@@ -145,6 +145,9 @@ class GradedSelection:
         """The size field the grid was laid for without a size function
         (:func:`size_field` of the contour it was laid for and these options): stage 3
         coarsens the interior to it."""
+        if self._sizes is None and self.path_rule == OWN_TRIANGLES:
+            # (no node but the contour's: nothing to coarsen, no samples to take)
+            self._sizes = graded.SizeField(contour.points, contour.edge_lengths(), growth, max_h)
         if self._sizes is None:
             self._sizes = size_field(contour, self.exterior, growth, max_h, max_nodes)
         return self._sizes
@@ -439,6 +442,8 @@ def select_constructed(
     (the module's steps).  ``size_function`` (a :class:`~..size.SizeFunction`): the
     cells also follow it, at most ``lambda sqrt(f)`` wide, ``lambda`` the median over
     the contour's points of :data:`CELL_FACTOR` times their size over ``sqrt(f)``."""
+    if not exterior and thin_triangles(contour):
+        return own_triangles(contour)
     prv = prev_on_ring(contour.ring)
     lo, hi = contour.points.min(axis=0), contour.points.max(axis=0)
     given = box is not None
@@ -482,6 +487,72 @@ def select_constructed(
         f"{contour.source}: contour points still share grid nodes after halving their "
         f"cells {REFINE_ROUNDS} times, near {contour.where(int(crowded[0]))}"
     )
+
+
+def thin_triangles(contour: Contour) -> bool:
+    """Every ring is a triangle (three points, none inside another) with a side forced
+    under :data:`THIN_ANGLE` and its angles at least :data:`EAR_SHARE` of that bound: what
+    a thin part's ears leave (:func:`cut_ears`), or a thin triangle given as it is.  Its
+    triangle is then the mesh: the grid would resolve its width along its length."""
+    from ..forced import edge_angles
+    from ..geometry import domain
+    from ..quality import measures
+
+    if contour.n != 3 * contour.n_rings or any(contour.depth):
+        return False
+    nxt, _ = _domain_walk(contour, False)
+    lines = np.column_stack([np.arange(contour.n), nxt])
+    p = contour.points
+    geom = domain([p[contour.ring_order(r)] for r in range(contour.n_rings)])
+    bound = edge_angles(p, lines, geom).reshape(contour.n_rings, 3).min(axis=1)
+    smallest = measures(p, lines[:, 0].reshape(contour.n_rings, 3))[0]
+    return bool(((bound < THIN_ANGLE) & (smallest >= EAR_SHARE * bound)).all())
+
+
+def own_triangles(contour: Contour) -> GradedSelection:
+    """The selection whose mesh is each ring's own triangle (:func:`thin_triangles`): a
+    row of root cells, ring ``r``'s points the corners of the lower triangle of cell
+    ``2 r`` (no two rings share a node), nothing else kept.  The deformation moves those
+    corners onto the points (every node of a kept triangle a path node), and the stages
+    after it run as on any graded grid."""
+    rings = contour.n_rings
+    lo, hi = contour.points.min(axis=0), contour.points.max(axis=0)
+    nx = 2 * rings - 1
+    h = float(max((hi - lo).max(), np.finfo(float).tiny)) / nx
+    tree = graded.Quadtree(
+        float(lo[0]), float(lo[1]), h, h, 0, nx, 1,
+        np.zeros(nx, np.int64), np.arange(nx, dtype=np.int64), np.zeros(nx, np.int64),
+    )  # fmt: skip
+    diagonals = np.zeros(nx, dtype=np.uint8)
+    points, tri, cell = tree.triangulate(diagonals)
+    nxt, _ = _domain_walk(contour, False)
+    nodes, targets, source, ring = [], [], [], []
+    for r in range(rings):
+        corners = tri[np.flatnonzero(cell == 2 * r)[0]]  # (counter-clockwise)
+        k = int(contour.starts[r])
+        order = [k, int(nxt[k]), int(nxt[nxt[k]])]  # (the domain on the left)
+        nodes.append(corners)
+        targets.append(contour.points[order])
+        source.append(order)
+        ring.append([r, r, r])
+    sel = GradedSelection(
+        GradedGrid(tree, points),
+        np.concatenate(nodes).astype(np.int64),
+        np.concatenate(targets),
+        np.concatenate(source).astype(np.int64),
+        np.concatenate(ring).astype(np.int64),
+        diagonals,
+        h,
+        path_rule=OWN_TRIANGLES,
+    )
+    sel.notes.append(
+        f"{rings} thin triangle(s), each meshed as itself: a grid could add only slivers along them"
+    )
+    return sel
+
+
+#: The ``path_rule`` of :func:`own_triangles`' selection.
+OWN_TRIANGLES = "own-triangles"
 
 
 def _wanted(contour: Contour, exterior: bool, max_nodes: int | None, size_function, box=None):
@@ -1197,6 +1268,11 @@ def cut_ears(contour: Contour, exterior: bool = False):
     tips, d = _tips(p, np.flatnonzero(alive), nxt, prv, *_domain_walk(contour, exterior))
     if not len(tips) and alive.all():
         return contour, np.arange(m), np.zeros((0, 3), dtype=np.int64)
+    if not exterior and len(tips):  # (thin triangles left are meshed as they are, tips and all)
+        kept = np.flatnonzero(alive)
+        left_over = _kept_contour(contour, p, contour.lines, contour.ring, kept)
+        if thin_triangles(left_over):
+            return left_over, kept, np.array(ears, dtype=np.int64).reshape(-1, 3)
     # a cut tip k gives way to two points at d from it: on its edge from prv[k]
     # (numbered m + 2 j) and on its edge to nxt[k] (m + 2 j + 1)
     on_prev = p[tips] + d[:, None] * _unit(p[prv[tips]] - p[tips])
@@ -1214,9 +1290,15 @@ def cut_ears(contour: Contour, exterior: bool = False):
     pair = np.where(stored_prev[:, None], np.column_stack([first, first + 1]),
                     np.column_stack([first + 1, first]))  # fmt: skip
     kept = np.insert(kept, np.repeat(np.searchsorted(kept, tips), 2), pair.ravel())
+    return _kept_contour(contour, xy, lines, ring_of, kept), kept, np.array(ears, dtype=np.int64)
+
+
+def _kept_contour(contour: Contour, xy, lines, ring_of, kept) -> Contour:
+    """The contour of the points ``kept`` (indices into ``xy``, ``lines`` and
+    ``ring_of``, in the contour's stored order), its rings as ``contour``'s."""
     ring = ring_of[kept]
     starts = tuple(np.searchsorted(ring, np.arange(contour.n_rings + 1)).tolist())
-    grid_contour = Contour(
+    return Contour(
         xy[kept],
         lines[kept],
         contour.source,
@@ -1225,7 +1307,6 @@ def cut_ears(contour: Contour, exterior: bool = False):
         depth=contour.depth,
         ring_labels=contour.ring_labels,
     )
-    return grid_contour, kept, np.array(ears, dtype=np.int64)
 
 
 #: A sharp corner whose ear is not cut is cut this fraction of its reach from its
