@@ -32,18 +32,35 @@ DEFAULT_STEPS = 10
 #: bounded (ten thousand solves are hours on a large grid).
 MAX_STEPS = 10_000
 
-#: A triangle whose signed area is within this times the mean of theirs of zero is
-#: flat: its sign, and whether its centroid lies in the domain, are round-off (a free
-#: node carried onto the line through two path nodes, or three path nodes onto one
-#: contour edge).  With ``flat_ok`` the deformation lets it pass, whatever its sign,
-#: for stage 3 to mesh it again (:mod:`.untangle`).
+#: A triangle whose signed area is within this times its longest side squared (and its
+#: coordinates' round-off, :func:`flat_margin`) of zero is flat: its sign, and
+#: whether its centroid lies in the domain, are round-off (a free node carried onto the
+#: line through two path nodes, or three path nodes onto one contour edge).  With
+#: ``flat_ok`` the deformation lets it pass, whatever its sign, for stage 3 to mesh it
+#: again (:mod:`.untangle`).
 FLAT = 1e-12
 
 
-def flat_margin(area: np.ndarray) -> float:
-    """How near zero a signed area of ``area`` (every triangle's) is flat: :data:`FLAT`
-    times their mean size (0 for no triangle)."""
-    return FLAT * float(np.abs(area).mean()) if len(area) else 0.0
+def flat_margin(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Per triangle, how near zero its signed area is flat: :data:`FLAT` times its
+    longest side ``L`` squared, plus :data:`ROUND_OFF` times ``L`` times its corners'
+    largest coordinate ``X`` (the round-off of an area computed from differences of
+    coordinates that large).  A graded grid's cells differ in size by millions, so a
+    margin from their mean would call its finest cells flat; three points on a contour
+    edge have an area that is the coordinates' round-off, however short the edge."""
+    a, b, c = points[tri[:, 0]], points[tri[:, 1]], points[tri[:, 2]]
+    sides = [((q - p) ** 2).sum(axis=1) for p, q in ((a, b), (b, c), (c, a))]
+    square = np.maximum(np.maximum(sides[0], sides[1]), sides[2])
+    far = np.maximum(
+        np.maximum(np.abs(a).max(axis=1), np.abs(b).max(axis=1)), np.abs(c).max(axis=1)
+    )
+    return FLAT * square + ROUND_OFF * np.sqrt(square) * far
+
+
+#: Four times the double's epsilon: an area computed from differences of coordinates of
+#: magnitude ``X`` on sides of length ``L`` is off by at most about ``2 eps L X``
+#: (:func:`flat_margin`).
+ROUND_OFF = 2.0**-50
 
 
 #: What a fold message advises: at the last step (the targets themselves cannot be
@@ -369,7 +386,7 @@ def deform_(
             area = signed_areas(new, tri)
             if flat_ok:  # flat: at the end either sign passes; before it, a fold (the
                 # next solve would divide by its area, and magnify round-off into the nodes)
-                area += (1.0 if last else -1.0) * flat_margin(area)
+                area += (1.0 if last else -1.0) * flat_margin(new, tri)
             if (area > 0).all():
                 break
             if keep_folds or stats.halvings >= max_halvings * steps or theta <= 2.0**-max_halvings:

@@ -72,8 +72,7 @@ def tangled(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
     """Which triangles are folded or flat (:data:`.deform.FLAT`): the ones :func:`untangle`
     meshes again.  A flat one's centroid lies on its side, so whether the domain
     holds it is round-off too."""
-    area = signed_areas(points, tri)
-    return area <= flat_margin(area)
+    return signed_areas(points, tri) <= flat_margin(points, tri)
 
 
 def untangle(mesh: Mesh, most: int | None = None) -> Mesh | None:

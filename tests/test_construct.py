@@ -3,6 +3,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from deformesh_cli import pipeline
 from deformesh_cli.contour import make_contour
@@ -373,3 +375,28 @@ def test_a_fat_triangle_keeps_the_grid():
     res = pipeline.mesh_contour(c)
     assert res.report["path_rule"] != construct.OWN_TRIANGLES
     assert len(res.mesh.triangles) >= 1 and res.report["contract"] == "ok"
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    st.floats(-7.0, -3.5),  # log10 of the width
+    st.floats(0.5, 20.0),  # length
+    st.floats(0.0, 3.14159),  # turn
+    st.integers(1, 6),  # fingers
+)
+def test_random_thin_parts_mesh_from_their_own_points(log_width, length, turn, count):
+    """Rectangles and combs of fingers far thinner than they are long, turned any way:
+    each meshes with the contract, and its grid follows the points (a few thousand nodes
+    at most), never the inverse width."""
+    width = 10.0**log_width
+    c, s = np.cos(turn), np.sin(turn)
+    rot = np.array([[c, -s], [s, c]])
+    for pts in (np.array([[0, 0], [length, 0], [length, width], [0, width]]),
+                _fingers(width, length, n=count)):  # fmt: skip
+        contour = make_contour(pts @ rot.T, None, "thin.csv")
+        res = pipeline.mesh_contour(contour, strict=True)
+        m = res.mesh
+        assert res.report["contract"] == "ok"
+        assert np.array_equal(m.points[: contour.n], contour.points)
+        assert (signed_areas(m.points, m.triangles) > 0).all()
+        assert res.report["grid_nodes"] < 20_000, res.report["grid_nodes"]
