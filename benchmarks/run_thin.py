@@ -19,20 +19,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from results import heading, write_section
-from run_contours import run_once
+from run_contours import ROOT, run_once
 
-
-def fingers(width: float, length: float, n: int = 5, gap: float = 1.0) -> np.ndarray:
-    right = n * width + (n + 1) * gap
-    pts = [(0.0, 0.0), (right, 0.0), (right, 1.0)]
-    x = right
-    for _ in range(n):
-        x -= gap
-        pts += [(x, 1.0), (x, 1.0 + length)]
-        x -= width
-        pts += [(x, 1.0 + length), (x, 1.0)]
-    pts.append((0.0, 1.0))
-    return np.array(pts)
+sys.path.insert(0, str(ROOT))
+from tests.random_polygons import fingers
 
 
 def cases() -> list[tuple[str, np.ndarray]]:

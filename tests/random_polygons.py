@@ -152,3 +152,18 @@ def write_csv(path, points: np.ndarray, ring: np.ndarray) -> None:
         x, y = repr(float(x)), repr(float(y))  # (shortest text that reads back exactly)
         lines.append(f"{x},{y},{k}" if several else f"{x},{y}")
     path.write_text("\n".join(lines) + "\n")
+
+
+def fingers(width: float, length: float, n: int = 5, gap: float = 1.0) -> np.ndarray:
+    """A base 1 high with ``n`` fingers ``width`` wide and ``length`` long on it, ``gap``
+    apart: thin parts of the domain (its points, counter-clockwise)."""
+    right = n * width + (n + 1) * gap
+    pts = [(0.0, 0.0), (right, 0.0), (right, 1.0)]
+    x = right
+    for _ in range(n):
+        x -= gap
+        pts += [(x, 1.0), (x, 1.0 + length)]
+        x -= width
+        pts += [(x, 1.0 + length), (x, 1.0)]
+    pts.append((0.0, 1.0))
+    return np.array(pts)

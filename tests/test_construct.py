@@ -15,6 +15,7 @@ from deformesh_cli.recover import recover
 from deformesh_cli.select import construct
 
 from .conftest import ROOT, SAMPLES
+from .random_polygons import fingers
 
 CORPUS = ROOT / "tests" / "data" / "corpus"
 
@@ -292,20 +293,6 @@ def test_long_sides_whose_cells_reach_the_box_still_mesh(w, h, r, k):
     assert (signed_areas(m.points, m.triangles) > 0).all()
 
 
-def _fingers(width: float, length: float, n: int = 5, gap: float = 1.0) -> np.ndarray:
-    """A base 1 high with ``n`` fingers ``width`` wide and ``length`` long on it."""
-    right = n * width + (n + 1) * gap
-    pts = [(0.0, 0.0), (right, 0.0), (right, 1.0)]
-    x = right
-    for _ in range(n):
-        x -= gap
-        pts += [(x, 1.0), (x, 1.0 + length)]
-        x -= width
-        pts += [(x, 1.0 + length), (x, 1.0)]
-    pts.append((0.0, 1.0))
-    return np.array(pts)
-
-
 def test_thin_fingers_are_meshed_from_their_own_points():
     """A finger far thinner than it is long forces a sliver on its sides in every mesh of
     these points (forced bound under construct.THIN_ANGLE): its ears are cut before the
@@ -315,7 +302,7 @@ def test_thin_fingers_are_meshed_from_their_own_points():
     fingers 0.001 wide took minutes before)."""
     nodes = []
     for width in (1e-3, 1e-4, 1e-5, 1e-6):
-        c = make_contour(_fingers(width, 10.0), None, "fingers.csv")
+        c = make_contour(fingers(width, 10.0), None, "fingers.csv")
         res = pipeline.mesh_contour(c, strict=True)
         m = res.mesh
         assert res.report["contract"] == "ok" and res.report["ears"] >= 10
@@ -392,7 +379,7 @@ def test_random_thin_parts_mesh_from_their_own_points(log_width, length, turn, c
     c, s = np.cos(turn), np.sin(turn)
     rot = np.array([[c, -s], [s, c]])
     for pts in (np.array([[0, 0], [length, 0], [length, width], [0, width]]),
-                _fingers(width, length, n=count)):  # fmt: skip
+                fingers(width, length, n=count)):  # fmt: skip
         contour = make_contour(pts @ rot.T, None, "thin.csv")
         res = pipeline.mesh_contour(contour, strict=True)
         m = res.mesh
