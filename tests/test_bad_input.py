@@ -169,8 +169,12 @@ def test_tiny_and_huge_coordinates_mesh_with_the_contract(run, tmp_path, scale, 
         ),
         (["-o", "{tmp}/m.msh", "--max-h", "1e-308"], 1, r"circle\.csv: --max-h .* needs at least"),
         (["-o", "{tmp}/m.msh", "--resample", "1e-300"], 1, r"circle\.csv: --resample 1e-300"),
-        (["-o", "{tmp}/m.msh", "--margin", "1e300"], 1, r"circle\.csv: its finest cells"),
+        (["-o", "{tmp}/m.msh", "--margin", "1e140"], 1, r"circle\.csv: its finest cells"),
         (["-o", "{tmp}/m.msh", "--jobs", "9" * 30, "--out-dir", "{tmp}"], 2, r"--jobs"),
+        (["-o", "{tmp}/m.msh", "--margin", "1e308"], 2, r"--margin 1e\+308 puts the box"),
+        (["-o", "{tmp}/m.msh", "--margin", "1e200", "--grid", "uniform"], 2, r"puts the box"),
+        (["-o", "{tmp}/m.msh", "--margin", "1e200", "--exterior"], 2, r"puts the box"),
+        (["-o", "{tmp}/m.msh", "--box=-1e308,-1e308,1e308,1e308"], 2, r"within 1e\+150 of 0"),
     ],
 )
 def test_bad_options_and_outputs(run, tmp_path, args, code, pattern):

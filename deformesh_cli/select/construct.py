@@ -450,9 +450,7 @@ def select_constructed(
     if exterior:  # (the box is part of the domain's boundary: the sizes see its sides)
         if box is None:
             margin = float((hi - lo).max()) if margin is None else margin
-            box = _checked_box(
-                contour, (lo[0] - margin, lo[1] - margin, hi[0] + margin, hi[1] + margin), True
-            )
+            box = _checked_box(contour, grown_box(contour, lo, hi, margin), True)
         else:
             box = _checked_box(contour, box, True)
         xy, size, s, edge, field = _wanted(contour, True, max_nodes, size_function, box)
@@ -461,7 +459,7 @@ def select_constructed(
         room = 3.0 * float(s.max())
         if box is None:
             margin = room if margin is None else max(margin, room)
-            box = (lo[0] - margin, lo[1] - margin, hi[0] + margin, hi[1] + margin)
+            box = grown_box(contour, lo, hi, margin)
         else:
             box = _checked_box(contour, box, False)
             box = (min(box[0], lo[0] - room), min(box[1], lo[1] - room),
@@ -580,6 +578,25 @@ def size_field(
     xy, size, _, _, _ = _wanted(contour, exterior, max_nodes, None)
     s = graded.graded_sizes(xy, size * CELL_FACTOR, growth)
     return graded.SizeField(xy, s, growth, max_h)
+
+
+def grown_box(contour: Contour, lo, hi, margin: float) -> tuple[float, float, float, float]:
+    """The contour's box ``lo``, ``hi`` grown by ``margin`` on every side, within the
+    coordinates the contour may have (else an :class:`OptionError` naming ``--margin``)."""
+    from ..contour import MAX_COORDINATE
+
+    box = (
+        float(lo[0] - margin),
+        float(lo[1] - margin),
+        float(hi[0] + margin),
+        float(hi[1] + margin),
+    )
+    if not max(abs(v) for v in box) <= MAX_COORDINATE:
+        raise OptionError(
+            f"{contour.source}: --margin {margin:g} puts the box's sides beyond "
+            f"{MAX_COORDINATE:g} of 0, where its areas would overflow"
+        )
+    return box
 
 
 def _checked_box(contour: Contour, box, exterior: bool) -> tuple[float, float, float, float]:

@@ -105,8 +105,12 @@ class Grid:
 
 
 def estimate_nodes(width: float, height: float, h: float) -> float:
-    """Grid nodes for a box, computed in floating point (never overflows)."""
-    return (math.ceil(width / h - 1e-9) + 1.0) * (math.ceil(height / h - 1e-9) + 1.0)
+    """Grid nodes for a box, computed in floating point (never overflows; inf for a box
+    no grid of step ``h`` spans)."""
+    cells = (width / h - 1e-9, height / h - 1e-9)
+    if not all(math.isfinite(c) for c in cells):
+        return math.inf
+    return (math.ceil(cells[0]) + 1.0) * (math.ceil(cells[1]) + 1.0)
 
 
 def choose_grid(
@@ -146,7 +150,9 @@ def choose_grid(
             m = float(np.ptp(p, axis=0).max())
         if not (m >= 0 and math.isfinite(m)):
             raise OptionError(f"--margin must be a non-negative number, got {margin}")
-        box = (lo[0] - m, lo[1] - m, hi[0] + m, hi[1] + m)
+        from .construct import grown_box
+
+        box = grown_box(contour, lo, hi, m)
     else:
         box = checked_box(contour, box)
     width, height = box[2] - box[0], box[3] - box[1]
@@ -195,9 +201,16 @@ def _fmt_box(box) -> str:
 def checked_box(contour: Contour, box) -> tuple[float, float, float, float]:
     """A given ``--box`` as floats, checked: ordered, and holding every contour point
     (an :class:`OptionError` naming the first one outside)."""
+    from ..contour import MAX_COORDINATE
+
     box = tuple(float(v) for v in box)
     if not (box[0] < box[2] and box[1] < box[3]):
         raise OptionError(f"--box {_fmt_box(box)}: need XMIN < XMAX and YMIN < YMAX")
+    if not max(abs(v) for v in box) <= MAX_COORDINATE:  # (NaN fails too)
+        raise OptionError(
+            f"--box {_fmt_box(box)}: its sides must lie within {MAX_COORDINATE:g} of 0, "
+            "as the contour's points do (its areas would overflow)"
+        )
     p = contour.points
     out = (p[:, 0] < box[0]) | (p[:, 0] > box[2]) | (p[:, 1] < box[1]) | (p[:, 1] > box[3])
     if out.any():
