@@ -230,6 +230,23 @@ MIN_RELATIVE_SPAN = 1e-13
 MIN_RELATIVE_EDGE = 1e-14
 
 
+def grown_box(contour: Contour, lo, hi, margin: float) -> tuple[float, float, float, float]:
+    """The contour's box ``lo``, ``hi`` grown by ``margin`` on every side, within the
+    coordinates the contour may have (else an :class:`OptionError` naming ``--margin``)."""
+    box = (
+        float(lo[0] - margin),
+        float(lo[1] - margin),
+        float(hi[0] + margin),
+        float(hi[1] + margin),
+    )
+    if not max(abs(v) for v in box) <= MAX_COORDINATE:
+        raise OptionError(
+            f"{contour.source}: --margin {margin:g} puts the box's sides beyond "
+            f"{MAX_COORDINATE:g} of 0, where its areas would overflow"
+        )
+    return box
+
+
 def check_scale(p: np.ndarray, source: str) -> None:
     """What double precision cannot mesh, refused with the place: coordinates whose
     squares overflow, a contour so small for its offset that its points sit a few

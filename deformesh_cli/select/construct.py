@@ -40,7 +40,7 @@ from typing import ClassVar
 import numpy as np
 import shapely
 
-from ..contour import Contour
+from ..contour import Contour, grown_box
 from ..errors import LimitError, OptionError, SelectionError
 from ..geometry import boundary_edges, next_on_ring, prev_on_ring, signed_areas
 from . import graded
@@ -578,25 +578,6 @@ def size_field(
     xy, size, _, _, _ = _wanted(contour, exterior, max_nodes, None)
     s = graded.graded_sizes(xy, size * CELL_FACTOR, growth)
     return graded.SizeField(xy, s, growth, max_h)
-
-
-def grown_box(contour: Contour, lo, hi, margin: float) -> tuple[float, float, float, float]:
-    """The contour's box ``lo``, ``hi`` grown by ``margin`` on every side, within the
-    coordinates the contour may have (else an :class:`OptionError` naming ``--margin``)."""
-    from ..contour import MAX_COORDINATE
-
-    box = (
-        float(lo[0] - margin),
-        float(lo[1] - margin),
-        float(hi[0] + margin),
-        float(hi[1] + margin),
-    )
-    if not max(abs(v) for v in box) <= MAX_COORDINATE:
-        raise OptionError(
-            f"{contour.source}: --margin {margin:g} puts the box's sides beyond "
-            f"{MAX_COORDINATE:g} of 0, where its areas would overflow"
-        )
-    return box
 
 
 def _checked_box(contour: Contour, box, exterior: bool) -> tuple[float, float, float, float]:

@@ -22,7 +22,7 @@ from typing import ClassVar
 import numpy as np
 
 from .. import deadline
-from ..contour import Contour
+from ..contour import Contour, grown_box
 from ..errors import LimitError, OptionError, SelectionError
 from ..geometry import next_on_ring, signed_area, signed_areas
 
@@ -150,8 +150,6 @@ def choose_grid(
             m = float(np.ptp(p, axis=0).max())
         if not (m >= 0 and math.isfinite(m)):
             raise OptionError(f"--margin must be a non-negative number, got {margin}")
-        from .construct import grown_box
-
         box = grown_box(contour, lo, hi, m)
     else:
         box = checked_box(contour, box)
