@@ -7,7 +7,9 @@ one line naming the file, the problem and where.  The command-line layer
 processing failure (exit 1).  Nothing else is meant to reach it.
 """
 
+import contextlib
 import re
+from collections.abc import Iterator
 
 #: What a run that ran out of memory is told.
 OUT_OF_MEMORY = "out of memory; lower --max-nodes or give a larger --h"
@@ -105,24 +107,18 @@ def printable(text: str, limit: int = 60) -> str:
     return "'" + (text if len(text) <= limit else text[: limit - 3] + "...") + "'"
 
 
-class naming:
-    """Context manager: a :class:`DeformeshError` raised inside that does not name
-    ``source`` yet is raised again with ``source: `` in front, so every message that
-    reaches a user names the file it is about (a stage deep in the construction knows
-    points and nodes, not files).  Re-entrant: a message is prefixed once."""
-
-    def __init__(self, source: str | None):
-        self.source = source
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, kind, exc, tb) -> bool:
-        src = self.source
-        named = not src or src[0] == "<" or _names_a_file(str(exc), src)
-        if isinstance(exc, DeformeshError) and not named:
-            exc.args = (f"{src}: {exc}",)
-        return False
+@contextlib.contextmanager
+def naming(source: str | None) -> Iterator[None]:
+    """A :class:`DeformeshError` raised inside that does not name ``source`` yet is
+    raised again with ``source: `` in front, so every message that reaches a user names
+    the file it is about (a stage deep in the construction knows points and nodes, not
+    files).  Nested, a message is prefixed once."""
+    try:
+        yield
+    except DeformeshError as exc:
+        if source and source[0] != "<" and not _names_a_file(str(exc), source):
+            exc.args = (f"{source}: {exc}",)
+        raise
 
 
 def _names_a_file(message: str, source: str) -> bool:
@@ -135,9 +131,9 @@ def _names_a_file(message: str, source: str) -> bool:
 
 
 def names_its_file(fn):
-    """Decorator: :class:`naming` the ``source`` of the function's first argument (a
-    contour, or anything that has one: :class:`~.pipeline.Laid`'s ``fine``, a
-    :class:`~.pipeline.Deformed`'s selection)."""
+    """Decorator: :func:`naming` the ``source`` of the function's first argument (a
+    contour, or what holds one as ``contour``: a :class:`~.pipeline.Laid`); running
+    out of memory becomes a :class:`LimitError` naming it too."""
     import functools
 
     @functools.wraps(fn)

@@ -605,3 +605,20 @@ def test_a_link_loop_given_by_name_is_called_one(run, tmp_path):
     r = run("all", tmp_path / "loop.csv", "-o", tmp_path / "m.vtk")
     assert r.exit_code == 1
     assert f"{tmp_path}/loop.csv: is a symbolic link that leads to no file" in r.stderr
+
+
+def test_an_error_deep_in_the_core_is_said_with_its_files_name(tmp_path):
+    """errors.naming: a message that names no file gets the contour's in front, once,
+    however deep the stages nest; one that starts with another file's name keeps it."""
+    from deformesh_cli.errors import SelectionError, naming
+
+    closed = pytest.raises(SelectionError, match=r"^a\.csv: the loops do not close$")
+    with closed, naming("a.csv"), naming("a.csv"):
+        raise SelectionError("the loops do not close")
+    field = tmp_path / "f.npy"
+    field.write_bytes(b"")
+    kept = pytest.raises(SelectionError, match=rf"^{re.escape(str(field))}: bad rows$")
+    with kept, naming("a.csv"):
+        raise SelectionError(f"{field}: bad rows")
+    with pytest.raises(SelectionError, match=r"^nothing$"), naming("<contour>"):
+        raise SelectionError("nothing")
