@@ -1,6 +1,6 @@
 """r-adaptation: ``deformesh adapt`` next to the ``movement`` package's published numbers.
 
-Usage: python benchmarks/run_adapt.py [--sizes 10000,100000,180000,1000000]   (make bench)
+Usage: python benchmarks/run_adapt.py [--sizes 10000,100000,180000]   (make bench)
 
 Every run is a whole process (``deformesh adapt ... --json``).  Cases:
 
@@ -82,7 +82,7 @@ def adapt(mesh: Path, out: Path, *opts: str) -> tuple[float, float, dict]:
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--sizes", default="10000,100000,180000,1000000", help="triangles, about")
+    ap.add_argument("--sizes", default="10000,100000,180000", help="triangles, about")
     args = ap.parse_args()
     lines = heading(
         "## Adaptation: deformesh adapt next to movement (whole processes)",

@@ -38,10 +38,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .cholesky import Cholesky, amd_order
+from .cholesky import Cholesky
 from .divcurl import gradients, unique_inverse
 from .errors import FoldError, InputError, MonitorError, OptionError
-from .geometry import boundary_edges, edge_uses, signed_areas
+from .geometry import boundary_edges, signed_areas
 from .quality import measures
 from .size import positive_values
 
@@ -228,8 +228,8 @@ class VelocitySystem:
     ``w t`` along its tangent ``t``), none at a fixed node, numbered node by node.  Each
     cell's two rows (six entries over its nodes' unknowns) give a 6 x 6 block of the
     normal equations, summed into a pattern fixed by the triangles, so the
-    factorisation (:class:`.cholesky.Cholesky`, in a fill-reducing order of the nodes
-    with each node's unknowns together) is analysed once and then only refactorised.
+    factorisation (:class:`.cholesky.Cholesky`: QDLDL) is analysed once and then only
+    refactorised.
     """
 
     def __init__(self, tri: np.ndarray, fixed: np.ndarray, tangent: np.ndarray):
@@ -263,12 +263,7 @@ class VelocitySystem:
         self._indices = (ukeys % size).astype(np.int32)
         self._indptr = np.searchsorted(ukeys // size, np.arange(size + 1))
         self._dof = np.where(dof >= 0, dof, size).T.ravel()  # slot by slot (size: dropped)
-        # a fill-reducing order of the nodes (approximate minimum degree on the mesh's
-        # graph), each node's unknowns kept together: its 2 x 2 blocks stay dense
-        node = np.repeat(np.arange(n), count)
-        rank = np.empty(n, dtype=np.int64)
-        rank[node_order(tri, n)] = np.arange(n)
-        self.cholesky = Cholesky(order=np.argsort(rank[node], kind="stable"))
+        self.cholesky = Cholesky()
 
     def rows(self, gx, gy, g, grad, t):
         """(6, T) each: every cell's rate and curl rows on its six slots."""
@@ -313,13 +308,6 @@ class VelocitySystem:
         x = np.concatenate([self.cholesky.solve(rhs[:-1]), [0.0]])  # (slot -1: no unknown)
         w = x[self.slot]  # (N, 2 slots)
         return w[:, 0, None] * self.dirs[:, 0] + w[:, 1, None] * self.dirs[:, 1]
-
-
-def node_order(tri: np.ndarray, n: int) -> np.ndarray:
-    """A fill-reducing order of a mesh's nodes: approximate minimum degree on the
-    graph of its edges."""
-    lo, hi, _, _ = edge_uses(tri, n)
-    return amd_order(np.concatenate([lo, np.arange(n)]), np.concatenate([hi, np.arange(n)]), n)
 
 
 def normaliser(tri: np.ndarray, area2: np.ndarray, m: np.ndarray) -> float:
