@@ -69,6 +69,17 @@ def run_once(path, opts, out):
     return dt, rss, code, (json.loads(out_text) if code == 0 else {"error": err})
 
 
+def timed(path, opts, out, repeat: int) -> tuple[float, float, int, dict]:
+    """:func:`run_once` ``repeat`` times: (median seconds, peak RSS MB, the last exit
+    code and record)."""
+    times, rss, code, rec = [], 0.0, 0, {}
+    for _ in range(repeat):
+        dt, mb, code, rec = run_once(path, opts, out)
+        times.append(dt)
+        rss = max(rss, mb)
+    return statistics.median(times), rss, code, rec
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=3)
@@ -77,13 +88,9 @@ def main():
     with tempfile.TemporaryDirectory() as d:
         for name, opts in CASES:
             path = ROOT / name if name.startswith("samples/") else REFERENCE / name
-            times, rec, code, rss = [], {}, 0, 0.0
-            for _ in range(args.repeat):
-                dt, rss_i, code, rec = run_once(path, opts, os.path.join(d, "m.vtk"))
-                times.append(dt)
-                rss = max(rss, rss_i)
-            rows.append((name, " ".join(opts), statistics.median(times), rss, code, rec))
-            print(f"{name}: {statistics.median(times):.2f} s exit {code}", file=sys.stderr)
+            t, rss, code, rec = timed(path, opts, os.path.join(d, "m.vtk"), args.repeat)
+            rows.append((name, " ".join(opts), t, rss, code, rec))
+            print(f"{name}: {t:.2f} s exit {code}", file=sys.stderr)
     lines = heading(
         "## Contours: `deformesh all` per contour (whole process, median of "
         f"{args.repeat}, written by `make bench`)",

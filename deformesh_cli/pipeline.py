@@ -19,7 +19,7 @@ from . import deform as _deform
 from . import improve as _improve
 from . import recover as _recover
 from . import size as _size
-from .contour import Contour, count_words, split_edges
+from .contour import Contour, count_words, grown_box, split_edges
 from .deform import SOLVES, DeformStats
 from .errors import (
     FoldError,
@@ -144,7 +144,7 @@ def _check_max_h_work(contour: Contour, o: MeshOptions) -> None:
         else:  # (the default far field: the contour's box grown by its larger extent)
             lo, hi = contour.points.min(axis=0), contour.points.max(axis=0)
             m = float((hi - lo).max()) if o.margin is None else o.margin
-            x0, y0, x1, y1 = lo[0] - m, lo[1] - m, hi[0] + m, hi[1] + m
+            x0, y0, x1, y1 = grown_box(contour, lo, hi, m)
         area = (x1 - x0) * (y1 - y0) - contour.area
     else:
         area = contour.area
