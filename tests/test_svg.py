@@ -156,14 +156,100 @@ def test_island_in_a_hole_of_another_element_is_a_part():
     assert c.ring_labels[2] == "circle#dot subpath 1"
 
 
-def test_overlapping_elements_are_refused_naming_both():
+def test_overlapping_elements_of_one_paint_are_their_union():
     body = (
-        '<rect id="a" x="10" y="10" width="50" height="50"/><circle id="b" cx="35" cy="35" r="10"/>'
+        '<rect id="a" x="10" y="10" width="50" height="50"/><circle id="b" cx="57" cy="35" r="10"/>'
     )
-    with pytest.raises(InputError, match=r"rect#a and circle#b overlap near .*--id"):
+    c = parse_svg(svg(body), "o.svg")
+    drawn = shapely.union(shapely.box(10, 40, 60, 90), shapely.Polygon(ring_points(c, 0)))
+    assert c.n_rings == 1 and c.area == pytest.approx(drawn.area, rel=1e-12)
+    assert 2500 + 90 < c.area < 2500 + math.pi * 100 / 2  # a cap 7 deep of r = 10
+    assert any("touch or cross" in n and "2 crossing point(s)" in n for n in c.notes)
+    # an element inside another of the same paint adds nothing
+    inner = '<rect x="10" y="10" width="50" height="50"/><circle cx="35" cy="35" r="10"/>'
+    c = parse_svg(svg(inner), "o.svg")
+    assert c.n == 4 and c.area == 2500 and any("dropped circle" in n for n in c.notes)
+
+
+def test_overlapping_elements_of_different_paint_are_refused_naming_both():
+    body = (
+        '<rect id="a" x="10" y="10" width="50" height="50"/>'
+        '<circle id="b" cx="35" cy="35" r="10" fill="red"/>'
+    )
+    with pytest.raises(InputError, match=r"rect#a and circle#b overlap near .*fills.*--id"):
         parse_svg(svg(body), "o.svg")
     # --id picks one of them
     assert parse_svg(svg(body), "o.svg", element_id="b").n_rings == 1
+
+
+def _star(evenodd):
+    turn = [2 * math.pi * k * 2 / 5 for k in range(5)]
+    tips = [(50 + 40 * math.sin(t), 50 - 40 * math.cos(t)) for t in turn]
+    d = "M" + " L".join(f"{x!r} {y!r}" for x, y in tips) + " Z"
+    rule = ' fill-rule="evenodd"' if evenodd else ""
+    return svg(f'<path d="{d}"{rule}/>')
+
+
+def test_self_crossing_subpath_is_meshed_as_filled():
+    """A pentagram: nonzero fills the star (five tips and the five crossings), evenodd
+    leaves the middle empty, five triangles meeting at points: refused where."""
+    c = parse_svg(_star(False), "s.svg")
+    assert c.n == 10 and c.n_rings == 1
+    r = 40 * math.sin(math.radians(18)) / math.sin(math.radians(126))  # inner radius
+    assert c.area == pytest.approx(5 * 40 * r * math.sin(math.radians(36)), rel=1e-12)
+    assert np.allclose(np.sort(np.hypot(*(c.points - [50, 50]).T))[:5], r)
+    with pytest.raises(InputError, match=r"pinches to a point at \(.*\), where path 1 subpath 1"):
+        parse_svg(_star(True), "s.svg")
+
+
+def test_subpaths_sharing_an_edge_are_one_region():
+    c = parse_svg(svg('<path d="M10 10 H20 V20 H10 Z M20 10 H30 V20 H20 Z"/>'), "e.svg")
+    assert c.n_rings == 1 and c.area == pytest.approx(200)
+    # the shared edge's ends are given points on the boundary: kept
+    assert {(20.0, 90.0), (20.0, 80.0)} <= set(map(tuple, c.points.tolist()))
+    assert c.n == 6
+
+
+def test_hole_touching_its_outline_is_refused_at_the_point():
+    body = '<path d="M10 10 H50 V50 H10 Z M10 30 L30 20 L30 40 Z" fill-rule="evenodd"/>'
+    with pytest.raises(
+        InputError, match=r"t.svg: the filled area pinches to a point at \(10, 70\)"
+    ):
+        parse_svg(svg(body), "t.svg")
+
+
+def test_rings_apart_come_out_as_given():
+    body = '<path d="M10 10 H50 V50 H10 Z M20 20 V40 H40 V20 Z"/>'
+    c = parse_svg(svg(body), "a.svg")
+    assert c.points.tolist() == [[10, 90], [50, 90], [50, 50], [10, 50],
+                                 [20, 80], [20, 60], [40, 60], [40, 80]]  # fmt: skip
+    assert c.ring_labels == ("path 1 subpath 1", "path 1 subpath 2")
+
+
+@settings(max_examples=25, deadline=None, derandomize=True)
+@given(
+    st.lists(
+        st.tuples(st.floats(20, 80), st.floats(20, 80), st.floats(3, 25)), min_size=2, max_size=6
+    )
+)
+def test_overlapping_circles_in_one_path_mesh_their_union(circles):
+    """Circles drawn as polygons in one path, overlapping at random: the contour bounds
+    exactly their union (shapely's, on the same polygons), nonzero rule."""
+    rings = [
+        [(x + r * math.cos(t), y + r * math.sin(t)) for t in np.linspace(0, 2 * math.pi, 24)[:-1]]
+        for x, y, r in circles
+    ]
+    d = " ".join("M" + " L".join(f"{px!r} {py!r}" for px, py in ring) + " Z" for ring in rings)
+    c = parse_svg(svg(f'<path d="{d}"/>'), "c.svg", tolerance=1e-9)
+    union = shapely.union_all([shapely.Polygon([(px, 100 - py) for px, py in r]) for r in rings])
+    assert c.area == pytest.approx(union.area, rel=1e-9)
+    mine = shapely.union_all(
+        [shapely.Polygon(ring_points(c, r)) for r in range(c.n_rings) if not c.is_hole(r)]
+    )
+    for r in range(c.n_rings):
+        if c.is_hole(r):
+            mine = mine.difference(shapely.Polygon(ring_points(c, r)))
+    assert mine.symmetric_difference(union).area <= 1e-9 * union.area
 
 
 def test_unfilled_and_hidden_shapes_are_skipped():
@@ -182,7 +268,7 @@ def test_unfilled_and_hidden_shapes_are_skipped():
     "data,text",
     [
         (b"<svg><polygon points='0,0 1,0", "not a readable SVG file"),
-        (svg('<polygon points="0,0 10,10 10,0 0,10"/>'), r"intersects itself near \(5, 95\)"),
+        (svg('<polygon points="0,0 10,10 10,0 0,10"/>'), r"pinches to a point at \(5, 95\)"),
         (svg('<polygon points="0,0 10,0 20,0"/>'), "skipped|no filled area"),
     ],
 )
@@ -342,6 +428,30 @@ def test_real_icon_with_overlapping_shapes_is_refused_by_name(run, tmp_path):
     assert r.exit_code == 1
     assert "path#path51 and path#path124 overlap near" in r.stderr
     assert not (tmp_path / "m.vtk").exists()
+
+
+MEETING_ICONS = DATA / "meeting_icons"
+
+
+@pytest.mark.parametrize(
+    "name", sorted(p.stem for p in MEETING_ICONS.glob("*.svg") if not p.stem.startswith("pinch"))
+)
+def test_icons_whose_subpaths_meet_mesh_what_resvg_paints(run, tmp_path, name):
+    src = MEETING_ICONS / f"{name}.svg"
+    out = tmp_path / "m.vtk"
+    r = run("all", src, "-o", out, "--strict")
+    assert r.exit_code == 0, r.stderr
+    assert "touch or cross" in r.stderr or "the same ring as" in r.stderr
+    painted, ours, far = _disagreement(src, out, 16)
+    assert (painted & ours).sum() / (painted | ours).sum() > 0.97
+    assert far == 0
+
+
+def test_icon_pinched_to_a_point_is_refused_where(run, tmp_path):
+    r = run("all", MEETING_ICONS / "pinch-si-printables.svg", "-o", tmp_path / "m.vtk")
+    assert r.exit_code == 1
+    assert r.stderr.count("\n") == 1 and "pinches to a point at (12, 4.8)" in r.stderr
+    assert "pinch-si-printables.svg" in r.stderr and not (tmp_path / "m.vtk").exists()
 
 
 def test_nearly_closed_subpath_is_closed_within_the_tolerance():

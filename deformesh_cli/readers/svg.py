@@ -7,10 +7,12 @@ elliptical arcs) are flattened by uniform parameter steps, as few as keep the
 chord within ``tolerance`` of the curve (bound: chord gap <= max|C''| dt^2 / 8).
 y is flipped (SVG's y points down): ``y -> height - y`` with the viewport
 height (``y -> -y`` if the file gives neither height nor viewBox).  Each
-subpath is a ring; the element's fill rule (``nonzero`` or
-``evenodd``) decides which rings bound filled area: a ring whose inside and
-outside are both filled (or both empty) is dropped.  Elements must not
-overlap each other (each would be a separate mesh); ``--id`` picks one.
+subpath is a ring; the region is what a renderer fills (:func:`_filled_region`):
+each element's fill rule (``nonzero`` or ``evenodd``) by winding number, the
+elements' union.  Rings that meet nothing and bound filled area come out as
+given; where subpaths touch or cross, the boundary of the filled area is noded
+at the crossings.  Elements of different fills that overlap, and an area that
+pinches to a point, are refused; ``--id`` picks one element.
 """
 
 from __future__ import annotations
@@ -28,7 +30,6 @@ import svgelements as se
 
 from ..contour import MAX_COORDINATE, Contour, check_scale, make_contour
 from ..errors import InputError, OptionError, printable
-from ..geometry import signed_area
 
 #: Default chord tolerance, as a fraction of the drawing's bounding-box diagonal.
 DEFAULT_RELATIVE_TOLERANCE = 1e-3
@@ -137,29 +138,20 @@ def parse_svg(
         shapes, tol, height, 1e-9 * diag, source
     )
     if not rings:
-        raise InputError(f"{source}: no filled area in the SVG (every subpath is empty)")
-    starts = np.cumsum([0] + [len(r) for r in rings])[:-1]
-    # validates every ring and that no two rings cross or touch (names the place)
-    make_contour(np.concatenate(rings), None, source, ring_starts=starts, ring_labels=labels)
-    keep = _bounding_rings(rings, element, evenodd)
-    for r in np.flatnonzero(~keep):
-        notes.append(
-            f"dropped {labels[r]}: filled on both sides (fill rule "
-            f"{'evenodd' if evenodd[r] else 'nonzero'})"
+        hint = (
+            "; give --stroke to mesh their strokes' outline" if any(map(_stroked, shapes)) else ""
         )
-    _check_elements_apart(rings, keep, element, shapes, source)
-    kept = [r for r in range(len(rings)) if keep[r]]
-    starts = np.cumsum([0] + [len(rings[r]) for r in kept])[:-1]
-    c = make_contour(
-        np.concatenate([rings[r] for r in kept]),
-        None,
-        source,
-        ring_starts=starts,
-        ring_labels=[labels[r] for r in kept],
+        raise InputError(f"{source}: no filled area in the SVG (every subpath is empty){hint}")
+    paints = [_paint(shape) for shape in shapes]
+    rings, labels, more = _filled_region(
+        rings, labels, element, evenodd, paints, shapes, 1e-9 * diag, source
     )
+    notes += more
+    starts = np.cumsum([0] + [len(r) for r in rings])[:-1]
+    c = make_contour(np.concatenate(rings), None, source, ring_starts=starts, ring_labels=labels)
     notes.insert(
         0,
-        f"read {len(kept)} ring(s) from {len(shapes)} SVG shape(s), curves "
+        f"read {len(rings)} ring(s) from {len(shapes)} SVG shape(s), curves "
         f"flattened to a chord tolerance of {tol:.3g}",
     )
     return dataclasses.replace(c, notes=tuple(notes))
@@ -528,50 +520,164 @@ def _flat(ring: np.ndarray) -> bool:
     return bool(np.abs(d[:, 0] * far[1] - d[:, 1] * far[0]).max() <= 1e-13 * span2)
 
 
-def _bounding_rings(rings, element, evenodd) -> np.ndarray:
-    """Per ring: does it separate filled from empty under its element's fill rule?"""
-    polys = shapely.polygons([shapely.linearrings(r) for r in rings])
-    firsts = shapely.points([r[0] for r in rings])
-    inside = shapely.contains(polys[:, None], firsts[None, :])  # [outer, inner]
-    element = np.asarray(element)
-    orient = np.sign([signed_area(r) for r in rings])
-    keep = np.ones(len(rings), dtype=bool)
-    for r in range(len(rings)):
-        same = (element == element[r]) & inside[:, r]
-        same[r] = False
-        outside = int(orient[same].sum()) if not evenodd[r] else int(same.sum())
-        inner = outside + (int(orient[r]) if not evenodd[r] else 1)
-        filled = (lambda w: w % 2 == 1) if evenodd[r] else (lambda w: w != 0)
-        keep[r] = filled(inner) != filled(outside)
-    return keep
+def _paint(shape) -> str:
+    """What a filled shape paints with: its fill colour (alpha included) and opacity."""
+    return f"{shape.fill} {shape.values.get('opacity', 1)}"
 
 
-def _check_elements_apart(rings, keep, element, shapes, source) -> None:
-    """Two shapes whose filled areas overlap would need a union: refuse, name both."""
-    element = np.asarray(element)
-    owners = sorted(set(element[keep].tolist()))
-    if len(owners) < 2:
-        return
-    areas = []
-    for k in owners:
-        mine = [r for r in range(len(rings)) if keep[r] and element[r] == k]
-        geom = shapely.Polygon()
-        for r in mine:
-            geom = shapely.symmetric_difference(geom, shapely.Polygon(rings[r]))
-        areas.append(geom)
-    tree = shapely.STRtree(areas)
-    a, b = tree.query(areas, predicate="overlaps")
-    a2, b2 = tree.query(areas, predicate="contains")
-    a = np.concatenate([a, a2])
-    b = np.concatenate([b, b2])
-    pairs = sorted((int(i), int(j)) for i, j in zip(a, b) if i != j)
-    if pairs:
-        i, j = pairs[0]
-        x, y = shapely.get_coordinates(
-            shapely.point_on_surface(shapely.intersection(areas[i], areas[j]))
-        )[0]
+def _filled_region(rings, labels, element, evenodd, paints, shapes, eps, source):
+    """The rings bounding the area the renderer fills, with their labels and notes.
+
+    The linework of every ring is noded (split where rings touch or cross, their own
+    or another's) and polygonized into faces; a face is filled when its winding
+    number about some element's rings satisfies that element's fill rule (SVG 2,
+    'fill-rule'); the region is the union of the filled faces.  Its boundary keeps
+    every given point on it, adds each crossing point, and leaves out what lies
+    inside the fill.  A boundary ring equal to a given subpath is that subpath as
+    given (its start, direction and label): rings that meet nothing come out as
+    they went in.  Faces filled by two elements of different paint make no single
+    region: refused, naming both.
+    """
+    closed = [shapely.linestrings(np.vstack([r, r[:1]])) for r in rings]
+    noded = shapely.get_parts(shapely.node(shapely.multilinestrings(closed)))
+    faces = shapely.get_parts(shapely.polygonize(noded))
+    inside = shapely.get_coordinates(shapely.point_on_surface(faces))
+    face, owner, wind = _winding(rings, element, inside)
+    rule_odd = np.asarray(evenodd)[_first_ring(element, owner)]
+    fills = np.where(rule_odd, wind % 2 == 1, wind != 0)
+    face, owner = face[fills], owner[fills]
+    _check_one_paint(face, owner, faces, paints, shapes, source)
+    filled = np.zeros(len(faces), dtype=bool)
+    filled[face] = True
+    region = shapely.coverage_union_all(faces[filled])
+    out = [ring for poly in shapely.get_parts(region) for ring in [poly.exterior, *poly.interiors]]
+    keys = [_points_key(r) for r in rings]
+    given = {}
+    for i, key in enumerate(keys):
+        given.setdefault(key, i)
+    whose = {}  # a given point -> the first ring holding it
+    for i, r in enumerate(rings):
+        for q in map(tuple, r.tolist()):
+            whose.setdefault(q, i)
+    result, notes, used = [], [], set()
+    for ring in out:
+        pts = shapely.get_coordinates(ring)[:-1]
+        i = given.get(_points_key(pts))
+        if i is not None:
+            result.append((i, rings[i], labels[i]))
+            used.add(i)
+            continue
+        pts = _without_near_crossings(pts, whose, eps)
+        from_rings = sorted({whose[q] for q in map(tuple, pts.tolist()) if q in whose})
+        first = from_rings[0] if from_rings else len(rings)
+        used.update(from_rings)
+        added = sum(1 for q in map(tuple, pts.tolist()) if q not in whose)
+        names = [labels[j] for j in from_rings]
+        label = names[0] if len(names) == 1 else f"{names[0]} merged with {len(names) - 1} more"
+        notes.append(
+            f"{' and '.join(names[:3]) + (' ...' if len(names) > 3 else '')} touch or cross: "
+            f"meshed the boundary of what the renderer fills ({added} crossing point(s) added)"
+        )
+        result.append((first, pts, label))
+    for i in sorted(set(range(len(rings))) - used):
+        twin = given[keys[i]]
+        if twin != i and twin in used:
+            notes.append(f"dropped {labels[i]}: the same ring as {labels[twin]}")
+            continue
+        rule = "evenodd" if evenodd[i] else "nonzero"
+        notes.append(f"dropped {labels[i]}: filled on both sides (fill rule {rule})")
+    if not result:
+        raise InputError(f"{source}: no filled area in the SVG (its subpaths fill nothing)")
+    result.sort(key=lambda t: t[0])
+    _check_no_pinch([r for _, r, _ in result], [lab for _, _, lab in result], source)
+    return [r for _, r, _ in result], [lab for _, _, lab in result], notes
+
+
+def _without_near_crossings(pts: np.ndarray, whose: dict, eps: float) -> np.ndarray:
+    """A boundary ring with each pair of consecutive points closer than ``eps`` (the
+    drawing's round-off: where rings touch, a crossing computed beside a given
+    point, or two subpaths' copies of one point) made one: a given point is kept
+    over a crossing, the first of two given ones."""
+    given = np.array([tuple(q) in whose for q in pts.tolist()], dtype=bool)
+    near = np.hypot(*(np.roll(pts, -1, axis=0) - pts).T) <= eps  # i and i + 1 one point
+    drop = near & ~given
+    drop |= np.roll(near & given, 1) & ~np.roll(drop, 1)  # (i + 1 after a kept given i)
+    return pts[~drop]
+
+
+def _check_no_pinch(rings, labels, source) -> None:
+    """Refuse a filled area whose boundary meets itself at a point (two parts joined by
+    one point, or a hole touching its outline): its rings must be apart."""
+    pts = np.concatenate(rings)
+    owner = np.repeat(np.arange(len(rings)), [len(r) for r in rings])
+    _, first, count = np.unique(pts, axis=0, return_index=True, return_counts=True)
+    if (count > 1).any():
+        k = int(first[np.argmax(count > 1)])
+        same = np.flatnonzero((pts == pts[k]).all(axis=1))
+        a, b = labels[owner[same[0]]], labels[owner[same[1]]]
+        who = a if a == b else f"{a} and {b}"
         raise InputError(
-            f"{source}: {_label(shapes[owners[i]], owners[i])} and "
-            f"{_label(shapes[owners[j]], owners[j])} overlap near ({x:.6g}, {y:.6g}); "
-            "merge them into one path or give --id to mesh one"
+            f"{source}: the filled area pinches to a point at ({pts[k][0]:.6g}, "
+            f"{pts[k][1]:.6g}), where {who} meet; its boundary rings must be apart "
+            "(one node there would join two parts of the mesh by a point)"
+        )
+
+
+def _points_key(ring: np.ndarray) -> bytes:
+    """A ring's points as a set (the same ring from any start, either way round)."""
+    return np.unique(np.asarray(ring, dtype=float), axis=0).tobytes() + bytes([len(ring) % 256])
+
+
+def _first_ring(element, owner) -> np.ndarray:
+    """Per (face, element) entry: a ring of that element (all share its fill rule)."""
+    element = np.asarray(element)
+    first = {}
+    for i, k in enumerate(element.tolist()):
+        first.setdefault(k, i)
+    return np.array([first[k] for k in owner.tolist()], dtype=int)
+
+
+def _winding(rings, element, points):
+    """Winding numbers of ``points`` about each element's rings, as sparse entries.
+
+    Returns (point, element, winding) for every pair with a nonzero count: the signed
+    crossings of a ray from the point towards +x with the element's edges, upward
+    edges counting +1 and downward -1 (half-open in y, so a vertex on the ray counts
+    once).  The segments a ray meets come from an STRtree query, not all pairs.
+    """
+    a = np.concatenate(rings)
+    b = np.concatenate([np.roll(r, -1, axis=0) for r in rings])
+    seg_el = np.repeat(np.asarray(element), [len(r) for r in rings])
+    tree = shapely.STRtree(shapely.linestrings(np.stack([a, b], axis=1)))
+    far = np.full(len(points), max(a[:, 0].max(), points[:, 0].max()) + 1.0)
+    rays = shapely.linestrings(np.stack([points, np.column_stack([far, points[:, 1]])], axis=1))
+    p, s = tree.query(rays)
+    (x0, y0), (x1, y1) = a[s].T, b[s].T
+    px, py = points[p].T
+    side = (x1 - x0) * (py - y0) - (px - x0) * (y1 - y0)  # > 0: point left of a -> b
+    up = (y0 <= py) & (y1 > py) & (side > 0)
+    down = (y1 <= py) & (y0 > py) & (side < 0)
+    w = up.astype(np.int64) - down.astype(np.int64)
+    key = p.astype(np.int64) * (int(seg_el.max()) + 1) + seg_el[s]
+    keys, inverse = np.unique(key, return_inverse=True)
+    total = np.bincount(inverse, weights=w, minlength=len(keys)).astype(np.int64)
+    keep = total != 0
+    n_el = int(seg_el.max()) + 1
+    return keys[keep] // n_el, keys[keep] % n_el, total[keep]
+
+
+def _check_one_paint(face, owner, faces, paints, shapes, source) -> None:
+    """Refuse faces filled by two elements of different paint (no one region), naming both."""
+    order = np.lexsort((owner, face))
+    face, owner = face[order], owner[order]
+    same_face = face[1:] == face[:-1]
+    differ = np.array([paints[i] != paints[j] for i, j in zip(owner[:-1], owner[1:])], dtype=bool)
+    clash = np.flatnonzero(same_face & differ) if len(face) > 1 else np.array([], dtype=int)
+    if len(clash):
+        k = int(clash[0])
+        i, j = int(owner[k]), int(owner[k + 1])
+        x, y = shapely.get_coordinates(shapely.point_on_surface(faces[face[k]]))[0]
+        raise InputError(
+            f"{source}: {_label(shapes[i], i)} and {_label(shapes[j], j)} overlap near "
+            f"({x:.6g}, {y:.6g}) with different fills; give --id to mesh one"
         )
