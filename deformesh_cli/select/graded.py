@@ -444,10 +444,12 @@ def _lay(points, s, box, growth, max_h, box_given, max_nodes, roots, field) -> Q
     w, h = xmax - xmin, ymax - ymin
     nx, ny, top, h0 = root_cells(w, h, float(s.min()), max_h, exact=box_given, roots=roots)
     if max(nx, ny) * 2**top > MAX_CELLS_ACROSS:
+        x, y = points[int(np.argmin(s))]
         raise LimitError(
-            f"its finest cells ({float(s.min()):.3g}) are over {MAX_CELLS_ACROSS:.3g} times "
-            f"smaller than the box ({max(w, h):.3g}): a grid cannot hold both scales in "
-            "double precision; mesh its small part and its large one apart"
+            f"its finest cells ({float(s.min()):.3g}, near ({x:.6g}, {y:.6g}), where the "
+            f"contour's points or edges come that close) are over {MAX_CELLS_ACROSS:.3g} "
+            f"times smaller than the box ({max(w, h):.3g}): a grid cannot hold both scales "
+            "in double precision; mesh its small part and its large one apart"
         )
     if max_nodes is not None and nx * ny > max_nodes:  # (before any array of them)
         raise LimitError(
