@@ -337,12 +337,11 @@ def run_triangulate(
     mesh = triangulate.place(contour, sel, cut, d.points, folded=sel.mends_folds)
     edges = cut.edges  # (the contract check's edge uses, while they stay true)
     if sel.mends_folds:
-        mended = untangle.untangle(mesh, untangle.most_tangled(mesh))
+        mended, where = untangle.mend(mesh, untangle.most_tangled(mesh))
         if mended is None:
             raise FoldError(
-                (d.stats.fold if d.stats is not None else None)
-                or f"{contour.source}: the deformed grid has folded or flat triangles that "
-                "could not be meshed again"
+                f"{contour.source}: the deformed grid has a folded or flat triangle near "
+                f"({where[0]:.6g}, {where[1]:.6g}) that could not be meshed again"
             )
         if mended is not mesh:
             sel.notes.append("folded or flat triangles of the deformed grid were meshed again")

@@ -14,8 +14,9 @@ Each is mended by re-meshing its cavity:
    nodes, and a simple polygon where they now are.  Its signed area is the sum
    of the cavity's signed areas, so the mesh's area does not change;
 3. the outline is triangulated again, by the triangulation of its own vertices
-   with the largest smallest angle (:func:`.cavity.best_triangulation`), if that
-   is at least :data:`THIN_ANGLE` (no new points);
+   with the largest smallest angle (:func:`.cavity.best_triangulation`), if none
+   of its triangles is tangled itself (no new points; however thin, the quality
+   stage works on it next);
 4. otherwise the cavity grows by the triangles around it, up to :data:`GROW`
    times and :data:`MAX_TRIANGLES` triangles, its outline up to
    :data:`MAX_CAVITY` nodes.
@@ -37,12 +38,6 @@ from .deform import flat_margin
 from .geometry import node_stars, signed_area, signed_areas
 from .mesh import Mesh
 
-#: The smallest angle a cavity's triangulation without new points must reach: low,
-#: because a folded patch is mended where the deformation left it, and the quality
-#: stage then raises it (the finished mesh is checked against the bound of what the
-#: boundary forces).
-THIN_ANGLE = 1.0
-
 #: Cavities with more vertices than this are left alone (the triangulation costs
 #: their cube).
 MAX_CAVITY = 40
@@ -52,20 +47,19 @@ GROW = 6
 #: ... and to at most this many triangles.
 MAX_TRIANGLES = 300
 
-#: Tangled triangles mended at most, one cavity at a time; more and the mesh is refused.
-MAX_CAVITIES = 50
-
 #: What the pipeline mends at most (:func:`most_tangled`): this share of a mesh's
-#: triangles, or one if more.  More is not a deformation folded in a few places but
-#: one that went wrong as a whole (a fold in the first step, carried the whole
-#: way), and meshing most of it again would answer with whatever round-off favoured.
+#: triangles, or as many as the contour has points if more (a fold is local to the
+#: path's targets: the cells between them squeezed).  More is not a deformation
+#: folded in a few places but one that went wrong as a whole (a fold in the first
+#: step, carried the whole way), and meshing most of it again would answer with
+#: whatever round-off favoured.
 MAX_TANGLED_SHARE = 0.01
 
 
 def most_tangled(mesh: Mesh) -> int:
     """The most tangled triangles the pipeline has ``mesh`` mended
     (:data:`MAX_TANGLED_SHARE`)."""
-    return max(1, int(MAX_TANGLED_SHARE * len(mesh.triangles)))
+    return max(mesh.n_contour, int(MAX_TANGLED_SHARE * len(mesh.triangles)))
 
 
 def tangled(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
@@ -78,18 +72,26 @@ def tangled(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
 def untangle(mesh: Mesh, most: int | None = None) -> Mesh | None:
     """``mesh`` with no tangled triangle (:func:`tangled`, module docstring),
     renumbered; ``mesh`` itself if none is; None if one cannot be mended, or if
-    more than ``most`` are tangled."""
+    more than ``most`` are tangled (:func:`mend` says where)."""
+    return mend(mesh, most)[0]
+
+
+def mend(mesh: Mesh, most: int | None = None) -> tuple[Mesh | None, np.ndarray | None]:
+    """:func:`untangle`, and where it stopped: ``(mesh, None)`` mended, or ``(None,
+    place)``, the centroid of a tangled triangle it could not mend (the first
+    one if more than ``most`` are tangled)."""
     folded = np.flatnonzero(tangled(mesh.points, mesh.triangles))
     if most is not None and len(folded) > most:
-        return None
-    for _ in range(MAX_CAVITIES):
-        if len(folded) == 0:
-            return mesh
-        mesh = _mend(mesh, int(folded[0]))
-        if mesh is None:
-            return None
+        return None, mesh.points[mesh.triangles[folded[0]]].mean(axis=0)
+    # each mend meshes at least one tangled triangle again and makes none (step 3),
+    # so the count falls at every mend
+    while len(folded):
+        mended = _mend(mesh, int(folded[0]))
+        if mended is None:
+            return None, mesh.points[mesh.triangles[folded[0]]].mean(axis=0)
+        mesh = mended
         folded = np.flatnonzero(tangled(mesh.points, mesh.triangles))
-    return None
+    return mesh, None
 
 
 def _mend(mesh: Mesh, t: int) -> Mesh | None:
@@ -120,8 +122,8 @@ def _mend(mesh: Mesh, t: int) -> Mesh | None:
 
 def _remesh(p: np.ndarray) -> np.ndarray | None:
     """The triangles of the outline ``p`` (module docstring, step 3) in its local
-    indices, or None if it is not a simple counter-clockwise polygon or no
-    triangulation reaches :data:`.THIN_ANGLE`."""
+    indices, or None if it is not a simple counter-clockwise polygon or its best
+    triangulation has a tangled (folded or flat) triangle."""
     import shapely
 
     if signed_area(p) <= 0:
@@ -129,6 +131,6 @@ def _remesh(p: np.ndarray) -> np.ndarray | None:
     if not shapely.Polygon(p).is_valid:
         return None
     got = cavity.best_triangulation(p)
-    if got is None or got[1] < THIN_ANGLE:
+    if got is None or tangled(p, got[0]).any():
         return None
     return got[0]

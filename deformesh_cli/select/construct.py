@@ -866,7 +866,10 @@ def _select_on(contour: Contour, tree: graded.Quadtree, exterior: bool, size) ->
         try:
             path = _assign(contour, grid, nxt, exterior, size)
         except _Stray as exc:
-            # an island of the region leaves it, a hole in it joins it
+            # an island of the region leaves it, a hole in it joins it; a hole of triangles
+            # across a gap (which never join) is a gap the cells are too coarse to follow:
+            # finer ones along the nearest edges
+            stuck = []
             for loop in exc.loops:
                 poly = shapely.Polygon(points[loop])
                 enclosed = shapely.contains_xy(poly, cen[:, 0], cen[:, 1])
@@ -874,8 +877,14 @@ def _select_on(contour: Contour, tree: graded.Quadtree, exterior: bool, size) ->
                 if island:  # (for good: a pinch beside it may not take it back)
                     inside &= ~enclosed
                     banned |= enclosed
-                else:
+                elif (enclosed & ~banned & ~inside).any():
                     inside |= enclosed & ~banned
+                else:
+                    stuck.append(loop)
+            if stuck:
+                nodes = np.unique(np.concatenate(stuck))
+                _, near = segments.query_nearest(shapely.points(points[nodes]), all_matches=False)
+                raise _Crowded(np.unique(near)) from None
             continue
         nodes, targets, ring, source = path
         has = np.full(n, False)
