@@ -13,6 +13,7 @@ Nesting decides roles: a ring inside an odd number of others is a hole.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -79,10 +80,12 @@ class Contour:
         """The first ring was given clockwise."""
         return self.ring_clockwise[0]
 
-    @property
+    @functools.cached_property
     def ring(self) -> np.ndarray:
-        """Ring id of every point."""
-        return np.repeat(np.arange(self.n_rings), np.diff(self.starts))
+        """Ring id of every point (computed once: loops index it per point; read-only)."""
+        out = np.repeat(np.arange(self.n_rings), np.diff(self.starts))
+        out.flags.writeable = False
+        return out
 
     def ring_order(self, r: int) -> np.ndarray:
         """Input indices of ring ``r`` counter-clockwise, starting at its first point."""
@@ -92,10 +95,12 @@ class Contour:
             idx = np.concatenate([[a], idx[:0:-1]])
         return idx
 
-    @property
+    @functools.cached_property
     def ccw_order(self) -> np.ndarray:
-        """Every ring's :meth:`ring_order`, ring after ring."""
-        return np.concatenate([self.ring_order(r) for r in range(self.n_rings)])
+        """Every ring's :meth:`ring_order`, ring after ring (computed once; read-only)."""
+        out = np.concatenate([self.ring_order(r) for r in range(self.n_rings)])
+        out.flags.writeable = False
+        return out
 
     @property
     def ccw_points(self) -> np.ndarray:

@@ -3,7 +3,7 @@
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from deformesh_cli import pipeline
@@ -15,7 +15,7 @@ from deformesh_cli.recover import recover
 from deformesh_cli.select import construct
 
 from .conftest import ROOT, SAMPLES
-from .random_polygons import fingers
+from .random_polygons import comb, fingers, spikes, uneven_star, valid
 
 CORPUS = ROOT / "tests" / "data" / "corpus"
 
@@ -387,3 +387,23 @@ def test_random_thin_parts_mesh_from_their_own_points(log_width, length, turn, c
         assert np.array_equal(m.points[: contour.n], contour.points)
         assert (signed_areas(m.points, m.triangles) > 0).all()
         assert res.report["grid_nodes"] < 20_000, res.report["grid_nodes"]
+
+
+@settings(max_examples=30, deadline=None, derandomize=True)
+@given(st.integers(0, 2**32 - 1))
+def test_the_ear_prefilter_leaves_out_no_ear(seed):
+    """cut_ears tests only the points _maybe_ears lets through: the same ears and kept
+    points as testing every point, on polygons with spikes, combs and uneven stars."""
+    rng = np.random.default_rng(seed)
+    make = [spikes, comb, uneven_star][seed % 3]
+    points, ring = make(rng, int(rng.integers(8, 120)))
+    assume(valid(points, ring))
+    c = make_contour(points, ring)
+    filtered = construct.cut_ears(c)
+    prefilter = construct._maybe_ears
+    try:
+        construct._maybe_ears = lambda p, prv, nxt: np.arange(len(p))
+        every = construct.cut_ears(c)
+    finally:
+        construct._maybe_ears = prefilter
+    assert np.array_equal(every[1], filtered[1]) and np.array_equal(every[2], filtered[2])

@@ -1166,6 +1166,30 @@ def _angle_between(u: np.ndarray, v: np.ndarray) -> float:
     return float(np.degrees(np.arctan2(abs(u[0] * v[1] - u[1] * v[0]), u @ v)))
 
 
+def _maybe_ears(p: np.ndarray, prv: np.ndarray, nxt: np.ndarray) -> np.ndarray:
+    """The points that may be ears (:func:`cut_ears`), at once for all: those whose angle
+    on the domain's side is under 180 degrees and either under :data:`EAR_ANGLE` or with
+    one of the ear's other angles under it and one not (a thin part's end).  Each test
+    is widened by a billionth of a degree, so round-off never leaves out a point the
+    exact test (``candidate``, which decides) would take."""
+    u, v = p[prv] - p, p[nxt] - p
+    ang = np.degrees(np.arctan2(u[:, 1] * v[:, 0] - u[:, 0] * v[:, 1], (u * v).sum(axis=1)))
+    ang %= 360.0
+    w = p[nxt] - p[prv]
+
+    def between(a, b):
+        return np.degrees(
+            np.arctan2(np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]), (a * b).sum(axis=1))
+        )
+
+    at_a, at_b = between(-u, w), between(-v, -w)
+    lo, hi = np.minimum(at_a, at_b), np.maximum(at_a, at_b)
+    eps = 1e-9
+    sharp = (ang < EAR_ANGLE + eps) | (ang > 360.0 - eps)
+    thin_end = (lo < EAR_ANGLE + eps) & (hi >= EAR_ANGLE - eps)
+    return np.flatnonzero(((ang < 180.0 + eps) | (ang > 360.0 - eps)) & (sharp | thin_end))
+
+
 def _domain_walk(contour: Contour, exterior: bool) -> tuple[np.ndarray, np.ndarray]:
     """Per point, its next and previous point with the domain on the left (a ring's
     :meth:`~.Contour.ring_order`, walked backwards where the domain is outside it)."""
@@ -1255,7 +1279,7 @@ def cut_ears(contour: Contour, exterior: bool = False):
     # (angle, point, its neighbours' version): an entry is stale once a neighbour of
     # its point was cut (a cut only empties other ears, never fills one)
     version = np.zeros(m, dtype=np.int64)
-    heap = [(a, k, 0) for k in range(m) if (a := candidate(k)) is not None]
+    heap = [(a, k, 0) for k in _maybe_ears(p, prv, nxt) if (a := candidate(k)) is not None]
     heapq.heapify(heap)
     ears = []
     while heap:

@@ -120,8 +120,8 @@ def graded_sizes(points: np.ndarray, s: np.ndarray, growth: float) -> np.ndarray
         simplices = np.column_stack([order[:-1], order[1:], order[1:]])
     a = simplices.ravel()
     b = np.roll(simplices, -1, axis=1).ravel()
-    pairs = np.unique(np.sort(np.column_stack([a, b]), axis=1), axis=0)  # (each edge once)
-    a, b = pairs[:, 0], pairs[:, 1]
+    key = np.unique(np.minimum(a, b).astype(np.int64) * n + np.maximum(a, b))  # (each edge once)
+    a, b = key // n, key % n
     w = np.hypot(*(points[a] - points[b]).T)
     src = np.full(n, n)
     rows = np.concatenate([a, b, src])
