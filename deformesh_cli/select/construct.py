@@ -1058,10 +1058,14 @@ def _owners(contour: Contour, p: np.ndarray, loops: list[np.ndarray]) -> np.ndar
     loop_of = np.concatenate([np.full(len(lp), i) for i, lp in enumerate(loops)])
     kd = cKDTree(p[np.concatenate(loops)])
     _, k = kd.query(contour.points)
-    choice = np.array([
-        int(np.argmax(np.bincount(loop_of[k[contour.ring == r]], minlength=len(loops))))
-        for r in range(contour.n_rings)
-    ])  # fmt: skip
+    # per ring, the loop most of its points are nearest to (the lowest on a tie): the
+    # (ring, loop) pairs counted at once, not a pass over the points per ring
+    nloops = len(loops)
+    pair, count = np.unique(contour.ring * nloops + loop_of[k], return_counts=True)
+    ring, loop = pair // nloops, pair % nloops
+    order = np.lexsort((loop, -count, ring))
+    _, first = np.unique(ring[order], return_index=True)  # (every ring has points)
+    choice = loop[order][first]
     shared = np.bincount(choice, minlength=len(loops)) > 1
     if shared.any():  # (one ring has no loop of its own there: finer cells at both)
         raise _Crowded(np.flatnonzero(shared[choice][contour.ring]))
