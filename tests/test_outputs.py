@@ -573,3 +573,16 @@ def test_a_real_full_disk_on_a_small_tmpfs(tmp_path, sh):
         assert out.is_file() and out.with_suffix(".h5").is_file()
     finally:
         subprocess.run(["umount", str(disk)], capture_output=True)
+
+
+@pytest.mark.parametrize("options", [[], ["--solve", "full"]])
+def test_meshes_and_adapted_meshes_do_not_depend_on_the_blas(sh, tmp_path, options):
+    """Whole processes under other OpenBLAS kernels (Prescott's against this processor's)
+    and thread counts write the same bytes: no result rests on which BLAS kernel sums."""
+    got = set()
+    for k, blas in enumerate(["", "OPENBLAS_CORETYPE=Prescott OPENBLAS_NUM_THREADS=2"]):
+        mesh, moved = tmp_path / f"m{k}.vtu", tmp_path / f"a{k}.vtu"
+        sh(f"{blas} deformesh all {SAMPLES / 'naca0012.csv'} -o {mesh} -q {' '.join(options)}")
+        sh(f"{blas} deformesh adapt {mesh} -o {moved} -q --monitor '1 + 10*exp(-50*y*y)'")
+        got.add((mesh.read_bytes(), moved.read_bytes()))
+    assert len(got) == 1
