@@ -3,6 +3,7 @@
 import os
 import platform
 import re
+import sys
 import time
 from pathlib import Path
 
@@ -23,6 +24,7 @@ def write_section(name: str, text: str) -> None:
         pattern.sub(lambda m: block, old) if pattern.search(old) else old.rstrip() + "\n\n" + block
     )
     RESULTS.write_text(new)
+    print(f"wrote benchmarks/RESULTS.md ({name} section)", file=sys.stderr)
 
 
 def machine() -> str:

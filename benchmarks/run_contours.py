@@ -114,7 +114,6 @@ def main():
                 f"| {name} | {opts} | {t:.2f} | {rss:.0f} | {code} | refused: {msg}... | | | | |"
             )
     write_section("contours", "\n".join(lines))
-    print("wrote benchmarks/RESULTS.md (contours section)", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -216,7 +216,6 @@ def main() -> None:
         )
     lines += ["", *meshes()]
     write_section("graded", "\n".join(lines))
-    print("wrote benchmarks/RESULTS.md (graded section)", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -234,7 +234,6 @@ def main():
             angles = " ".join(f"{r['min_angle']:.2f}" for r in rec["per_frame"])
             lines.append(f"- {name}: {angles}")
     write_section("moving", "\n".join(lines))
-    print("wrote benchmarks/RESULTS.md (moving section)", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -183,7 +183,6 @@ def main():
             f"{r['rss']:.0f} | {amin:.1f} | {rr:.3f} | {ratio} | {rss_ratio} |"
         )
     write_section(args.section, "\n".join(lines))
-    print(f"wrote benchmarks/RESULTS.md ({args.section} section)", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -133,7 +133,6 @@ def main():
             f"{med['on']:.2f} | {med['on'] - med['off']:+.2f} |"
         )
     write_section("quality", "\n".join(lines))
-    print("wrote benchmarks/RESULTS.md (quality section)", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -63,7 +63,6 @@ def main():
             f"{rec['min_angle']:.4f} | {rec['path_rule']} | {rec['ears']} | {rec['grid_nodes']} |"
         )
     write_section("thin", "\n".join(lines))
-    print("wrote benchmarks/RESULTS.md (thin section)", file=sys.stderr)
 
 
 if __name__ == "__main__":

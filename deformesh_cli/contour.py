@@ -252,6 +252,13 @@ def grown_box(contour: Contour, lo, hi, margin: float) -> tuple[float, float, fl
     return box
 
 
+def far_field_box(contour: Contour, margin: float | None = None):
+    """An exterior mesh's default box: the contour's box grown by ``margin``, by default
+    its larger extent (:func:`grown_box`)."""
+    lo, hi = contour.points.min(axis=0), contour.points.max(axis=0)
+    return grown_box(contour, lo, hi, float((hi - lo).max()) if margin is None else margin)
+
+
 def check_scale(p: np.ndarray, source: str) -> None:
     """What double precision cannot mesh, refused with the place: coordinates whose
     squares overflow, a contour so small for its offset that its points sit a few

@@ -19,7 +19,7 @@ from . import deform as _deform
 from . import improve as _improve
 from . import recover as _recover
 from . import size as _size
-from .contour import Contour, count_words, grown_box, split_edges
+from .contour import Contour, count_words, far_field_box, split_edges
 from .deform import SOLVES, DeformStats
 from .errors import (
     FoldError,
@@ -139,12 +139,7 @@ def _check_max_h_work(contour: Contour, o: MeshOptions) -> None:
     of area ``A`` needs at least ``A / (sqrt(3)/4 H^2)`` triangles, and a triangulation
     has at least half as many nodes as triangles."""
     if o.exterior:
-        if o.box is not None:
-            x0, y0, x1, y1 = o.box
-        else:  # (the default far field: the contour's box grown by its larger extent)
-            lo, hi = contour.points.min(axis=0), contour.points.max(axis=0)
-            m = float((hi - lo).max()) if o.margin is None else o.margin
-            x0, y0, x1, y1 = grown_box(contour, lo, hi, m)
+        x0, y0, x1, y1 = o.box if o.box is not None else far_field_box(contour, o.margin)
         area = (x1 - x0) * (y1 - y0) - contour.area
     else:
         area = contour.area
@@ -253,13 +248,7 @@ def run_deform(
         "solver": o.solver,
         "keep_folds": keep_folds,
     }
-    held = grid.boundary_nodes()
-    if sel.mends_folds and not sel.exterior:
-        # the domain's side of an interior mesh is bounded by the loops alone, whose
-        # nodes all go to contour points: a loop node where the coarse cells along a
-        # long edge reach the box's side is a path node like any other, not held
-        held = np.setdiff1d(held, sel.path_nodes)
-    args = (pts0, tri, sel.path_nodes, sel.path_targets, held)
+    args = (pts0, tri, sel.path_nodes, sel.path_targets, sel.held_nodes())
     try:
         if sel.mends_folds:  # (the domain's side only; stage 3 meshes flat triangles again)
             kept = sel.kept_triangles()

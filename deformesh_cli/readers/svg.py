@@ -543,8 +543,9 @@ def _filled_region(rings, labels, element, evenodd, paints, shapes, eps, source)
     faces = shapely.get_parts(shapely.polygonize(noded))
     inside = shapely.get_coordinates(shapely.point_on_surface(faces))
     face, owner, wind = _winding(rings, element, inside)
-    rule_odd = np.asarray(evenodd)[_first_ring(element, owner)]
-    fills = np.where(rule_odd, wind % 2 == 1, wind != 0)
+    odd = np.zeros(max(element) + 1, dtype=bool)  # each element's rule (its rings share it)
+    odd[element] = evenodd
+    fills = np.where(odd[owner], wind % 2 == 1, wind != 0)
     face, owner = face[fills], owner[fills]
     _check_one_paint(face, owner, faces, paints, shapes, source)
     filled = np.zeros(len(faces), dtype=bool)
@@ -615,26 +616,17 @@ def _check_no_pinch(rings, labels, source) -> None:
         k = int(first[np.argmax(count > 1)])
         same = np.flatnonzero((pts == pts[k]).all(axis=1))
         a, b = labels[owner[same[0]]], labels[owner[same[1]]]
-        who = a if a == b else f"{a} and {b}"
+        who = f"{a} meets itself" if a == b else f"{a} and {b} meet"
         raise InputError(
             f"{source}: the filled area pinches to a point at ({pts[k][0]:.6g}, "
-            f"{pts[k][1]:.6g}), where {who} meet; its boundary rings must be apart "
+            f"{pts[k][1]:.6g}), where {who}; its boundary rings must be apart "
             "(one node there would join two parts of the mesh by a point)"
         )
 
 
 def _points_key(ring: np.ndarray) -> bytes:
     """A ring's points as a set (the same ring from any start, either way round)."""
-    return np.unique(np.asarray(ring, dtype=float), axis=0).tobytes() + bytes([len(ring) % 256])
-
-
-def _first_ring(element, owner) -> np.ndarray:
-    """Per (face, element) entry: a ring of that element (all share its fill rule)."""
-    element = np.asarray(element)
-    first = {}
-    for i, k in enumerate(element.tolist()):
-        first.setdefault(k, i)
-    return np.array([first[k] for k in owner.tolist()], dtype=int)
+    return np.unique(np.asarray(ring, dtype=float), axis=0).tobytes() + len(ring).to_bytes(8)
 
 
 def _winding(rings, element, points):

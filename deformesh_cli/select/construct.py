@@ -40,7 +40,7 @@ from typing import ClassVar
 import numpy as np
 import shapely
 
-from ..contour import Contour, grown_box
+from ..contour import Contour, far_field_box, grown_box
 from ..errors import LimitError, OptionError, SelectionError
 from ..geometry import boundary_edges, next_on_ring, prev_on_ring, signed_areas
 from . import graded
@@ -180,6 +180,14 @@ class GradedSelection:
             inside = self.inside_triangles()
             self._kept = ~inside if self.exterior else inside
         return self._kept
+
+    def held_nodes(self) -> np.ndarray:
+        """The nodes the deformation holds where they are: the box's, but for an interior
+        mesh those of its loops (its region is bounded by its loops alone, whose nodes
+        all go to contour points, also where the coarse cells along a long edge reach the
+        box's side)."""
+        held = self.grid.boundary_nodes()
+        return held if self.exterior else np.setdiff1d(held, self.path_nodes)
 
     def band_nodes(self) -> np.ndarray | None:
         """Nodes within :data:`BAND_HOPS` edges of the path, or None if half the grid."""
@@ -448,11 +456,7 @@ def select_constructed(
     lo, hi = contour.points.min(axis=0), contour.points.max(axis=0)
     given = box is not None
     if exterior:  # (the box is part of the domain's boundary: the sizes see its sides)
-        if box is None:
-            margin = float((hi - lo).max()) if margin is None else margin
-            box = _checked_box(contour, grown_box(contour, lo, hi, margin), True)
-        else:
-            box = _checked_box(contour, box, True)
+        box = _checked_box(contour, far_field_box(contour, margin) if box is None else box, True)
         xy, size, s, edge, field = _wanted(contour, True, max_nodes, size_function, box)
     else:  # (the background only: at least the room for the loop around the contour)
         xy, size, s, edge, field = _wanted(contour, False, max_nodes, size_function)
@@ -1165,9 +1169,11 @@ EAR_SHARE = 1.0 / 3.0
 THIN_ANGLE = 1.0
 
 
-def _angle_between(u: np.ndarray, v: np.ndarray) -> float:
-    """The angle between the vectors ``u`` and ``v`` (degrees, 0 to 180)."""
-    return float(np.degrees(np.arctan2(abs(u[0] * v[1] - u[1] * v[0]), u @ v)))
+def _angle_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The angles between the vectors ``u`` and ``v`` (degrees, 0 to 180), row by row
+    (one pair: a 0-d array)."""
+    cross = u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+    return np.degrees(np.arctan2(np.abs(cross), u[..., 0] * v[..., 0] + u[..., 1] * v[..., 1]))
 
 
 def _maybe_ears(p: np.ndarray, prv: np.ndarray, nxt: np.ndarray) -> np.ndarray:
@@ -1180,13 +1186,7 @@ def _maybe_ears(p: np.ndarray, prv: np.ndarray, nxt: np.ndarray) -> np.ndarray:
     ang = np.degrees(np.arctan2(u[:, 1] * v[:, 0] - u[:, 0] * v[:, 1], (u * v).sum(axis=1)))
     ang %= 360.0
     w = p[nxt] - p[prv]
-
-    def between(a, b):
-        return np.degrees(
-            np.arctan2(np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]), (a * b).sum(axis=1))
-        )
-
-    at_a, at_b = between(-u, w), between(-v, -w)
+    at_a, at_b = _angle_between(-u, w), _angle_between(-v, -w)
     lo, hi = np.minimum(at_a, at_b), np.maximum(at_a, at_b)
     eps = 1e-9
     sharp = (ang < EAR_ANGLE + eps) | (ang > 360.0 - eps)
@@ -1260,8 +1260,8 @@ def cut_ears(contour: Contour, exterior: bool = False):
             return None
         # the ear's angles at a and b
         rest = [
-            _angle_between(p[k] - p[a], p[b] - p[a]),
-            _angle_between(p[a] - p[b], p[k] - p[b]),
+            float(_angle_between(p[k] - p[a], p[b] - p[a])),
+            float(_angle_between(p[a] - p[b], p[k] - p[b])),
         ]
         if ang < EAR_ANGLE:  # a sharp corner
             if min(rest) < EAR_SHARE * min(ang, room(a, k), room(k, b)):

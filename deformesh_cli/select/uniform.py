@@ -352,6 +352,10 @@ class Selection:
         n_rings = int(self.path_ring.max()) + 1 if len(self.path_ring) else 0
         return topology_inside(self.grid, self.diagonals, self.path_nodes, self.path_ring, n_rings)
 
+    def held_nodes(self) -> np.ndarray:
+        """The nodes the deformation holds where they are: the box's."""
+        return self.grid.boundary_nodes()
+
     def kept_triangles(self) -> np.ndarray:
         """Per triangle: on the domain's side of the paths (outside them for an
         exterior mesh)."""
