@@ -13,7 +13,10 @@ $(BIN)/python:
 
 # (bytecode written once: where PYTHONDONTWRITEBYTECODE is set, every run would
 # otherwise compile the package again, about 0.1 s)
-$(VENV)/.installed: pyproject.toml | $(BIN)/python
+# (the compiled kernels are built here: a changed .pyx reinstalls)
+KERNELS := $(wildcard deformesh_cli/*.pyx deformesh_cli/*/*.pyx)
+
+$(VENV)/.installed: pyproject.toml setup.py $(KERNELS) | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e '.[all]'
 	$(BIN)/python -m compileall -q deformesh_cli
 	touch $@

@@ -160,3 +160,22 @@ def domain(rings: list[np.ndarray], box: tuple | None = None):
     if box is None:
         return inside
     return shapely.box(*box).difference(inside)
+
+
+def morton(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Morton (Z-order) codes of lattice cells ``(x, y)``, each below 2**28: their bits
+    interleaved, x's in the even places (sorted, nearby cells come mostly together)."""
+
+    def spread(v):
+        v = np.asarray(v, dtype=np.int64) & 0xFFFFFFFF
+        for shift, mask in (
+            (16, 0x0000FFFF0000FFFF),
+            (8, 0x00FF00FF00FF00FF),
+            (4, 0x0F0F0F0F0F0F0F0F),
+            (2, 0x3333333333333333),
+            (1, 0x5555555555555555),
+        ):
+            v = (v | (v << shift)) & mask
+        return v
+
+    return spread(x) | (spread(y) << 1)

@@ -44,6 +44,7 @@ from ..contour import Contour, far_field_box, grown_box
 from ..errors import LimitError, OptionError, SelectionError
 from ..geometry import boundary_edges, next_on_ring, prev_on_ring, signed_areas
 from . import graded
+from .segments import Segments
 from .uniform import DEFAULT_MAX_NODES
 
 #: Band of the deformation on the graded grid: nodes within this many edges of the
@@ -241,37 +242,6 @@ FLOOR = 1e-9
 TURN = 2.0
 
 
-def _in_wedge(w: np.ndarray, fwd: np.ndarray, back: np.ndarray) -> np.ndarray:
-    """Per row: the direction ``w`` lies in the wedge turning counter-clockwise from
-    ``fwd`` to ``back`` (closed; a half-plane when ``back`` is ``-fwd``)."""
-
-    def turn(z):
-        ang = np.arctan2(fwd[:, 0] * z[:, 1] - fwd[:, 1] * z[:, 0], np.einsum("ij,ij->i", fwd, z))
-        return np.where(ang < 0, ang + 2 * np.pi, ang)
-
-    return turn(w) <= turn(back)
-
-
-def _clearance(x, x_arc, x_ring, own, qi, si, a, b, arc, length, ring, perimeter, wedge):
-    """Per candidate pair (query ``qi``, edge ``si``): the distance from ``x[qi]`` to
-    the nearest point of the edge, or inf where that point is not another part of
-    the contour (:data:`TURN`), the edge is one ``x`` lies on (``own``: (k, 2) edges
-    per query), or the point is not on the domain's side of ``x`` (``wedge``: per
-    query, the directions along the contour forward and back with the domain on
-    the left; :func:`_in_wedge`): the gap measured is a part of the domain."""
-    ab = b[si] - a[si]
-    ll = np.einsum("ij,ij->i", ab, ab)
-    t = np.clip(np.einsum("ij,ij->i", x[qi] - a[si], ab) / np.where(ll > 0, ll, 1.0), 0, 1)
-    y = a[si] + t[:, None] * ab
-    d = np.hypot(*(x[qi] - y).T)
-    along = np.abs(x_arc[qi] - (arc[si] + t * length[si]))
-    along = np.minimum(along, perimeter[ring[si]] - along)
-    other = (x_ring[qi] != ring[si]) | (along > TURN * d)
-    other &= ~(si[:, None] == own[qi]).any(axis=1)
-    other &= _in_wedge(y - x[qi], wedge[0][qi], wedge[1][qi])
-    return np.where(other, d, np.inf)
-
-
 def feature_samples(
     contour: Contour,
     max_nodes: int | None = None,
@@ -307,9 +277,7 @@ def feature_samples(
     run = np.cumsum(length)
     arc = run - length - np.concatenate([[0.0], run])[starts[:-1]][ring]  # along its ring
     perimeter = np.add.reduceat(length, starts[:-1])
-    segs = shapely.linestrings(np.stack([a, b], axis=1))
-    tree = shapely.STRtree(segs)
-    geo = (a, b, arc, length, ring, perimeter)
+    segments = Segments(a, b, arc, length, ring, perimeter)
     # the directions forward and back along the contour with the domain on the left:
     # at each point, and along each edge
     dom_next, dom_prev = _domain_walk(contour, exterior)
@@ -320,9 +288,8 @@ def feature_samples(
     surrounded = np.array([contour.is_hole(r) != exterior for r in range(contour.n_rings)])
     s = np.minimum(length, length[prv])
     s = np.where(surrounded[ring], np.minimum(s, perimeter[ring] / RING_CELLS), s)
-    qi, si = tree.query(shapely.points(p), predicate="dwithin", distance=s)
     own = np.column_stack([np.arange(m), prv])
-    np.minimum.at(s, qi, _clearance(p, arc, ring, own, qi, si, *geo, at_point))
+    s = np.minimum(s, segments.clearance(p, arc, ring, own, at_point, s, TURN))
     if box is not None:
         s = np.minimum(s, _to_box(p, box))
     floor = FLOOR * float(np.ptp(p, axis=0).max())
@@ -341,14 +308,12 @@ def feature_samples(
         ell = (t1 - t0) * length[seg]
         tm = (t0 + t1) / 2
         mid = a[seg] + tm[:, None] * (b[seg] - a[seg])
-        # (twice the piece's length: a piece short enough not to split still learns
-        # the clearance its parent was split for)
-        qi, si = tree.query(shapely.points(mid), predicate="dwithin", distance=2 * ell)
-        c = np.full(len(seg), np.inf)
+        # (within twice the piece's length: a piece short enough not to split still
+        # learns the clearance its parent was split for)
         x_arc = arc[seg] + tm * length[seg]
         own = np.column_stack([seg, seg])  # (an adjacent edge counts where it turned back)
-        np.minimum.at(c, qi, _clearance(mid, x_arc, ring[seg], own, qi, si, *geo,
-                                      (along_edge[0][seg], along_edge[1][seg])))  # fmt: skip
+        wedge = (along_edge[0][seg], along_edge[1][seg])
+        c = segments.clearance(mid, x_arc, ring[seg], own, wedge, 2 * ell, TURN)
         if box is not None:
             c = np.minimum(c, _to_box(mid, box))
         end_size = np.minimum(

@@ -36,7 +36,8 @@ import numpy as np
 
 from ..contour import Contour
 from ..errors import LimitError, OptionError
-from ..geometry import prev_on_ring
+from ..geometry import morton, prev_on_ring
+from .cones import Cones
 
 #: Default growth: how much larger a cell may be than the contour's local size
 #: per cell width of distance (a size field ``s_q + (growth - 1) |x - q|``).
@@ -49,12 +50,6 @@ CELL_FACTOR = 1.0
 #: A cell is split when it is larger than this times the size field: cells end between
 #: ``1 / SPLIT_ABOVE`` and ``SPLIT_ABOVE`` times it (a power of two apart).
 SPLIT_ABOVE = 1.4142135623730951
-
-#: Neighbouring contour points considered when a cell's size is decided.
-NEAREST = 16
-
-#: Cells whose sizes :func:`refine` decides at once (``benchmarks/MEASURED.md``).
-REFINE_CHUNK = 1 << 15
 
 #: Points this many places apart along a ring or more count as "other parts" of the
 #: contour for the local feature size.
@@ -91,64 +86,14 @@ def local_sizes(contour: Contour) -> np.ndarray:
 
 def graded_sizes(points: np.ndarray, s: np.ndarray, growth: float) -> np.ndarray:
     """``s`` made consistent with the growth: at every point ``q``, the least over the
-    points ``q'`` of ``s_q' + (growth - 1) * D(q, q')``, ``D`` the shortest path between
-    them along the edges of the points' Delaunay triangulation.
+    points ``q'`` of ``s_q' + (growth - 1) |q - q'|`` (to within
+    :data:`~.cones.SLACK`).
 
-    So no point asks for cells much larger than a neighbour's: along every Delaunay edge
-    the result changes by at most ``(growth - 1)`` times the edge's length.  ``D`` is at
-    least the straight distance and at most about twice it (the Delaunay graph is a
-    spanner), so the result lies between ``min over q' of s_q' + (growth - 1) |q - q'|``
-    and the same with twice the growth.  One Dijkstra from a source joined to every
-    point by ``s_q / (growth - 1)``: ``O(n log n)``.
+    So no point asks for cells much larger than a neighbour's: between any two points
+    the result changes by at most ``(growth - 1)`` times their distance (and the
+    slack).  :class:`~.cones.Cones`: ``O(log n)`` per point on contours.
     """
-    import scipy.sparse as sp
-    from scipy.sparse.csgraph import dijkstra
-    from scipy.spatial import Delaunay, QhullError
-
-    alpha = growth - 1.0
-    s = np.asarray(s, dtype=np.float64)
-    n = len(points)
-    # (points on one circle are Qhull's slow case: it triangulates them after a fixed,
-    # seeded shift of 1e-9 of their extent, the same on every machine; the edges it
-    # gives are weighed by the points' true distances)
-    extent = float(np.ptp(points, axis=0).max()) if n else 0.0
-    shift = np.random.default_rng(0).uniform(-1e-9, 1e-9, points.shape) * extent
-    try:
-        simplices = Delaunay(points + shift).simplices
-    except QhullError:  # (all on one line: consecutive points are the only neighbours)
-        order = np.lexsort((points[:, 1], points[:, 0]))
-        simplices = np.column_stack([order[:-1], order[1:], order[1:]])
-    a = simplices.ravel()
-    b = np.roll(simplices, -1, axis=1).ravel()
-    key = np.unique(np.minimum(a, b).astype(np.int64) * n + np.maximum(a, b))  # (each edge once)
-    a, b = key // n, key % n
-    w = np.hypot(*(points[a] - points[b]).T)
-    src = np.full(n, n)
-    rows = np.concatenate([a, b, src])
-    cols = np.concatenate([b, a, np.arange(n)])
-    vals = np.concatenate([w, w, s / alpha])
-    graph = sp.csr_matrix((vals, (rows, cols)), shape=(n + 1, n + 1))
-    dist = dijkstra(graph, directed=True, indices=n)[:n]
-    return np.minimum(s, alpha * dist)
-
-
-def _morton(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Morton (Z-order) codes of lattice cells ``(x, y)``, each below 2**28
-    (:data:`MAX_CELLS_ACROSS`): their bits interleaved, x's in the even places."""
-
-    def spread(v):
-        v = np.asarray(v, dtype=np.int64) & 0xFFFFFFFF
-        for shift, mask in (
-            (16, 0x0000FFFF0000FFFF),
-            (8, 0x00FF00FF00FF00FF),
-            (4, 0x0F0F0F0F0F0F0F0F),
-            (2, 0x3333333333333333),
-            (1, 0x5555555555555555),
-        ):
-            v = (v | (v << shift)) & mask
-        return v
-
-    return spread(x) | (spread(y) << 1)
+    return Cones(points, s, growth - 1.0).least(points)
 
 
 @dataclass
@@ -197,7 +142,7 @@ class Quadtree:
         """``(order, starts)``: the leaves sorted by the Morton code of their first
         finest cell, and those codes (sorted once: the leaves do not change)."""
         if self._sorted is None:
-            start = _morton(self.i << self.level, self.j << self.level)
+            start = morton(self.i << self.level, self.j << self.level)
             order = np.argsort(start, kind="stable")
             self._sorted = (order, start[order])
         return self._sorted
@@ -223,7 +168,7 @@ class Quadtree:
         inside = (i >= 0) & (j >= 0) & (i * 2**level < width) & (j * 2**level < height)
         idx = np.flatnonzero(inside & (level <= self.top))
         lv = level[idx]
-        at = np.searchsorted(starts, _morton(i[idx] << lv, j[idx] << lv), "right") - 1
+        at = np.searchsorted(starts, morton(i[idx] << lv, j[idx] << lv), "right") - 1
         leaf = order[at]
         hit = self.level[leaf] >= lv
         out[idx[hit]] = leaf[hit]
@@ -397,8 +342,8 @@ def build_from(
 @dataclass
 class SizeField:
     """The size a quadtree was refined to with no further field, at any point ``q``:
-    the least over the :data:`NEAREST` ``points`` nearest it of ``s_p + (growth - 1)
-    |q - p|``, and half ``max_h`` where given (:func:`refine` measures from the cell
+    the least over the ``points`` of ``s_p + (growth - 1) |q - p|`` (to within
+    :data:`~.cones.SLACK`), and half ``max_h`` where given (:func:`refine` measures from the cell
     instead of its centre).  Stage 3 coarsens the interior to it
     (:mod:`~deformesh_cli.coarsen`: no edge longer than twice it)."""
 
@@ -408,34 +353,10 @@ class SizeField:
     max_h: float | None = None
 
     def __call__(self, q: np.ndarray) -> np.ndarray:
-        from scipy.spatial import cKDTree
-
-        kd = cKDTree(self.points)
-        out = _nearest_cone(kd, self.points, self.s, self.growth - 1.0, q, 0.0, 0.0)
+        out = Cones(self.points, self.s, self.growth - 1.0).least(q)
         if self.max_h is not None:  # (no edge a collapse makes longer than max_h)
             out = np.minimum(out, self.max_h / 2.0)
         return out
-
-
-def _nearest_cone(kd, points, s, alpha, centre, half_w, half_h) -> np.ndarray:
-    """Per box (``centre``, half sides ``half_w``, ``half_h``: arrays, or 0 for
-    points): the least over the :data:`NEAREST` of ``points`` nearest its centre (in
-    ``kd``) of ``s_p + alpha d``, ``d`` the distance from ``p`` to the box;
-    :data:`REFINE_CHUNK` boxes at a time (arrays of a few MB: reused memory)."""
-    k = min(NEAREST, len(points))
-    n = len(centre)
-    half_w = np.broadcast_to(half_w, (n,))
-    half_h = np.broadcast_to(half_h, (n,))
-    need = np.empty(n)
-    for a in range(0, n, REFINE_CHUNK):
-        b = a + REFINE_CHUNK
-        _, idx = kd.query(centre[a:b], k=k, workers=-1)
-        idx = idx.reshape(len(centre[a:b]), -1)
-        q = points[idx]  # (c, k, 2)
-        dx = np.maximum(np.abs(q[..., 0] - centre[a:b, 0, None]) - half_w[a:b, None], 0.0)
-        dy = np.maximum(np.abs(q[..., 1] - centre[a:b, 1, None]) - half_h[a:b, None], 0.0)
-        need[a:b] = np.min(s[idx] + alpha * np.hypot(dx, dy), axis=1)
-    return need
 
 
 def _lay(points, s, box, growth, max_h, box_given, max_nodes, roots, field) -> Quadtree:
@@ -472,7 +393,7 @@ def _lay(points, s, box, growth, max_h, box_given, max_nodes, roots, field) -> Q
     return balance(tree)
 
 
-#: The most finest cells across the box: Morton codes (:func:`_morton`) and lattice keys
+#: The most finest cells across the box: Morton codes (:func:`..geometry.morton`) and lattice keys
 #: (``Layout.key``) are whole numbers below 2**63 for at most 28 levels of 2**28 cells.
 MAX_CELLS_ACROSS = 2**28
 
@@ -527,10 +448,7 @@ def refine(
     """Split every leaf larger than the size field ``min over q of s_q + (growth - 1)
     d(q, cell)`` (``d`` the distance from point ``q`` to the cell), and than ``field``
     at its centre if given, level by level from the root."""
-    from scipy.spatial import cKDTree
-
-    alpha = growth - 1.0
-    kd = cKDTree(points)
+    cones = Cones(points, s, growth - 1.0)
     lv, i, j = tree.level, tree.i, tree.j
     keep_l, keep_i, keep_j = [], [], []
     while len(lv):
@@ -539,7 +457,7 @@ def refine(
         x0 = tree.x0 + i * w
         y0 = tree.y0 + j * hgt
         cx, cy = x0 + w / 2, y0 + hgt / 2
-        need = _nearest_cone(kd, points, s, alpha, np.column_stack([cx, cy]), w / 2, hgt / 2)
+        need = cones.least(np.column_stack([cx, cy]), w / 2, hgt / 2)
         if field is not None:
             need = np.minimum(need, field(np.column_stack([cx, cy])))
         split = (np.maximum(w, hgt) > SPLIT_ABOVE * need) & (lv > 0)

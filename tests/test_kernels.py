@@ -1,0 +1,140 @@
+"""The compiled kernels against plain numpy references on random inputs: the
+reference does every pair; the kernel walks a tree of bounding boxes and must give
+the same answers (bit for bit where its arithmetic is the reference's)."""
+
+import numpy as np
+import pytest
+
+from deformesh_cli.select.boxtree import box_tree
+from deformesh_cli.select.cones import SLACK, Cones
+from deformesh_cli.select.segments import Segments
+
+
+@pytest.mark.parametrize("n", [0, 1, 2, 7, 8, 9, 31, 500])
+def test_box_tree_nodes_bound_their_items(n):
+    """Every item lies in its leaf's box and every node's box in its parent's; each item
+    is in exactly one leaf."""
+    rng = np.random.default_rng(n)
+    lo = rng.random((n, 2))
+    hi = lo + rng.random((n, 2)) * 0.1
+    t = box_tree(lo, hi, 4)
+    assert sorted(t.order.tolist()) == list(range(n))
+    box = t.box.reshape(-1, 4)
+    for leaf in range(t.leaf0):
+        items = t.order[t.start[leaf] : t.start[leaf + 1]]
+        b = box[t.leaf0 + leaf]
+        assert (lo[items, 0] >= b[0]).all() and (hi[items, 0] <= b[1]).all()
+        assert (lo[items, 1] >= b[2]).all() and (hi[items, 1] <= b[3]).all()
+    for k in range(2, 2 * t.leaf0):
+        child, parent = box[k], box[k // 2]
+        if np.isfinite(child[0]):
+            assert parent[0] <= child[0] and parent[1] >= child[1]
+            assert parent[2] <= child[2] and parent[3] >= child[3]
+
+
+def _cones_reference(p, s, alpha, q, hw, hh):
+    dx = np.maximum(np.abs(p[None, :, 0] - q[:, None, 0]) - hw[:, None], 0.0)
+    dy = np.maximum(np.abs(p[None, :, 1] - q[:, None, 1]) - hh[:, None], 0.0)
+    return np.min(s[None] + alpha * np.sqrt(dx * dx + dy * dy), axis=1, initial=np.inf)
+
+
+@pytest.mark.parametrize("n", [0, 1, 2, 9, 100, 2000])
+@pytest.mark.parametrize("alpha", [0.0, 0.4, 3.0])
+def test_cones_least_is_the_least_cone_over_all_points(n, alpha):
+    """Per query box: at least the least over every point of ``s + alpha d`` and at
+    most the slack times it; equal where the slack is not used (points, not boxes,
+    spread apart)."""
+    rng = np.random.default_rng(n)
+    p = rng.random((n, 2)) * [2.0, 1.0]
+    s = 10.0 ** rng.uniform(-4, -1, n)
+    q = rng.random((700, 2)) * 2.4 - 0.2
+    hw = np.where(rng.random(700) < 0.5, 0.0, rng.random(700) * 0.2)
+    hh = np.where(hw > 0, rng.random(700) * 0.2, 0.0)
+    got = Cones(p, s, alpha).least(q, hw, hh)
+    ref = _cones_reference(p, s, alpha, q, hw, hh)
+    assert (got >= ref).all() and (got <= ref * SLACK).all()
+    assert (got == ref).mean() > 0.9
+    pts = Cones(p, s, alpha).least(p)
+    assert np.array_equal(pts, np.minimum(s, _cones_reference(p, s, alpha, p, 0 * s, 0 * s)))
+
+
+def test_cones_on_one_circle_are_quick_and_within_the_slack():
+    """Every point of a circle as far from a query at its centre: the walk stops at the
+    slack instead of visiting all of them (a result, not a timing: the answer is
+    within the slack of the true least)."""
+    t = np.linspace(0, 2 * np.pi, 4096, endpoint=False)
+    p = np.column_stack([np.cos(t), np.sin(t)])
+    s = np.full(len(p), 1e-3)
+    q = np.random.default_rng(0).random((300, 2)) - 0.5
+    got = Cones(p, s, 1.0).least(q)
+    ref = _cones_reference(p, s, 1.0, q, np.zeros(300), np.zeros(300))
+    assert (got >= ref).all() and (got <= ref * SLACK).all()
+
+
+def _in_wedge(w, fwd, back):
+    def turn(z):
+        ang = np.arctan2(fwd[:, 0] * z[:, 1] - fwd[:, 1] * z[:, 0], np.einsum("ij,ij->i", fwd, z))
+        return np.where(ang < 0, ang + 2 * np.pi, ang)
+
+    return turn(w) <= turn(back)
+
+
+def _clearance_reference(x, x_arc, x_ring, own, wedge, radius, turn, a, b, arc, length, ring, per):
+    """Every (query, edge) pair, in numpy."""
+    qi, si = (v.ravel() for v in np.meshgrid(np.arange(len(x)), np.arange(len(a)), indexing="ij"))
+    ab = b[si] - a[si]
+    ll = np.einsum("ij,ij->i", ab, ab)
+    t = np.clip(np.einsum("ij,ij->i", x[qi] - a[si], ab) / np.where(ll > 0, ll, 1.0), 0, 1)
+    y = a[si] + t[:, None] * ab
+    d = np.hypot(*(x[qi] - y).T)
+    along = np.abs(x_arc[qi] - (arc[si] + t * length[si]))
+    along = np.minimum(along, per[ring[si]] - along)
+    ok = (x_ring[qi] != ring[si]) | (along > turn * d)
+    ok &= ~(si[:, None] == own[qi]).any(axis=1)
+    ok &= _in_wedge(y - x[qi], wedge[0][qi], wedge[1][qi])
+    ok &= d <= radius[qi]
+    out = np.full(len(x), np.inf)
+    np.minimum.at(out, qi[ok], d[ok])
+    return out
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_segment_clearance_matches_every_pair(seed):
+    """Random rings (star polygons: their edges, arcs and perimeters), queries at their
+    points and along their edges, random wedges and radii: the kernel's clearance is
+    the reference's, bit for bit."""
+    rng = np.random.default_rng(seed)
+    rings = []
+    for r in range(1 + seed % 3):
+        k = int(rng.integers(3, 60))
+        ang = np.sort(rng.uniform(0, 2 * np.pi, k))
+        rad = rng.uniform(0.3, 1.0, k)
+        rings.append(np.column_stack([np.cos(ang) * rad + 3 * r, np.sin(ang) * rad]))
+    a = np.concatenate(rings)
+    ring = np.concatenate([np.full(len(r), i) for i, r in enumerate(rings)])
+    starts = np.concatenate([[0], np.cumsum([len(r) for r in rings])])
+    nxt = np.arange(len(a)) + 1
+    nxt[starts[1:] - 1] = starts[:-1]
+    b = a[nxt]
+    length = np.hypot(*(b - a).T)
+    per = np.add.reduceat(length, starts[:-1])
+    pieces = zip(starts, starts[1:])
+    arc = np.concatenate([np.cumsum(np.r_[0, length[s:e][:-1]]) for s, e in pieces])
+    m = len(a)
+    edge = rng.integers(0, m, 400)
+    t = rng.random(400)
+    t[:50] = 0.0  # (queries at the points themselves)
+    x = a[edge] + t[:, None] * (b[edge] - a[edge])
+    x_arc = arc[edge] + t * length[edge]
+    own = np.column_stack([edge, np.where(t == 0, (edge - 1) % m, edge)])
+    fwd = rng.normal(size=(400, 2))
+    back = rng.normal(size=(400, 2))
+    back[:20] = -fwd[:20]  # (half-planes)
+    radius = rng.uniform(0.0, 1.5, 400)
+    seg = Segments(a, b, arc, length, ring, per)
+    got = seg.clearance(x, x_arc, ring[edge], own, (fwd, back), radius, 2.0)
+    ref = _clearance_reference(
+        x, x_arc, ring[edge], own, (fwd, back), radius, 2.0, a, b, arc, length, ring, per
+    )
+    assert np.array_equal(got, ref)
+    assert np.isfinite(got).sum() > 20
