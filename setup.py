@@ -30,6 +30,7 @@ setup(
     ext_modules=cythonize(
         [Extension(k[:-4].replace("/", "."), [k]) for k in KERNELS],
         compiler_directives={"language_level": 3},
+        build_dir="build/cython",  # (the generated C stays out of the package)
     ),
     cmdclass={"build_ext": BuildExt},
 )

@@ -23,7 +23,6 @@ import numpy as np
 
 from .divcurl import Assembler
 from .errors import BandError, FoldError, OptionError, SolverError
-from .geometry import signed_areas
 
 #: Default number of pseudo-time steps (the paper's example uses 10).
 DEFAULT_STEPS = 10
@@ -55,6 +54,18 @@ def flat_margin(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
         np.maximum(np.abs(a).max(axis=1), np.abs(b).max(axis=1)), np.abs(c).max(axis=1)
     )
     return FLAT * square + ROUND_OFF * np.sqrt(square) * far
+
+
+def areas_with_margin(points: np.ndarray, tri: np.ndarray, sign: float) -> np.ndarray:
+    """:func:`.geometry.signed_areas` plus ``sign`` times :func:`flat_margin` (``sign``
+    0: the signed areas), in one compiled loop (:mod:`._divcurl`), the same bits."""
+    from ._divcurl import areas
+
+    out = np.empty(len(tri))
+    pts = np.ascontiguousarray(points, dtype=np.float64)
+    t = np.ascontiguousarray(tri, dtype=np.int64)
+    areas(pts, t, float(sign), FLAT, ROUND_OFF, out)
+    return out
 
 
 #: Four times the double's epsilon: an area computed from differences of coordinates of
@@ -383,10 +394,10 @@ def deform_(
             last = theta == 1.0 and frac == 1.0
             if last:
                 new[path_nodes] = targets
-            area = signed_areas(new, tri)
-            if flat_ok:  # flat: at the end either sign passes; before it, a fold (the
-                # next solve would divide by its area, and magnify round-off into the nodes)
-                area += (1.0 if last else -1.0) * flat_margin(new, tri)
+            # flat: at the end either sign passes; before it, a fold (the next solve
+            # would divide by its area, and magnify round-off into the nodes)
+            sign = (1.0 if last else -1.0) if flat_ok else 0.0
+            area = areas_with_margin(new, tri, sign)
             if (area > 0).all():
                 break
             if keep_folds or stats.halvings >= max_halvings * steps or theta <= 2.0**-max_halvings:

@@ -148,9 +148,8 @@ class Assembler:
         c = tri[:, _LOCAL_C].ravel()
         fr, fc = fidx[r], fidx[c]
         ff = (fr >= 0) & (fc >= 0)
-        self._ff = np.flatnonzero(ff)
         keys = fr[ff] * nf + fc[ff]
-        ukeys, self._slot = unique_inverse(keys)
+        ukeys, slot = unique_inverse(keys)
         self._indices = (ukeys % nf).astype(np.int32)
         rows = ukeys // nf
         self._indptr = np.searchsorted(rows, np.arange(nf + 1)).astype(np.int32)
@@ -159,13 +158,13 @@ class Assembler:
         self._up = np.flatnonzero(low)
         self._up_indices = self._indices[low]
         self._up_indptr = np.searchsorted(rows[low], np.arange(nf + 1)).astype(np.int32)
+        # per element entry (9 per triangle, row-major): its CSR slot (free row and
+        # column), else its right-hand side's row (free row, Dirichlet column), else -1
+        self._entry_slot = np.full(len(r), -1, dtype=np.int64)
+        self._entry_slot[ff] = slot
         fd = (fr >= 0) & (fc < 0)
-        self._fd = np.flatnonzero(fd)
-        self._fd_row = fr[fd]
-        self._fd_col = c[fd]
-        # buffers every call of :meth:`system` fills (not faulted in fresh each step)
-        self._ke = np.empty((len(tri), 9))
-        self._ke_ff = np.empty(len(self._ff))
+        self._entry_rhs = np.where(fd, fr, -1)
+        self._tri = np.ascontiguousarray(tri, dtype=np.int64)
 
     def load(self, points: np.ndarray, r: np.ndarray) -> np.ndarray:
         """The divergence load ``sum_T |T| r_T (gx, gy)`` on the free dofs, (n_free, 2)."""
@@ -183,11 +182,17 @@ class Assembler:
         """``K_ff`` (:class:`SymmetricCSR`) and right-hand sides (n_free, 2) for given
         Dirichlet values.
 
-        ``u_dirichlet`` is (N, 2); only its rows at Dirichlet nodes are read.
+        ``u_dirichlet`` is (N, 2); only its rows at Dirichlet nodes are read.  The
+        element matrices are :func:`stiffness_entries`', summed into their slots in
+        element order (a compiled loop, :mod:`._divcurl`).
         """
-        ke = stiffness_entries(points, self.tri, out=self._ke).ravel()
-        np.take(ke, self._ff, out=self._ke_ff)
-        data = np.bincount(self._slot, weights=self._ke_ff, minlength=self._nnz)
+        from ._divcurl import assemble
+
+        data = np.zeros(self._nnz)
+        acc = np.zeros((self.n_free, 2))
+        pts = np.ascontiguousarray(points, dtype=np.float64)
+        ud = np.ascontiguousarray(u_dirichlet, dtype=np.float64)
+        assemble(pts, self._tri, self._entry_slot, self._entry_rhs, ud, data, acc)
         K = SymmetricCSR(
             data,
             self._indices,
@@ -197,10 +202,4 @@ class Assembler:
             self._up_indices,
             self._up_indptr,
         )
-        w = ke[self._fd]
-        rhs = np.empty((self.n_free, 2))
-        for comp in range(2):
-            rhs[:, comp] = -np.bincount(
-                self._fd_row, weights=w * u_dirichlet[self._fd_col, comp], minlength=self.n_free
-            )
-        return K, rhs
+        return K, -acc

@@ -1,0 +1,94 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
+"""The loops of :mod:`deformesh_cli.divcurl` and of the deformation's fold check, per
+triangle: the same operations, in the same order, as the numpy expressions they
+replace (:func:`~deformesh_cli.divcurl.stiffness_entries` with ``np.bincount``,
+:func:`~deformesh_cli.geometry.signed_areas` and
+:func:`~deformesh_cli.deform.flat_margin`), so the results are the same bits.
+"""
+
+from libc.math cimport fabs, sqrt
+
+
+def assemble(
+    const double[:, :] points,
+    const long long[:, :] tri,
+    const long long[:] slot,
+    const long long[:] fd_row,
+    const double[:, :] ud,
+    double[:] data,
+    double[:, :] rhs,
+):
+    """Per triangle, its P1 Laplace element matrix ``ke[i, j] = (gx_i gx_j + gy_i gy_j)
+    |T|``; entry ``e = 9 t + 3 i + j`` is added to ``data[slot[e]]`` where ``slot[e] >=
+    0`` (free row and column), and ``ke * ud[col]`` to ``rhs[fd_row[e]]`` where
+    ``fd_row[e] >= 0`` (free row, Dirichlet column).  ``data`` and ``rhs`` start at 0;
+    the sums run in the order of ``e``."""
+    cdef Py_ssize_t nt = tri.shape[0]
+    cdef Py_ssize_t t, i, j, e, col
+    cdef double x0, x1, x2, y0, y1, y2, a2, area, v
+    cdef double gx[3]
+    cdef double gy[3]
+    with nogil:
+        for t in range(nt):
+            x0 = points[tri[t, 0], 0]
+            x1 = points[tri[t, 1], 0]
+            x2 = points[tri[t, 2], 0]
+            y0 = points[tri[t, 0], 1]
+            y1 = points[tri[t, 1], 1]
+            y2 = points[tri[t, 2], 1]
+            a2 = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+            gx[0] = (y1 - y2) / a2
+            gx[1] = (y2 - y0) / a2
+            gx[2] = (y0 - y1) / a2
+            gy[0] = (x2 - x1) / a2
+            gy[1] = (x0 - x2) / a2
+            gy[2] = (x1 - x0) / a2
+            area = 0.5 * a2
+            for i in range(3):
+                for j in range(3):
+                    e = 9 * t + 3 * i + j
+                    v = (gx[i] * gx[j] + gy[i] * gy[j]) * area
+                    if slot[e] >= 0:
+                        data[slot[e]] += v
+                    elif fd_row[e] >= 0:
+                        col = tri[t, j]
+                        rhs[fd_row[e], 0] += v * ud[col, 0]
+                        rhs[fd_row[e], 1] += v * ud[col, 1]
+
+
+def areas(
+    const double[:, :] points,
+    const long long[:, :] tri,
+    double sign,
+    double flat,
+    double round_off,
+    double[:] out,
+):
+    """Per triangle its signed area, plus ``sign`` times its flat margin (``flat``
+    times its longest side squared plus ``round_off`` times that side times its
+    corners' largest coordinate) where ``sign`` is not 0."""
+    cdef Py_ssize_t nt = tri.shape[0]
+    cdef Py_ssize_t t
+    cdef double ax, ay, bx, by, cx, cy, area, s0, s1, s2, sq, far, f
+    with nogil:
+        for t in range(nt):
+            ax = points[tri[t, 0], 0]
+            ay = points[tri[t, 0], 1]
+            bx = points[tri[t, 1], 0]
+            by = points[tri[t, 1], 1]
+            cx = points[tri[t, 2], 0]
+            cy = points[tri[t, 2], 1]
+            area = 0.5 * ((bx - ax) * (cy - ay) - (cx - ax) * (by - ay))
+            if sign != 0.0:
+                s0 = (bx - ax) * (bx - ax) + (by - ay) * (by - ay)
+                s1 = (cx - bx) * (cx - bx) + (cy - by) * (cy - by)
+                s2 = (ax - cx) * (ax - cx) + (ay - cy) * (ay - cy)
+                sq = s0 if s0 > s1 else s1
+                sq = sq if sq > s2 else s2
+                far = fabs(ax) if fabs(ax) > fabs(ay) else fabs(ay)
+                f = fabs(bx) if fabs(bx) > fabs(by) else fabs(by)
+                far = far if far > f else f
+                f = fabs(cx) if fabs(cx) > fabs(cy) else fabs(cy)
+                far = far if far > f else f
+                area = area + sign * (flat * sq + round_off * sqrt(sq) * far)
+            out[t] = area
