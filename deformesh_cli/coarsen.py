@@ -52,15 +52,12 @@ EDGE_ANGLE = TARGET
 #: class when collapses are ordered (:func:`_independent`).
 STEP = 0.25
 
-#: Candidate nodes whose collapses are weighed at once.
-CHUNK = 1 << 11
-
 
 def coarsen(mesh: Mesh, size: Callable[[np.ndarray], np.ndarray]) -> tuple[Mesh, int]:
     """``mesh`` with interior nodes collapsed where its edges are shorter than the size
     field ``size`` (points (k, 2) -> sizes (k,)) allows (the module's rules), and how
     many nodes went."""
-    pts = mesh.points
+    pts = np.ascontiguousarray(mesh.points, dtype=np.float64)
     n = len(pts)
     tri = np.array(mesh.triangles, dtype=np.int64, copy=True)
     free = np.ones(n, dtype=bool)
@@ -68,7 +65,7 @@ def coarsen(mesh: Mesh, size: Callable[[np.ndarray], np.ndarray]) -> tuple[Mesh,
     free[: mesh.n_contour + mesh.n_extra + mesh.n_box] = False
     if not free.any() or len(tri) == 0:
         return mesh, 0
-    need = np.asarray(size(pts), dtype=np.float64)
+    need = np.ascontiguousarray(size(pts), dtype=np.float64)
     stars, deg = _stars(tri, n)
     alive = np.ones(len(tri), dtype=bool)
     gone = np.zeros(n, dtype=bool)
@@ -77,13 +74,8 @@ def coarsen(mesh: Mesh, size: Callable[[np.ndarray], np.ndarray]) -> tuple[Mesh,
     active = np.flatnonzero(free)
     kept = _Candidates.none()  # (weighed before, and nothing they read has changed)
     while True:
-        active = active[np.argsort(deg[active], kind="stable")]  # (chunks of one width)
         c = _Candidates.join(
-            [kept]
-            + [
-                _weigh(pts, tri, stars, deg, need, active[k : k + CHUNK], tan_floor, boundary)
-                for k in range(0, len(active), CHUNK)
-            ]
+            [kept, _weigh(pts, tri, stars, deg, need, active, tan_floor, boundary)]
         )
         if len(c.a) == 0:
             break
@@ -201,57 +193,27 @@ def _stars(tri: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
 
 def _weigh(pts, tri, stars, deg, need, nodes, tan_floor, boundary):
     """:class:`_Candidates` of the ``nodes`` with an allowed collapse: each into its
-    shortest allowed edge's other end."""
-    w = int(deg[nodes].max())
-    valid = np.arange(w) < deg[nodes, None]
-    t = tri[np.where(valid, stars[nodes, :w], 0)]  # (c, w, 3)
-    at = np.argmax(t == nodes[:, None, None], axis=2)
-    u = np.take_along_axis(t, ((at + 1) % 3)[..., None], axis=2)[..., 0]  # next ccw
-    v = np.take_along_axis(t, ((at + 2) % 3)[..., None], axis=2)[..., 0]
-    # candidate k goes into b = u_k: triangle j becomes (b, u_j, v_j) unless it holds
-    # b; the new edges are b - u_j for those, but the one across ab (v_k, already one).
-    # Sides and areas from the neighbours' pairwise squared distances and cross
-    # products, about a (v_j is the neighbour u_p, p = nxt[j])
-    dead = (u[:, None, :] == u[:, :, None]) | (v[:, None, :] == u[:, :, None])  # (c, k, j)
-    new = valid[:, None, :] & ~dead & (u[:, None, :] != v[:, :, None])
-    keep = valid[:, None, :] & ~dead
-    pa = pts[nodes]
-    x = pts[u, 0] - pa[:, None, 0]
-    y = pts[u, 1] - pa[:, None, 1]
-    dx = x[:, :, None] - x[:, None, :]
-    dy = y[:, :, None] - y[:, None, :]
-    d2 = dx * dx + dy * dy  # |u_k - u_j|^2
-    cr = x[:, :, None] * y[:, None, :] - y[:, :, None] * x[:, None, :]  # u_k x u_j
-    nxt = np.argmax(u[:, None, :] == v[:, :, None], axis=2)  # (c, j)
-    # (a star that is no closed fan, in a mesh that is no manifold, is not weighed)
-    closed = np.all(~valid | (np.take_along_axis(u, nxt, axis=1) == v), axis=1)
-    at_p = (np.arange(len(nodes))[:, None, None] * w + np.arange(w)[:, None]) * w + nxt[:, None]
-    at_j = np.arange(len(nodes))[:, None] * w * w + np.arange(w) * w + nxt
-    side_j = d2.ravel()[at_j][:, None, :]  # |u_j - u_p|^2
-    side_k = d2.ravel()[at_p]  # |u_k - u_p|^2
-    cross = cr.ravel()[at_j][:, None, :] - cr.ravel()[at_p] + cr  # 2 area of (u_k, u_j, u_p)
-    total = side_j + side_k + d2
-    shortest = np.minimum(np.minimum(side_j, side_k), d2)
-    at_boundary = boundary[u][:, :, None] | (boundary[u] | boundary[v])[:, None, :]
-    floor = np.where(at_boundary, tan_floor[1], tan_floor[0])
-    good = (cross > 0) & (2 * cross >= floor * (total - 2 * shortest))
-    half = 0.5 * LONGEST * (need[u][:, :, None] + need[u][:, None, :])
-    ok = valid & closed[:, None] & np.all((~keep | good) & (~new | (d2 <= half * half)), axis=2)
-    key = np.sqrt(x * x + y * y) / (0.5 * (need[nodes][:, None] + need[u]))
-    key = np.where(ok, key, np.inf)
-    best = np.argmin(key, axis=1)
-    rows = np.flatnonzero(np.isfinite(key[np.arange(len(nodes)), best]))
-    k = best[rows]
-    bb = u[rows, k]
-    # the link condition for the chosen edge: no new neighbour of b is one already
-    nb = _neighbours(tri, stars, deg, bb)  # (r, 3w)
-    shared = (u[rows][:, :, None] == nb[:, None, :]).any(axis=2) & new[rows, k]
-    link = ~shared.any(axis=1)
-    rows, k, bb = rows[link], k[link], bb[link]
-    nbr_valid = valid[rows]
-    r_idx = np.repeat(np.arange(len(rows)), nbr_valid.sum(axis=1))
-    star = stars[nodes[rows], :w][nbr_valid]
-    return _Candidates(nodes[rows], bb, key[rows, k], r_idx, u[rows][nbr_valid], star)
+    shortest allowed edge's other end (the module's rules, weighed per node by a
+    compiled loop, :mod:`._coarsen`)."""
+    from ._coarsen import weigh
+
+    c = len(nodes)
+    w = int(deg[nodes].max()) if c else 0
+    u = np.empty((c, w), dtype=np.int64)
+    v = np.empty((c, w), dtype=np.int64)
+    scratch = (np.empty(w, dtype=np.int64), np.empty((w, w)), np.empty((w, w)))
+    b = np.empty(c, dtype=np.int64)
+    key = np.empty(c)
+    weigh(
+        pts, tri, stars, deg, need, nodes, boundary.view(np.uint8),
+        float(tan_floor[0]), float(tan_floor[1]), 0.5 * LONGEST,
+        u, v, *scratch, np.empty(w), np.empty(w), b, key,
+    )  # fmt: skip
+    rows = np.flatnonzero(b >= 0)
+    valid = np.arange(w) < deg[nodes[rows], None]
+    r_idx = np.repeat(np.arange(len(rows)), valid.sum(axis=1))
+    star = stars[nodes[rows], :w][valid]
+    return _Candidates(nodes[rows], b[rows], key[rows], r_idx, u[rows][valid], star)
 
 
 def _neighbours(tri, stars, deg, nodes) -> np.ndarray:

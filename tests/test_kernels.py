@@ -190,3 +190,114 @@ def test_areas_with_margin_are_the_numpy_ones(seed):
     assert np.array_equal(areas_with_margin(p, tri, 0.0), a)
     for sign in (1.0, -1.0):
         assert np.array_equal(areas_with_margin(p, tri, sign), a + sign * flat_margin(p, tri))
+
+
+def _weigh_reference(pts, tri, stars, deg, need, nodes, tan_floor, boundary):
+    """The numpy weighing the compiled one replaced: ``(a, b, key, rows, nbr, star)``."""
+    from deformesh_cli.coarsen import LONGEST, _neighbours
+
+    w = int(deg[nodes].max())
+    valid = np.arange(w) < deg[nodes, None]
+    t = tri[np.where(valid, stars[nodes, :w], 0)]  # (c, w, 3)
+    at = np.argmax(t == nodes[:, None, None], axis=2)
+    u = np.take_along_axis(t, ((at + 1) % 3)[..., None], axis=2)[..., 0]  # next ccw
+    v = np.take_along_axis(t, ((at + 2) % 3)[..., None], axis=2)[..., 0]
+    # candidate k goes into b = u_k: triangle j becomes (b, u_j, v_j) unless it holds
+    # b; the new edges are b - u_j for those, but the one across ab (v_k, already one).
+    # Sides and areas from the neighbours' pairwise squared distances and cross
+    # products, about a (v_j is the neighbour u_p, p = nxt[j])
+    dead = (u[:, None, :] == u[:, :, None]) | (v[:, None, :] == u[:, :, None])  # (c, k, j)
+    new = valid[:, None, :] & ~dead & (u[:, None, :] != v[:, :, None])
+    keep = valid[:, None, :] & ~dead
+    pa = pts[nodes]
+    x = pts[u, 0] - pa[:, None, 0]
+    y = pts[u, 1] - pa[:, None, 1]
+    dx = x[:, :, None] - x[:, None, :]
+    dy = y[:, :, None] - y[:, None, :]
+    d2 = dx * dx + dy * dy  # |u_k - u_j|^2
+    cr = x[:, :, None] * y[:, None, :] - y[:, :, None] * x[:, None, :]  # u_k x u_j
+    nxt = np.argmax(u[:, None, :] == v[:, :, None], axis=2)  # (c, j)
+    # (a star that is no closed fan, in a mesh that is no manifold, is not weighed)
+    closed = np.all(~valid | (np.take_along_axis(u, nxt, axis=1) == v), axis=1)
+    at_p = (np.arange(len(nodes))[:, None, None] * w + np.arange(w)[:, None]) * w + nxt[:, None]
+    at_j = np.arange(len(nodes))[:, None] * w * w + np.arange(w) * w + nxt
+    side_j = d2.ravel()[at_j][:, None, :]  # |u_j - u_p|^2
+    side_k = d2.ravel()[at_p]  # |u_k - u_p|^2
+    cross = cr.ravel()[at_j][:, None, :] - cr.ravel()[at_p] + cr  # 2 area of (u_k, u_j, u_p)
+    total = side_j + side_k + d2
+    shortest = np.minimum(np.minimum(side_j, side_k), d2)
+    at_boundary = boundary[u][:, :, None] | (boundary[u] | boundary[v])[:, None, :]
+    floor = np.where(at_boundary, tan_floor[1], tan_floor[0])
+    good = (cross > 0) & (2 * cross >= floor * (total - 2 * shortest))
+    half = 0.5 * LONGEST * (need[u][:, :, None] + need[u][:, None, :])
+    ok = valid & closed[:, None] & np.all((~keep | good) & (~new | (d2 <= half * half)), axis=2)
+    key = np.sqrt(x * x + y * y) / (0.5 * (need[nodes][:, None] + need[u]))
+    key = np.where(ok, key, np.inf)
+    best = np.argmin(key, axis=1)
+    rows = np.flatnonzero(np.isfinite(key[np.arange(len(nodes)), best]))
+    k = best[rows]
+    bb = u[rows, k]
+    # the link condition for the chosen edge: no new neighbour of b is one already
+    nb = _neighbours(tri, stars, deg, bb)  # (r, 3w)
+    shared = (u[rows][:, :, None] == nb[:, None, :]).any(axis=2) & new[rows, k]
+    link = ~shared.any(axis=1)
+    rows, k, bb = rows[link], k[link], bb[link]
+    nbr_valid = valid[rows]
+    r_idx = np.repeat(np.arange(len(rows)), nbr_valid.sum(axis=1))
+    star = stars[nodes[rows], :w][nbr_valid]
+    return nodes[rows], bb, key[rows, k], r_idx, u[rows][nbr_valid], star
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_weighing_collapses_matches_the_numpy_reference(seed):
+    """Every interior node of a random Delaunay mesh, with a random size field and a few
+    boundary-marked nodes: the same collapses chosen, the same keys, bit for bit."""
+    from scipy.spatial import ConvexHull
+
+    from deformesh_cli import coarsen
+
+    rng, p, tri = _random_mesh(seed, 600)
+    tri = tri[np.argsort(rng.random(len(tri)))]
+    n = len(p)
+    stars, deg = coarsen._stars(tri, n)
+    need = 10.0 ** rng.uniform(-1.5, -0.5, n)
+    boundary = rng.random(n) < 0.1
+    boundary[ConvexHull(p).vertices] = True  # (their stars are open fans)
+    nodes = np.flatnonzero(~boundary)
+    floor = np.tan(np.radians([coarsen.ANGLE, coarsen.EDGE_ANGLE]))
+    got = coarsen._weigh(p, tri, stars, deg, need, nodes, floor, boundary)
+    want = _weigh_reference(p, tri, stars, deg, need, nodes, floor, boundary)
+    for field, ref in zip(("a", "b", "key", "rows", "nbr", "star"), want):
+        assert np.array_equal(getattr(got, field), ref), field
+    assert len(got.a) > 10
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_loop_fit_programme_matches_the_numpy_one(seed):
+    """Random step costs with forbidden (inf) steps, some points where every choice is
+    forbidden: the same back pointers, totals and restarts as the numpy loop."""
+    from deformesh_cli.select._monotone import programme
+
+    rng = np.random.default_rng(seed)
+    m, k = 300, 8
+    between = np.where(rng.random((m, k, k)) < 0.6, rng.random((m, k, k)), np.inf)
+    between[rng.integers(1, m, 3)] = np.inf  # (nowhere to go from there)
+    cost = rng.random((m, k))
+    total0 = np.full(k, np.inf)
+    total0[0] = cost[0, 0]
+    back = np.zeros((m, k), dtype=np.int64)
+    total = total0.copy()
+    reset = np.zeros(m, dtype=np.uint8)
+    programme(between, cost, back, total, reset)
+    want_back = np.zeros((m, k), dtype=np.int64)
+    want = total0.copy()
+    want_reset = []
+    for t in range(1, m):
+        step = want[:, None] + between[t]
+        want_back[t] = pick = np.argmin(step, axis=0)
+        want = step[pick, np.arange(k)] + cost[t]
+        if want.min() == np.inf:
+            want_reset.append(t)
+            want = cost[t].copy()
+    assert np.array_equal(back, want_back) and np.array_equal(total, want)
+    assert np.flatnonzero(reset).tolist() == want_reset and len(want_reset) >= 1

@@ -44,6 +44,7 @@ from ..contour import Contour, far_field_box, grown_box
 from ..errors import LimitError, OptionError, SelectionError
 from ..geometry import boundary_edges, next_on_ring, prev_on_ring, signed_areas
 from . import graded
+from ._monotone import programme
 from .segments import Segments
 from .uniform import DEFAULT_MAX_NODES
 
@@ -931,14 +932,10 @@ def _monotone(q: np.ndarray, loop: np.ndarray, s: np.ndarray) -> np.ndarray | No
     # (infinite where a step is not allowed: the loop holds only the minimum-plus
     # products, one step after the other)
     between = _between_costs(loop, cand, q[order], s[order], widest)
-    cols = np.arange(k)
-    for t in range(1, m):
-        step = total[:, None] + between[t]
-        back[t] = pick = np.argmin(step, axis=0)
-        total = step[pick, cols] + cost[t]
-        if total.min() == np.inf:
-            failed += [t - 2, t - 1, t]
-            total = cost[t].copy()
+    reset = np.zeros(m, dtype=np.uint8)
+    programme(between, np.ascontiguousarray(cost), back, total, reset)  # (compiled)
+    for t in np.flatnonzero(reset):
+        failed += [t - 2, t - 1, t]
     if failed:
         return order[np.clip(failed, 0, m - 1)]
     total = total + between[0][:, 0]
