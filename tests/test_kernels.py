@@ -301,3 +301,16 @@ def test_the_loop_fit_programme_matches_the_numpy_one(seed):
             want = cost[t].copy()
     assert np.array_equal(back, want_back) and np.array_equal(total, want)
     assert np.flatnonzero(reset).tolist() == want_reset and len(want_reset) >= 1
+
+
+def test_the_run_time_dependencies_are_not_gpl():
+    """The closure of deformesh's own requirements (extras left out) in this
+    environment: every distribution has a licence that is not GPL-only."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).parents[1] / "scripts" / "licences.py"
+    r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "numpy" in r.stdout and "deformesh" in r.stdout and "cvxopt" not in r.stdout

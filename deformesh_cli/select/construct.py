@@ -885,6 +885,7 @@ def _select_on(contour: Contour, tree: graded.Quadtree, exterior: bool, size) ->
         sel.h_rule = "graded"
         sel.path_rule = CONSTRUCTED
         sel._kept = kept
+        sel._triangles = tri  # (the same diagonals: not triangulated again)
         return sel
     raise SelectionError(f"{contour.source}: triangles that would flatten still in the region")
 
