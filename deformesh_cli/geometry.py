@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .errors import InputError
+
 #: :func:`edge_uses`' table: ``(lo, hi, fwd, rev)`` arrays, one entry per undirected edge.
 EdgeTable = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
@@ -57,22 +59,21 @@ def edge_uses(tri: np.ndarray, n: int) -> EdgeTable:
     """Each undirected edge once: ``(lo, hi, fwd, rev)``, nodes ``lo < hi`` and how many
     triangles walk it ``lo -> hi`` and ``hi -> lo``.
 
-    By a sparse matrix build (scipy sums the duplicate entries while it sorts by
-    row, in linear time), several times faster than sorting the edge keys
-    (``benchmarks/MEASURED.md``).  In a conforming counter-clockwise mesh an inner edge
-    has ``fwd = rev = 1`` and a boundary edge one use.
+    By a counting sort on ``lo`` and a sort of each node's few neighbours (a compiled
+    loop, :mod:`._geometry`): linear in the triangles.  In a conforming
+    counter-clockwise mesh an inner edge has ``fwd = rev = 1`` and a boundary edge one
+    use.  A triangle naming a node outside ``0 .. n - 1`` is an :class:`InputError`.
     """
-    import scipy.sparse as sp
+    from ._geometry import edge_table
 
-    index = np.int32 if n < 2**31 else np.int64  # halves the temporaries
-    a = tri.astype(index).ravel()
-    b = tri[:, [1, 2, 0]].astype(index).ravel()
-    up = a < b
-    w = np.where(up, np.int32(1), np.int32(_REVERSE))
-    m = sp.csr_matrix((w, (np.where(up, a, b), np.where(up, b, a))), shape=(n, n))
-    m.sum_duplicates()
-    lo = np.repeat(np.arange(n), np.diff(m.indptr))
-    return lo, m.indices.astype(np.int64), m.data % _REVERSE, m.data // _REVERSE
+    t = np.ascontiguousarray(tri, dtype=np.int64).reshape(-1, 3)
+    k = 3 * len(t)
+    scratch = (np.empty(n + 1, np.int64), np.empty(k, np.int64), np.empty(k, np.int64))
+    out = tuple(np.empty(k, np.int64) for _ in range(4))
+    m = edge_table(t, n, _REVERSE, *scratch, *out)
+    if m < 0:
+        raise InputError(f"a triangle names a node outside 0 .. {n - 1}")
+    return tuple(a[:m].copy() for a in out)
 
 
 def patch_edge_uses(edges: EdgeTable, n: int, removed: np.ndarray, added: np.ndarray) -> EdgeTable:

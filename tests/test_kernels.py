@@ -314,3 +314,52 @@ def test_the_run_time_dependencies_are_not_gpl():
     r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert "numpy" in r.stdout and "deformesh" in r.stdout and "cvxopt" not in r.stdout
+
+
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("k", [1, 3, 8])
+def test_nearest_points_by_distance_then_number(seed, k):
+    """Points on a lattice (many equal distances) and at random: each query's ``k``
+    nearest by squared distance, ties to the lower number, as every pair says; past
+    the last point, inf and ``n``."""
+    from deformesh_cli.select.nearest import Nearest
+
+    rng = np.random.default_rng(seed)
+    n = [0, 2, 50, 600][seed]
+    p = np.where(rng.random((n, 1)) < 0.5, rng.integers(0, 6, (n, 2)) * 0.5, rng.random((n, 2)) * 3)
+    q = np.concatenate([rng.integers(0, 7, (100, 2)) * 0.25, rng.random((100, 2)) * 3])
+    dist, idx = Nearest(p).query(q, k)
+    d2 = (q[:, None, 0] - p[None, :, 0]) ** 2 + (q[:, None, 1] - p[None, :, 1]) ** 2
+    want = np.full((len(q), k), n)
+    want_d = np.full((len(q), k), np.inf)
+    for i in range(len(q)):
+        order = np.lexsort((np.arange(n), d2[i]))[:k]
+        want[i, : len(order)] = order
+        want_d[i, : len(order)] = np.sqrt(d2[i, order])
+    assert np.array_equal(idx, want) and np.array_equal(dist, want_d)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_edge_table_counts_each_side_per_direction(seed):
+    """Random triangles (repeated sides, both directions): each undirected side once,
+    in order, with its uses each way, as a plain count says; a node outside the range
+    is refused."""
+    from deformesh_cli.errors import InputError
+    from deformesh_cli.geometry import _REVERSE, edge_uses
+
+    rng = np.random.default_rng(seed)
+    n = 40
+    tri = rng.integers(0, n, (300, 3))
+    tri = tri[(tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 0] != tri[:, 2])]
+    lo, hi, fwd, rev = edge_uses(tri, n)
+    count = {}
+    for a, b in np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]).tolist():
+        key = (min(a, b), max(a, b))
+        f, r = count.get(key, (0, 0))
+        count[key] = (f + (a < b), r + (a > b))
+    keys = sorted(count)
+    assert list(zip(lo.tolist(), hi.tolist())) == keys
+    assert list(zip(fwd.tolist(), rev.tolist())) == [count[k] for k in keys]
+    assert _REVERSE > 300
+    with pytest.raises(InputError):
+        edge_uses(np.array([[0, 1, n]]), n)

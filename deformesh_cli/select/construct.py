@@ -42,9 +42,10 @@ import shapely
 
 from ..contour import Contour, far_field_box, grown_box
 from ..errors import LimitError, OptionError, SelectionError
-from ..geometry import boundary_edges, next_on_ring, prev_on_ring, signed_areas
+from ..geometry import boundary_edges, edge_uses, next_on_ring, prev_on_ring, signed_areas
 from . import graded
 from ._monotone import programme
+from .nearest import Nearest
 from .segments import Segments
 from .uniform import DEFAULT_MAX_NODES
 
@@ -193,18 +194,15 @@ class GradedSelection:
 
     def band_nodes(self) -> np.ndarray | None:
         """Nodes within :data:`BAND_HOPS` edges of the path, or None if half the grid."""
-        import scipy.sparse as sp
-
-        tri = self.triangles()
         n = self.grid.n_nodes
-        a = np.concatenate([tri[:, 0], tri[:, 1], tri[:, 2]])
-        b = np.concatenate([tri[:, 1], tri[:, 2], tri[:, 0]])
-        adj = sp.csr_matrix((np.ones(len(a), np.int8), (a, b)), shape=(n, n))
-        adj = adj + adj.T
+        lo, hi, _, _ = edge_uses(self.triangles(), n)
         on = np.zeros(n, dtype=bool)
         on[self.path_nodes] = True
-        for _ in range(BAND_HOPS):
-            on |= (adj @ on.astype(np.int8)) > 0
+        for _ in range(BAND_HOPS):  # (one edge further each time)
+            step = on.copy()
+            step[hi[on[lo]]] = True
+            step[lo[on[hi]]] = True
+            on = step
         return on if on.sum() < 0.5 * n else None
 
 
@@ -913,14 +911,11 @@ def _monotone(q: np.ndarray, loop: np.ndarray, s: np.ndarray) -> np.ndarray | No
     nearest (in those units), which keeps it.  Returns the positions, or the
     indices of the points where no such choice exists (an array shorter than
     ``q``; None: every point)."""
-    from scipy.spatial import cKDTree
-
     m, nl = len(q), len(loop)
     if nl < m:
         return None
     k = min(CANDIDATES, nl)
-    dist, cand = cKDTree(loop).query(q, k=k)
-    dist, cand = dist.reshape(m, k), cand.reshape(m, k)
+    dist, cand = Nearest(loop).query(q, k)
     cost = (dist / s[:, None]) ** 2
     t0 = int(np.argmin(cost[:, 0]))
     order = np.roll(np.arange(m), -t0)
@@ -1020,11 +1015,8 @@ def _owners(contour: Contour, p: np.ndarray, loops: list[np.ndarray]) -> np.ndar
     """Per loop, the ring it follows, or -1: each ring's loop is the one that most of
     its points have the nearest node on; two rings choosing one loop (the cells are
     too coarse for one of them to have its own) is :class:`_Crowded` at both."""
-    from scipy.spatial import cKDTree
-
     loop_of = np.concatenate([np.full(len(lp), i) for i, lp in enumerate(loops)])
-    kd = cKDTree(p[np.concatenate(loops)])
-    _, k = kd.query(contour.points)
+    k = Nearest(p[np.concatenate(loops)]).query(contour.points)[1][:, 0]
     # per ring, the loop most of its points are nearest to (the lowest on a tie): the
     # (ring, loop) pairs counted at once, not a pass over the points per ring
     nloops = len(loops)
