@@ -363,3 +363,37 @@ def test_edge_table_counts_each_side_per_direction(seed):
     assert _REVERSE > 300
     with pytest.raises(InputError):
         edge_uses(np.array([[0, 1, n]]), n)
+
+
+def test_leaf_index_matches_the_numpy_search():
+    """A balanced quadtree of a sample, random cells of every level (some outside the
+    box, some split): the leaf holding each, as a searchsorted over the Morton codes
+    says."""
+    from deformesh_cli.geometry import morton
+    from deformesh_cli.readers import load_contour
+    from deformesh_cli.select import graded
+
+    from .conftest import SAMPLES
+
+    c = load_contour(SAMPLES / "peanut.csv")
+    lo, hi = c.points.min(axis=0), c.points.max(axis=0)
+    tree = graded.build(c, (*(lo - 0.5), *(hi + 0.5)))
+    rng = np.random.default_rng(0)
+    level = rng.integers(0, tree.top + 2, 5000)
+    width, height = tree.nx * 2**tree.top, tree.ny * 2**tree.top
+    i = rng.integers(-2, width // 2**level + 2)
+    j = rng.integers(-2, height // 2**level + 2)
+    got = tree.leaf_index(level, i, j)
+    start = morton(tree.i << tree.level, tree.j << tree.level)
+    order = np.argsort(start, kind="stable")
+    starts = start[order]
+    want = np.full(len(level), -1)
+    inside = (i >= 0) & (j >= 0) & (i * 2**level < width) & (j * 2**level < height)
+    idx = np.flatnonzero(inside & (level <= tree.top))
+    lv = level[idx]
+    at = np.searchsorted(starts, morton(i[idx] << lv, j[idx] << lv), "right") - 1
+    leaf = order[at]
+    hit = tree.level[leaf] >= lv
+    want[idx[hit]] = leaf[hit]
+    assert np.array_equal(got, want)
+    assert (got >= 0).sum() > 500 and (got < 0).sum() > 500

@@ -162,16 +162,16 @@ class Quadtree:
         each covers one run of finest cells: the leaf holding the cell's first finest
         cell is the last leaf starting at or before it (one binary search), and it
         holds the whole cell when it is at least as coarse."""
+        from ._quadtree import leaf_index
+
         order, starts = self._morton_order()
-        out = np.full(len(level), -1, dtype=np.int64)
+        out = np.empty(len(level), dtype=np.int64)
         width, height = self.nx * 2**self.top, self.ny * 2**self.top
-        inside = (i >= 0) & (j >= 0) & (i * 2**level < width) & (j * 2**level < height)
-        idx = np.flatnonzero(inside & (level <= self.top))
-        lv = level[idx]
-        at = np.searchsorted(starts, morton(i[idx] << lv, j[idx] << lv), "right") - 1
-        leaf = order[at]
-        hit = self.level[leaf] >= lv
-        out[idx[hit]] = leaf[hit]
+        i64 = lambda v: np.ascontiguousarray(v, dtype=np.int64)  # noqa: E731
+        leaf_index(
+            starts, i64(order), i64(self.level), i64(level), i64(i), i64(j),
+            width, height, self.top, out,
+        )  # fmt: skip
         return out
 
     def layout(self) -> Layout:
