@@ -397,3 +397,64 @@ def test_leaf_index_matches_the_numpy_search():
     want[idx[hit]] = leaf[hit]
     assert np.array_equal(got, want)
     assert (got >= 0).sum() > 500 and (got < 0).sum() > 500
+
+
+def _between_costs_reference(loop, cand, q, s, widest, CHUNK=1 << 18):
+    """The numpy table the compiled one replaced (chunked by powers of two)."""
+    nl, (m, k) = len(loop), cand.shape
+    prev = np.roll(np.arange(m), 1)
+    gap = (cand[:, None, :] - cand[prev][:, :, None]) % nl  # (m, k from, k to)
+    seg = np.hypot(*(np.roll(loop, -1, axis=0) - loop).T)
+    at = np.concatenate([[0.0], np.cumsum(seg)[:-1]])  # (the loop's length to each node)
+    perimeter = float(seg.sum())
+    run = (at[cand][:, None, :] - at[cand[prev]][:, :, None]) % perimeter
+    edge = np.hypot(*(q - q[prev]).T)
+    share = edge / edge.sum()  # (each edge's share of its ring, at most a half)
+    ok = (gap >= 1) & (gap <= widest) & (run <= 0.5 * (1.0 + share[:, None, None]) * perimeter)
+    out = np.where(ok, 0.0, np.inf).reshape(m * k, k)  # (rows: a step and its start)
+    count = np.where(ok, gap - 1, 0).reshape(m * k, k)  # (nodes strictly between)
+    reach = count.max(axis=1)
+    rows = np.flatnonzero(reach > 0)
+    step = rows // k
+    start = cand[prev].ravel()[rows]
+    a, ab, size = q[prev][step], (q - q[prev])[step], s[prev][step]
+    length2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
+    # rows grouped by their reach rounded up to a power of two: a block of width w
+    width = 1 << np.ceil(np.log2(reach[rows])).astype(np.int64)
+    for w in np.unique(width):
+        group = np.flatnonzero(width == w)
+        per = max(1, CHUNK // int(w))
+        for lo in range(0, len(group), per):
+            g = group[lo : lo + per]
+            xy = loop[(start[g, None] + np.arange(1, w + 1)) % nl]  # (rows, w, 2)
+            rel = xy - a[g, None, :]
+            t = np.einsum("rwi,ri->rw", rel, ab[g]) / length2[g, None]
+            d = rel - np.where(t < 0.0, 0.0, 1.0)[..., None] * ab[g, None, :]
+            past = (t < 0.0) | (t > 1.0)
+            d2 = np.where(past, np.einsum("rwi,rwi->rw", d, d) / size[g, None] ** 2, 0.0)
+            total = np.concatenate([np.zeros((len(g), 1)), np.cumsum(d2, axis=1)], axis=1)
+            # (an allowed pair's 0 takes its sum; a pair not allowed counts 0 nodes and
+            # stays inf)
+            out[rows[g]] += np.take_along_axis(total, count[rows[g]], axis=1)
+    return out.reshape(m, k, k)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_between_costs_match_the_numpy_table(seed):
+    """A loop of random nodes round a ring of random points, each point's candidates
+    random loop nodes: the same table, bit for bit (the loop's order makes steps of
+    every kind: back, too far, allowed with nodes past the edge's ends)."""
+    from deformesh_cli.select.construct import _between_costs
+
+    rng = np.random.default_rng(seed)
+    nl, m, k = 120, 30, 8
+    ang = np.sort(rng.uniform(0, 2 * np.pi, nl))
+    loop = np.column_stack([np.cos(ang), np.sin(ang)]) * rng.uniform(0.9, 1.1, (nl, 1))
+    qa = np.sort(rng.uniform(0, 2 * np.pi, m))
+    q = np.column_stack([np.cos(qa), np.sin(qa)])
+    cand = np.sort(rng.integers(0, nl, (m, k)), axis=1)
+    s = rng.uniform(0.05, 0.2, m)
+    got = _between_costs(loop, cand, q, s, nl - (m - 1))
+    want = _between_costs_reference(loop, cand, q, s, nl - (m - 1))
+    assert np.array_equal(got, want)
+    assert np.isfinite(got).mean() > 0.1 and (got[np.isfinite(got)] > 0).any()

@@ -44,7 +44,7 @@ from ..contour import Contour, far_field_box, grown_box
 from ..errors import LimitError, OptionError, SelectionError
 from ..geometry import boundary_edges, edge_uses, next_on_ring, prev_on_ring, signed_areas
 from . import graded
-from ._monotone import programme
+from ._monotone import between_costs, programme
 from .nearest import Nearest
 from .segments import Segments
 from .uniform import DEFAULT_MAX_NODES
@@ -951,12 +951,6 @@ def _monotone(q: np.ndarray, loop: np.ndarray, s: np.ndarray) -> np.ndarray | No
     return out
 
 
-#: Loop nodes whose distances :func:`_between_costs` measures at once: its arrays stay
-#: a few MB, under the C library's threshold for mapping fresh pages (32 MB), so they
-#: reuse memory instead of faulting new pages in (``benchmarks/MEASURED.md``).
-CHUNK = 1 << 18
-
-
 def _between_costs(
     loop: np.ndarray, cand: np.ndarray, q: np.ndarray, s: np.ndarray, widest: int
 ) -> np.ndarray:
@@ -972,43 +966,20 @@ def _between_costs(
     crowd at one end of an edge, so their count would not tell).
     Each step's edge is measured once from each of its first point's candidates,
     forward as far as its furthest allowed pair reaches; each pair reads its sum off
-    that row's running sum.  Rows of about one width at a time, in chunks."""
+    that row's running sum (a compiled loop, :mod:`._monotone`)."""
     nl, (m, k) = len(loop), cand.shape
     prev = np.roll(np.arange(m), 1)
-    gap = (cand[:, None, :] - cand[prev][:, :, None]) % nl  # (m, k from, k to)
     seg = np.hypot(*(np.roll(loop, -1, axis=0) - loop).T)
     at = np.concatenate([[0.0], np.cumsum(seg)[:-1]])  # (the loop's length to each node)
-    perimeter = float(seg.sum())
-    run = (at[cand][:, None, :] - at[cand[prev]][:, :, None]) % perimeter
     edge = np.hypot(*(q - q[prev]).T)
     share = edge / edge.sum()  # (each edge's share of its ring, at most a half)
-    ok = (gap >= 1) & (gap <= widest) & (run <= 0.5 * (1.0 + share[:, None, None]) * perimeter)
-    out = np.where(ok, 0.0, np.inf).reshape(m * k, k)  # (rows: a step and its start)
-    count = np.where(ok, gap - 1, 0).reshape(m * k, k)  # (nodes strictly between)
-    reach = count.max(axis=1)
-    rows = np.flatnonzero(reach > 0)
-    step = rows // k
-    start = cand[prev].ravel()[rows]
-    a, ab, size = q[prev][step], (q - q[prev])[step], s[prev][step]
-    length2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
-    # rows grouped by their reach rounded up to a power of two: a block of width w
-    width = 1 << np.ceil(np.log2(reach[rows])).astype(np.int64)
-    for w in np.unique(width):
-        group = np.flatnonzero(width == w)
-        per = max(1, CHUNK // int(w))
-        for lo in range(0, len(group), per):
-            g = group[lo : lo + per]
-            xy = loop[(start[g, None] + np.arange(1, w + 1)) % nl]  # (rows, w, 2)
-            rel = xy - a[g, None, :]
-            t = np.einsum("rwi,ri->rw", rel, ab[g]) / length2[g, None]
-            d = rel - np.where(t < 0.0, 0.0, 1.0)[..., None] * ab[g, None, :]
-            past = (t < 0.0) | (t > 1.0)
-            d2 = np.where(past, np.einsum("rwi,rwi->rw", d, d) / size[g, None] ** 2, 0.0)
-            total = np.concatenate([np.zeros((len(g), 1)), np.cumsum(d2, axis=1)], axis=1)
-            # (an allowed pair's 0 takes its sum; a pair not allowed counts 0 nodes and
-            # stays inf)
-            out[rows[g]] += np.take_along_axis(total, count[rows[g]], axis=1)
-    return out.reshape(m, k, k)
+    out = np.empty((m, k, k))
+    f8 = lambda v: np.ascontiguousarray(v, dtype=np.float64)  # noqa: E731
+    between_costs(
+        f8(loop), at, float(seg.sum()), np.ascontiguousarray(cand, dtype=np.int64), f8(q),
+        f8(s), share, int(widest), out, np.empty(nl + 1),
+    )  # fmt: skip
+    return out
 
 
 def _owners(contour: Contour, p: np.ndarray, loops: list[np.ndarray]) -> np.ndarray:
