@@ -44,15 +44,11 @@ def recover(mesh: Mesh, only: set[tuple[int, int]] | None = None) -> tuple[Mesh,
     m, e = mesh.n_contour, mesh.n_extra
     if e == 0:
         return mesh, 0
-    tri = [tuple(t) for t in mesh.triangles.tolist()]
+    tri = mesh.triangles.tolist()
     pts = mesh.points
     n = len(pts)
     alive = [True] * len(tri)
-    star: list[set[int]] = [set() for _ in range(n)]
-    for t, (u, v, w) in enumerate(tri):
-        star[u].add(t)
-        star[v].add(t)
-        star[w].add(t)
+    star = _Stars(mesh.triangles, n)
     nxt = np.full(n, -1, dtype=np.int64)
     nxt[mesh.lines[:, 0]] = mesh.lines[:, 1]
     gone = np.zeros(n, dtype=bool)
@@ -81,7 +77,7 @@ def recover(mesh: Mesh, only: set[tuple[int, int]] | None = None) -> tuple[Mesh,
             star[u].add(len(tri))
             star[v].add(len(tri))
             star[w].add(len(tri))
-            tri.append((u, v, w))
+            tri.append([u, v, w])
             alive.append(True)
 
     def in_disk(v: int, a: int, b: int) -> bool:
@@ -151,3 +147,21 @@ def recover(mesh: Mesh, only: set[tuple[int, int]] | None = None) -> tuple[Mesh,
         return mesh, 0
     kept = np.array(tri, dtype=np.int64)[np.array(alive)]
     return renumber(mesh, kept, gone), taken
+
+
+class _Stars:
+    """Each node's triangles, as a set made when first asked for (from one sort of the
+    mesh's corners): recovery reads and changes the stars of the few nodes near the
+    boundary, not of all."""
+
+    def __init__(self, tri: np.ndarray, n: int):
+        flat = np.asarray(tri, dtype=np.int64).ravel()
+        self._order = (np.argsort(flat, kind="stable") // 3).tolist()
+        self._start = np.concatenate([[0], np.cumsum(np.bincount(flat, minlength=n))]).tolist()
+        self._made: dict[int, set[int]] = {}
+
+    def __getitem__(self, v: int) -> set[int]:
+        s = self._made.get(v)
+        if s is None:
+            s = self._made[v] = set(self._order[self._start[v] : self._start[v + 1]])
+        return s
