@@ -511,3 +511,48 @@ def test_strict_on_the_graded_grid_gives_no_extra_node():
     c = load_contour(CORPUS / "coast_cuba.csv")
     res = mesh_contour(c, strict=True)
     assert res.mesh.n_extra == 0 and res.report["recovered_extra_nodes"] > 0
+
+
+def _balance_every_leaf_asks(tree):
+    """Balancing where every leaf asks in every round (the reference)."""
+    lv, i, j = tree.level, tree.i, tree.j
+    while True:
+        t = graded.Quadtree(
+            tree.x0, tree.y0, tree.hx, tree.hy, tree.top, tree.nx, tree.ny, lv, i, j
+        )
+        marks = np.zeros(len(lv), dtype=bool)
+        for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+            holder = t.leaf_index(lv, i + di, j + dj)
+            ok = holder >= 0
+            too_big = ok.copy()
+            too_big[ok] = lv[holder[ok]] > lv[ok] + 1
+            marks[holder[too_big]] = True
+        if not marks.any():
+            return t
+        keep = ~marks
+        ls, is_, js = lv[marks] - 1, i[marks], j[marks]
+        lv = np.concatenate([lv[keep], np.repeat(ls, 4)])
+        i = np.concatenate([i[keep], np.repeat(is_, 4) * 2 + np.tile([0, 1, 0, 1], len(is_))])
+        j = np.concatenate([j[keep], np.repeat(js, 4) * 2 + np.tile([0, 0, 1, 1], len(js))])
+
+
+@pytest.mark.parametrize("name", ["peanut.csv", "naca0012.csv", "half_disk.csv"])
+def test_balance_asks_again_only_where_a_neighbour_split(name):
+    """Refined but unbalanced trees of samples (a steep growth, so many rounds): the
+    balance where only new leaves and those whose neighbour split ask again is the
+    one where every leaf asks every round, leaf for leaf and in the same order."""
+    c = load_contour(SAMPLES / name)
+    lo, hi = c.points.min(axis=0), c.points.max(axis=0)
+    box = (*(lo - 2.0), *(hi + 2.0))
+    s = graded.graded_sizes(c.points, graded.local_sizes(c), 8.0) * 0.3
+    nx, ny, top, h0 = graded.root_cells(box[2] - box[0], box[3] - box[1], float(s.min()))
+    ii, jj = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+    root = graded.Quadtree(
+        box[0], box[1], h0, h0, top, nx, ny,
+        np.full(nx * ny, top, np.int64), ii.ravel().astype(np.int64), jj.ravel().astype(np.int64),
+    )  # fmt: skip
+    tree = graded.refine(root, c.points, s, 8.0)
+    got, want = graded.balance(tree), _balance_every_leaf_asks(tree)
+    assert got.n_leaves > tree.n_leaves
+    for f in ("level", "i", "j"):
+        assert np.array_equal(getattr(got, f), getattr(want, f))

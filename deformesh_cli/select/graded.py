@@ -480,21 +480,35 @@ def refine(
 
 
 def balance(tree: Quadtree) -> Quadtree:
-    """Split leaves until every two leaves sharing a side differ by at most one level."""
+    """Split leaves until every two leaves sharing a side differ by at most one level.
+
+    Each round, a leaf looks up the leaves across its four sides at its own level and
+    marks those more than one level coarser; the marked split in four.  A leaf asks
+    again only when it is new or one it found was split (the others' answers cannot
+    change), so the rounds, and the tree, are those of every leaf asking every time."""
     lv, i, j = tree.level, tree.i, tree.j
+    ask = np.arange(len(lv))
     while True:
         t = Quadtree(tree.x0, tree.y0, tree.hx, tree.hy, tree.top, tree.nx, tree.ny, lv, i, j)
         marks = np.zeros(len(lv), dtype=bool)
+        holders = []
         for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
-            holder = t.leaf_index(lv, i + di, j + dj)
+            holder = t.leaf_index(lv[ask], i[ask] + di, j[ask] + dj)
             ok = holder >= 0
             too_big = ok.copy()
-            too_big[ok] = lv[holder[ok]] > lv[ok] + 1
+            too_big[ok] = lv[holder[ok]] > lv[ask][ok] + 1
             marks[holder[too_big]] = True
+            holders.append(holder)
         if not marks.any():
             return t
+        found = np.column_stack(holders)
+        again = ask[(marks[np.maximum(found, 0)] & (found >= 0)).any(axis=1)]
         keep = ~marks
+        renum = np.cumsum(keep) - 1
+        again = renum[again[keep[again]]]  # (a marked one is asked for by its children)
         ls, is_, js = lv[marks] - 1, i[marks], j[marks]
+        kept = int(keep.sum())
         lv = np.concatenate([lv[keep], np.repeat(ls, 4)])
         i = np.concatenate([i[keep], np.repeat(is_, 4) * 2 + np.tile([0, 1, 0, 1], len(is_))])
         j = np.concatenate([j[keep], np.repeat(js, 4) * 2 + np.tile([0, 0, 1, 1], len(js))])
+        ask = np.concatenate([again, np.arange(kept, len(lv))])
