@@ -92,3 +92,83 @@ def areas(
                 far = far if far > f else f
                 area = area + sign * (flat * sq + round_off * sqrt(sq) * far)
             out[t] = area
+
+
+def pattern(
+    const long long[:, :] tri,
+    const long long[:] fidx,
+    long long n_free,
+    long long[:] indptr,
+    long long[:] indices,
+    long long[:] entry_slot,
+):
+    """The free-free block's CSR pattern (rows' columns sorted, each once) and each
+    element entry's slot in it (``e = 9 t + 3 i + j``: row ``fidx[tri[t, i]]``, column
+    ``fidx[tri[t, j]]``; -1 where either is not free).  ``indices`` is filled by rows
+    from a counting sort (at most 9 per triangle) and compacted; returns the count of
+    entries.  ``indptr``: ``n_free + 1``."""
+    cdef Py_ssize_t nt = tri.shape[0]
+    cdef Py_ssize_t t, a, b, r, s, k, lo, hi, mid, out, begin, end
+    cdef long long fr, fc, v
+    with nogil:
+        for r in range(n_free + 1):
+            indptr[r] = 0
+        for t in range(nt):
+            for a in range(3):
+                fr = fidx[tri[t, a]]
+                if fr < 0:
+                    continue
+                for b in range(3):
+                    if fidx[tri[t, b]] >= 0:
+                        indptr[fr + 1] += 1
+        for r in range(n_free):
+            indptr[r + 1] += indptr[r]
+        for t in range(nt):  # (indptr[r] is where row r's next column goes)
+            for a in range(3):
+                fr = fidx[tri[t, a]]
+                if fr < 0:
+                    continue
+                for b in range(3):
+                    fc = fidx[tri[t, b]]
+                    if fc >= 0:
+                        indices[indptr[fr]] = fc
+                        indptr[fr] += 1
+        out = 0
+        begin = 0
+        for r in range(n_free):  # each row sorted, each column once, compacted
+            end = indptr[r]
+            for k in range(begin + 1, end):
+                v = indices[k]
+                s = k
+                while s > begin and indices[s - 1] > v:
+                    indices[s] = indices[s - 1]
+                    s -= 1
+                indices[s] = v
+            indptr[r] = out
+            k = begin
+            while k < end:
+                v = indices[k]
+                indices[out] = v
+                out += 1
+                while k < end and indices[k] == v:
+                    k += 1
+            begin = end
+        indptr[n_free] = out
+        for t in range(nt):
+            for a in range(3):
+                fr = fidx[tri[t, a]]
+                for b in range(3):
+                    fc = fidx[tri[t, b]]
+                    if fr < 0 or fc < 0:
+                        entry_slot[9 * t + 3 * a + b] = -1
+                        continue
+                    lo = indptr[fr]
+                    hi = indptr[fr + 1]
+                    while lo < hi:
+                        mid = (lo + hi) // 2
+                        if indices[mid] < fc:
+                            lo = mid + 1
+                        else:
+                            hi = mid
+                    entry_slot[9 * t + 3 * a + b] = lo
+    return out

@@ -144,27 +144,28 @@ class Assembler:
         fidx = np.full(n_nodes, -1, dtype=np.int64)
         fidx[self.free] = np.arange(nf)
         self._fidx = fidx
-        r = tri[:, _LOCAL_R].ravel()
-        c = tri[:, _LOCAL_C].ravel()
-        fr, fc = fidx[r], fidx[c]
-        ff = (fr >= 0) & (fc >= 0)
-        keys = fr[ff] * nf + fc[ff]
-        ukeys, slot = unique_inverse(keys)
-        self._indices = (ukeys % nf).astype(np.int32)
-        rows = ukeys // nf
-        self._indptr = np.searchsorted(rows, np.arange(nf + 1)).astype(np.int32)
-        self._nnz = len(ukeys)
+        from ._divcurl import pattern
+
+        self._tri = t = np.ascontiguousarray(tri, dtype=np.int64)
+        # the free-free pattern (rows' columns sorted) and, per element entry (9 per
+        # triangle, row-major), its CSR slot (free row and column) or -1: a counting
+        # sort by row, compiled (:mod:`._divcurl`)
+        indptr = np.empty(nf + 1, dtype=np.int64)
+        indices = np.empty(9 * len(t), dtype=np.int64)
+        self._entry_slot = np.empty(9 * len(t), dtype=np.int64)
+        nnz = pattern(t, fidx, nf, indptr, indices, self._entry_slot)
+        self._indices = indices[:nnz].astype(np.int32)
+        self._indptr = indptr.astype(np.int32)
+        self._nnz = nnz
+        rows = np.repeat(np.arange(nf), np.diff(indptr))
         low = self._indices <= rows
         self._up = np.flatnonzero(low)
         self._up_indices = self._indices[low]
         self._up_indptr = np.searchsorted(rows[low], np.arange(nf + 1)).astype(np.int32)
-        # per element entry (9 per triangle, row-major): its CSR slot (free row and
-        # column), else its right-hand side's row (free row, Dirichlet column), else -1
-        self._entry_slot = np.full(len(r), -1, dtype=np.int64)
-        self._entry_slot[ff] = slot
-        fd = (fr >= 0) & (fc < 0)
-        self._entry_rhs = np.where(fd, fr, -1)
-        self._tri = np.ascontiguousarray(tri, dtype=np.int64)
+        # ... else its right-hand side's row (free row, Dirichlet column), else -1
+        fr = fidx[t[:, _LOCAL_R].ravel()]
+        fc = fidx[t[:, _LOCAL_C].ravel()]
+        self._entry_rhs = np.where((fr >= 0) & (fc < 0), fr, -1)
 
     def load(self, points: np.ndarray, r: np.ndarray) -> np.ndarray:
         """The divergence load ``sum_T |T| r_T (gx, gy)`` on the free dofs, (n_free, 2)."""

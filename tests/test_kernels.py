@@ -151,8 +151,9 @@ def _random_mesh(seed, n=400):
 
 @pytest.mark.parametrize("seed", range(4))
 def test_assembly_is_the_element_matrices_summed_in_order(seed):
-    """The compiled assembly against the numpy one it replaced: element matrices from
-    :func:`stiffness_entries`, gathered by ``np.bincount`` over the free-free entries
+    """The compiled pattern and assembly against the numpy ones they replaced: the
+    pattern of the sorted unique (row, column) keys, element matrices from
+    :func:`stiffness_entries` gathered by ``np.bincount`` over the free-free entries
     and the free-Dirichlet ones, bit for bit."""
     from deformesh_cli.divcurl import Assembler, stiffness_entries, unique_inverse
 
@@ -170,8 +171,10 @@ def test_assembly_is_the_element_matrices_summed_in_order(seed):
     fr, fc = fidx[r], fidx[c]
     ke = stiffness_entries(p, tri).ravel()
     ff = (fr >= 0) & (fc >= 0)
-    _, slot = unique_inverse(fr[ff] * len(free) + fc[ff])
+    ukeys, slot = unique_inverse(fr[ff] * len(free) + fc[ff])
     assert np.array_equal(K.data, np.bincount(slot, weights=ke[ff]))
+    assert np.array_equal(K.indices, ukeys % len(free))
+    assert np.array_equal(K.indptr, np.searchsorted(ukeys // len(free), np.arange(len(free) + 1)))
     fd = (fr >= 0) & (fc < 0)
     for comp in range(2):
         want = -np.bincount(fr[fd], weights=ke[fd] * ud[c[fd], comp], minlength=len(free))
