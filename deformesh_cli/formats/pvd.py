@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from xml.sax.saxutils import quoteattr
-
 
 def pvd_bytes(entries: list[tuple[float, str]]) -> bytes:
     """A ``.pvd`` file listing ``(time, file name)``, the names relative to its folder."""
+    from xml.sax.saxutils import quoteattr  # (it loads urllib and email: only here)
+
     rows = "".join(
         f'    <DataSet timestep="{float(t)!r}" group="" part="0" file={quoteattr(name)}/>\n'
         for t, name in entries

@@ -6,8 +6,6 @@ put in after)."""
 
 from __future__ import annotations
 
-from xml.sax.saxutils import quoteattr
-
 import numpy as np
 
 from ..errors import WriteError
@@ -27,6 +25,8 @@ def write(mesh: Mesh, path: str, version: str | None = None) -> None:
 def add_field_data(path: str, table: dict) -> None:
     """Put ``table`` (name -> an integer array, one tuple) into the grid's field data of
     the VTU file meshio wrote at ``path`` (meshio writes none)."""
+    from xml.sax.saxutils import quoteattr  # (it loads urllib and email: only here)
+
     if not table:
         return
     with open(path, "rb") as f:
