@@ -23,6 +23,7 @@ import numpy as np
 
 from .divcurl import Assembler
 from .errors import BandError, FoldError, OptionError, SolverError
+from .ldl import LDL
 
 #: Default number of pseudo-time steps (the paper's example uses 10).
 DEFAULT_STEPS = 10
@@ -113,16 +114,39 @@ STEP_RTOL = 1e-6
 SOLVES = ("band", "full")
 
 
+#: ``direct`` factorises systems of up to this many unknowns with :class:`.ldl.LDL`
+#: (compiled here, no scipy), larger ones with QDLDL, whose approximate minimum degree
+#: ordering keeps the factor two to three times sparser but whose first use imports
+#: scipy.sparse (about 0.09 s): the two cost the same at about 7,000 unknowns
+#: (``benchmarks/MEASURED.md``).
+OWN_LDL_MAX = 6_000
+
+
+class _QDLDL:
+    """QDLDL (approximate minimum degree ordering) behind :class:`.ldl.LDL`'s methods."""
+
+    def __init__(self, K):
+        import qdldl
+
+        self._solver = qdldl.Solver(K.upper(), upper=True)
+
+    def update(self, K) -> None:
+        self._solver.update(K.upper(), upper=True)
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        return np.column_stack([self._solver.solve(rhs[:, k]) for k in range(rhs.shape[1])])
+
+
 class LinearSolver:
     """Solves the per-step scalar systems ``K X = rhs`` (two right-hand sides).
 
-    ``direct`` factorises ``K = L D L^T`` with QDLDL (approximate minimum
-    degree ordering).  The ordering and the symbolic factorisation are done
-    once; later steps, whose matrices share the sparsity pattern (the mesh
-    moves, its connectivity does not), only refactor the numbers, a tenth of
-    the first factorisation's cost (``benchmarks/MEASURED.md``).  ``amg`` runs
-    conjugate gradients preconditioned
-    by a smoothed-aggregation hierarchy (pyamg) built on the first step's
+    ``direct`` factorises ``K = L D L^T`` (:data:`OWN_LDL_MAX`: with
+    :class:`.ldl.LDL`, nested dissection, or QDLDL, approximate minimum
+    degree).  The ordering and the symbolic factorisation are done once; later
+    steps, whose matrices share the sparsity pattern (the mesh moves, its
+    connectivity does not), only refactor the numbers, a tenth of the first
+    factorisation's cost (``benchmarks/MEASURED.md``).  ``amg`` runs conjugate
+    gradients preconditioned by a smoothed-aggregation hierarchy (pyamg) built on the first step's
     matrix and reused while it keeps converging fast (the mesh changes little
     per step), warm-started from the previous step's displacement.
     """
@@ -149,16 +173,13 @@ class LinearSolver:
         return self._solve_amg(K, rhs, x0)
 
     def _solve_ldl(self, K, rhs):
-        import qdldl
-
-        upper = K.upper()  # K is symmetric: its upper triangle says it all
-        if self._ldl is not None and upper.indices is self._pattern:
-            self._ldl.update(upper, upper=True)  # same pattern: new numbers only
+        if self._ldl is not None and K.indices is self._pattern:
+            self._ldl.update(K)  # same pattern: new numbers only
         else:
-            self._ldl = qdldl.Solver(upper, upper=True)
-            self._pattern = upper.indices
+            self._ldl = LDL(K) if K.shape[0] <= OWN_LDL_MAX else _QDLDL(K)
+            self._pattern = K.indices
             self.setups += 1
-        return np.column_stack([self._ldl.solve(rhs[:, k]) for k in range(rhs.shape[1])])
+        return self._ldl.solve(rhs)
 
     def _solve_amg(self, K, rhs, x0):
         import scipy.sparse.linalg as spla

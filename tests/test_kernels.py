@@ -461,3 +461,56 @@ def test_between_costs_match_the_numpy_table(seed):
     want = _between_costs_reference(loop, cand, q, s, nl - (m - 1))
     assert np.array_equal(got, want)
     assert np.isfinite(got).mean() > 0.1 and (got[np.isfinite(got)] > 0).any()
+
+
+def _laplacian(seed, n, parts=1):
+    """The deformation's matrix on random Delaunay meshes (``parts`` apart: a graph of
+    several components), hull nodes held."""
+    from scipy.spatial import ConvexHull, Delaunay
+
+    from deformesh_cli.divcurl import Assembler
+
+    rng = np.random.default_rng(seed)
+    pts, tris, held = [], [], []
+    for k in range(parts):
+        p = rng.random((n, 2)) + [3.0 * k, 0.0]
+        tris.append(Delaunay(p).simplices + k * n)
+        h = np.zeros(n, dtype=bool)
+        h[ConvexHull(p).vertices] = True
+        pts.append(p)
+        held.append(h)
+    p, tri, held = np.concatenate(pts), np.concatenate(tris), np.concatenate(held)
+    asm = Assembler(tri.astype(np.int64), len(p), held)
+    return rng, asm.system(p, rng.normal(size=(len(p), 2)))
+
+
+@pytest.mark.parametrize("seed, n, parts", [(0, 30, 1), (1, 400, 1), (2, 300, 3), (3, 2500, 1)])
+def test_ldl_solves_the_deformation_systems(seed, n, parts):
+    """The nested-dissection LDL^T: its order is a permutation, its solution the dense
+    solver's to round-off, the same bits on a second factorisation, and an update with
+    new numbers on the same pattern solves the new system."""
+    from deformesh_cli.ldl import LDL
+
+    _, (K, rhs) = _laplacian(seed, n, parts)
+    f = LDL(K)
+    assert sorted(f.perm.tolist()) == list(range(K.shape[0]))
+    dense = K.tocsr().toarray()
+    x = f.solve(rhs)
+    assert np.allclose(dense @ x, rhs, rtol=0, atol=1e-10 * np.abs(rhs).max())
+    assert np.array_equal(LDL(K).solve(rhs), x)
+    K2 = type(K)(K.data * 2.0, K.indices, K.indptr, K.shape, K.upper_slots,
+                 K.upper_indices, K.upper_indptr)  # fmt: skip
+    f.update(K2)
+    assert np.allclose(f.solve(rhs), x / 2.0, rtol=1e-12, atol=1e-15)
+
+
+def test_ldl_refuses_a_matrix_that_is_not_positive_definite():
+    """A negated system has negative pivots: a SolverError, not a wrong answer."""
+    from deformesh_cli.errors import SolverError
+    from deformesh_cli.ldl import LDL
+
+    _, (K, _) = _laplacian(5, 50)
+    neg = type(K)(-K.data, K.indices, K.indptr, K.shape, K.upper_slots,
+                  K.upper_indices, K.upper_indptr)  # fmt: skip
+    with pytest.raises(SolverError):
+        LDL(neg)
