@@ -182,9 +182,8 @@ def _move(pts, tri, nodes, inc, slot) -> int:
     ax, ay, bx, by = pts[a, 0], pts[a, 1], pts[b, 0], pts[b, 1]  # (n, d)
     # each node's triangles one after the other, without the padding (a node of high
     # valence pads every other node's row to its width)
-    row = np.nonzero(valid)[0]
     first = np.concatenate([[0], np.cumsum(valid.sum(axis=1))[:-1]])
-    quality = _apex_quality(row, first, *(v[valid][:, None] for v in (ax, ay, bx, by)))
+    quality = _apex_quality(first, *(v[valid][:, None] for v in (ax, ay, bx, by)))
 
     px, py = pts[nodes, 0].copy(), pts[nodes, 1].copy()
     best = quality(px[:, None], py[:, None])[:, 0]
@@ -216,45 +215,33 @@ def _move(pts, tri, nodes, inc, slot) -> int:
     return int(moved.sum())
 
 
-def _apex_quality(row, first, ax, ay, bx, by):
+def _apex_quality(first, ax, ay, bx, by):
     """``quality(px, py)``: for (n, c) candidate positions of n nodes, the tangent of
-    the smallest angle of each node's worst triangle ``(p, a, b)`` (``row``: each
-    triangle's node; ``first``: each node's first triangle; ``a``, ``b``: (t, 1)).
+    the smallest angle of each node's worst triangle ``(p, a, b)`` (``first``: each
+    node's first triangle, its triangles in a run; ``a``, ``b``: (t, 1)).
 
     :func:`tan_min_angle`'s arithmetic operation for operation, so the same bits,
-    but with the side ``a -> b``, which no candidate moves, squared once, and in
-    place: the quality stage spends most of its time here."""
+    but with the side ``a -> b``, which no candidate moves, squared once, in a
+    compiled loop (:mod:`._smoothing`): the quality stage spends most of its time
+    here."""
+    from ._smoothing import apex_quality
+
+    flat = [np.ascontiguousarray(v, dtype=np.float64).ravel() for v in (ax, ay, bx, by)]
     s0 = bx - ax
     s0 *= s0
     e0y = by - ay
     e0y *= e0y
     s0 += e0y
+    s0 = np.ascontiguousarray(s0).ravel()
+    first = np.ascontiguousarray(first, dtype=np.int64)
 
     def quality(px, py):
-        x, y = px[row], py[row]
-        e1x, e1y = x - bx, y - by
-        x = np.subtract(ax, x, out=x)  # e2
-        y = np.subtract(ay, y, out=y)
-        cross = e1x * y
-        cross -= e1y * x
-        e1x *= e1x  # s1
-        e1y *= e1y
-        e1x += e1y
-        x *= x  # s2
-        y *= y
-        x += y
-        shortest = np.minimum(s0, e1x)
-        np.minimum(shortest, x, out=shortest)
-        den = np.add(s0, e1x, out=e1x)
-        den += x
-        shortest *= 2
-        den -= shortest
-        ccw = cross > 0
-        cross *= 2
-        with np.errstate(divide="ignore", invalid="ignore"):
-            cross /= den
-        cross[~ccw] = -np.inf
-        return np.minimum.reduceat(cross, first, axis=0)
+        shape = np.broadcast_shapes(np.shape(px), np.shape(py))
+        px = np.ascontiguousarray(np.broadcast_to(px, shape), dtype=np.float64)
+        py = np.ascontiguousarray(np.broadcast_to(py, shape), dtype=np.float64)
+        out = np.empty(shape)
+        apex_quality(first, *flat, s0, px, py, out)
+        return out
 
     return quality
 

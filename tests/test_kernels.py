@@ -514,3 +514,34 @@ def test_ldl_refuses_a_matrix_that_is_not_positive_definite():
                   K.upper_indices, K.upper_indptr)  # fmt: skip
     with pytest.raises(SolverError):
         LDL(neg)
+
+
+def test_apex_quality_is_the_numpy_expression():
+    """Random stars and candidate positions (some turning triangles clockwise, one
+    corner NaN): each node's worst tangent as the numpy expression gives it, bit for
+    bit, -inf included."""
+    from deformesh_cli.smoothing import _apex_quality
+
+    rng = np.random.default_rng(7)
+    n, c = 60, 8
+    count = rng.integers(1, 9, n)
+    first = np.concatenate([[0], np.cumsum(count)[:-1]])
+    row = np.repeat(np.arange(n), count)
+    t = len(row)
+    ax, ay, bx, by = (rng.normal(size=(t, 1)) for _ in range(4))
+    ax[5] = np.nan
+    px, py = rng.normal(size=(n, c)), rng.normal(size=(n, c))
+    got = _apex_quality(first, ax, ay, bx, by)(px, py)
+    x, y = px[row], py[row]
+    e1x, e1y, e2x, e2y = x - bx, y - by, ax - x, ay - y
+    cross = e1x * e2y - e1y * e2x
+    s0 = (bx - ax) ** 2 + (by - ay) ** 2
+    s1, s2 = e1x * e1x + e1y * e1y, e2x * e2x + e2y * e2y
+    shortest = np.minimum(np.minimum(s0, s1), s2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q = np.where(cross > 0, 2 * cross / (s0 + s1 + s2 - 2 * shortest), -np.inf)
+    want = np.minimum.reduceat(q, first, axis=0)
+    assert np.array_equal(got, want, equal_nan=True)
+    assert np.isinf(got).any() and np.isfinite(got).any()
+    one = _apex_quality(first, ax, ay, bx, by)(px[:, :1], py[:, :1])
+    assert np.array_equal(one, want[:, :1], equal_nan=True)
