@@ -1,7 +1,8 @@
 """The sparse factorisation of adapt's velocity systems: QDLDL's LDL^T (Apache-2.0),
 its own approximate-minimum-degree order, symbolic analysis once per pattern and then
 only refactorised.  QDLDL uses no BLAS, so the same system gives the same bits on every
-processor, with no kernel or thread setting (meshing's band solves use it too)."""
+processor, with no kernel or thread setting (the deformation's larger direct solves use
+it too)."""
 
 from __future__ import annotations
 
@@ -37,7 +38,7 @@ class Cholesky:
                 self.symbolic += 1
         except (RuntimeError, ValueError) as exc:
             self._ldl = self._pattern = None
-            raise SolverError(f"the velocity's system is singular ({exc})") from None
+            raise SolverError(f"the system is singular ({exc})") from None
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """``rhs`` (n,) or (n, k) -> the solution, same shape."""

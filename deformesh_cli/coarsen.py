@@ -216,16 +216,6 @@ def _weigh(pts, tri, stars, deg, need, nodes, tan_floor, boundary):
     return _Candidates(nodes[rows], b[rows], key[rows], r_idx, u[rows][valid], star)
 
 
-def _neighbours(tri, stars, deg, nodes) -> np.ndarray:
-    """Per node: its neighbours (the other corners of its triangles; -1 pads)."""
-    w = stars.shape[1]
-    s = stars[nodes]
-    valid = np.arange(w) < deg[nodes, None]
-    t = tri[np.where(valid, s, 0)]
-    t = np.where(valid[..., None] & (t != nodes[:, None, None]), t, -1)
-    return t.reshape(len(nodes), 3 * w)
-
-
 def _collapse(tri, stars, deg, alive, wa, wb):
     """Collapse each ``wa`` into its ``wb`` (their stars apart): the triangles renamed,
     the two on each edge dead, the stars of ``wb`` and of the two across mended (the

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .cholesky import Cholesky
 from .divcurl import Assembler
 from .errors import BandError, FoldError, OptionError, SolverError
 from .ldl import LDL
@@ -122,21 +123,6 @@ SOLVES = ("band", "full")
 OWN_LDL_MAX = 6_000
 
 
-class _QDLDL:
-    """QDLDL (approximate minimum degree ordering) behind :class:`.ldl.LDL`'s methods."""
-
-    def __init__(self, K):
-        import qdldl
-
-        self._solver = qdldl.Solver(K.upper(), upper=True)
-
-    def update(self, K) -> None:
-        self._solver.update(K.upper(), upper=True)
-
-    def solve(self, rhs: np.ndarray) -> np.ndarray:
-        return np.column_stack([self._solver.solve(rhs[:, k]) for k in range(rhs.shape[1])])
-
-
 class LinearSolver:
     """Solves the per-step scalar systems ``K X = rhs`` (two right-hand sides).
 
@@ -173,10 +159,16 @@ class LinearSolver:
         return self._solve_amg(K, rhs, x0)
 
     def _solve_ldl(self, K, rhs):
-        if self._ldl is not None and K.indices is self._pattern:
+        if K.shape[0] > OWN_LDL_MAX:  # (QDLDL: it sees the same pattern itself)
+            if self._ldl is None:
+                self._ldl = Cholesky()
+            symbolic = self._ldl.symbolic
+            self._ldl.factorise(K.upper())
+            self.setups += self._ldl.symbolic - symbolic
+        elif self._ldl is not None and K.indices is self._pattern:
             self._ldl.update(K)  # same pattern: new numbers only
         else:
-            self._ldl = LDL(K) if K.shape[0] <= OWN_LDL_MAX else _QDLDL(K)
+            self._ldl = LDL(K)
             self._pattern = K.indices
             self.setups += 1
         return self._ldl.solve(rhs)

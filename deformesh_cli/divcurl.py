@@ -34,21 +34,6 @@ def gradients(points: np.ndarray, tri: np.ndarray):
     return b / a2[:, None], c / a2[:, None], a2
 
 
-def stiffness_entries(points: np.ndarray, tri: np.ndarray, out: np.ndarray | None = None):
-    """P1 Laplace element matrices, flattened row-major to (t, 9) (into ``out`` if
-    given: a caller assembling many times keeps one buffer, rather than faulting a
-    fresh one in every time).  A row of three at a time, each entry
-    ``(gx_i gx_j + gy_i gy_j) |T|``."""
-    gx, gy, a2 = gradients(points, tri)
-    area = (0.5 * a2)[:, None]
-    ke = np.empty((len(tri), 9)) if out is None else out
-    for i in range(3):
-        row = gx[:, i, None] * gx
-        row += gy[:, i, None] * gy
-        np.multiply(row, area, out=ke[:, 3 * i : 3 * i + 3])
-    return ke
-
-
 def assemble_coupled(points: np.ndarray, tri: np.ndarray, rhs: np.ndarray | None = None):
     """The full LSFEM system over dofs ``[ux_0..ux_N-1, uy_0..uy_N-1]``.
 
@@ -184,8 +169,8 @@ class Assembler:
         Dirichlet values.
 
         ``u_dirichlet`` is (N, 2); only its rows at Dirichlet nodes are read.  The
-        element matrices are :func:`stiffness_entries`', summed into their slots in
-        element order (a compiled loop, :mod:`._divcurl`).
+        element matrices are the P1 Laplace ones, ``(gx_i gx_j + gy_i gy_j) |T|``, summed
+        into their slots in element order (a compiled loop, :mod:`._divcurl`).
         """
         from ._divcurl import assemble
 

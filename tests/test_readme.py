@@ -182,6 +182,18 @@ def test_readme_speed_numbers_are_the_benchmark_files():
     )
     assert said is not None
     assert said.groups() == (ratio["circle"], ratio["bean"], ratio["naca0012"])
+    # one process per corpus contour against a Triangle process ("corpus-processes")
+    procs = results.split("<!-- section:corpus-processes -->")[1].split("<!-- end:")[0]
+    median, largest = re.search(
+        r"Our time over Triangle's: median ([\d.]+), largest ([\d.]+)", procs
+    ).groups()
+    said = re.search(
+        r"one process per real contour takes a median ([\d.]+) times a Triangle "
+        r"process's time \(up to ([\d.]+) on",
+        " ".join(README.split()),
+    )
+    assert said is not None
+    assert said.groups() == (median, str(round(float(largest), 1)))
 
 
 def test_limits_corpus_numbers_are_the_benchmark_file():

@@ -17,16 +17,7 @@ tree, so the result is the same on every run and machine.
 
 from libc.math cimport INFINITY, fabs, sqrt
 
-
-cdef inline double _gap(double lo, double hi, double c, double half) noexcept nogil:
-    # (the distance along one axis from [lo, hi] to [c - half, c + half], at or below
-    # max(|p - c| - half, 0) for every p in [lo, hi], in floating point too)
-    cdef double g = lo - c
-    cdef double other = c - hi
-    if other > g:
-        g = other
-    g = g - half
-    return g if g > 0.0 else 0.0
+from ._boxes cimport gap2
 
 
 def least(
@@ -54,7 +45,7 @@ def least(
     cdef Py_ssize_t nq = cx.shape[0]
     cdef Py_ssize_t q, p, k, a, b, top
     cdef long long stack[128]
-    cdef double best, x, y, hw, hh, gx, gy, bound, ba, bb, dx, dy, v
+    cdef double best, x, y, hw, hh, bound, ba, bb, dx, dy, v
     with nogil:
         for q in range(nq):
             x = cx[q]
@@ -68,9 +59,7 @@ def least(
             while top > 0:
                 top -= 1
                 k = stack[top]
-                gx = _gap(box[4 * k], box[4 * k + 1], x, hw)
-                gy = _gap(box[4 * k + 2], box[4 * k + 3], y, hh)
-                bound = node_s[k] + alpha * sqrt(gx * gx + gy * gy)
+                bound = node_s[k] + alpha * sqrt(gap2(box, k, x, y, hw, hh))
                 if not bound * slack < best:
                     continue
                 if k >= leaf0:
@@ -90,12 +79,8 @@ def least(
                 # (both children, the one with the lower bound on top: walked first)
                 a = 2 * k
                 b = 2 * k + 1
-                gx = _gap(box[4 * a], box[4 * a + 1], x, hw)
-                gy = _gap(box[4 * a + 2], box[4 * a + 3], y, hh)
-                ba = node_s[a] + alpha * sqrt(gx * gx + gy * gy)
-                gx = _gap(box[4 * b], box[4 * b + 1], x, hw)
-                gy = _gap(box[4 * b + 2], box[4 * b + 3], y, hh)
-                bb = node_s[b] + alpha * sqrt(gx * gx + gy * gy)
+                ba = node_s[a] + alpha * sqrt(gap2(box, a, x, y, hw, hh))
+                bb = node_s[b] + alpha * sqrt(gap2(box, b, x, y, hw, hh))
                 if ba < bb:
                     stack[top] = b
                     stack[top + 1] = a

@@ -6,13 +6,7 @@ farther than the ``k``-th nearest found so far."""
 
 from libc.math cimport INFINITY, sqrt
 
-
-cdef inline double _gap(double lo, double hi, double c) noexcept nogil:
-    cdef double g = lo - c
-    cdef double other = c - hi
-    if other > g:
-        g = other
-    return g if g > 0.0 else 0.0
+from ._boxes cimport gap2
 
 
 def nearest(
@@ -35,7 +29,7 @@ def nearest(
     cdef Py_ssize_t k = dist.shape[1]
     cdef Py_ssize_t q, i, j, c, top, lo, hi
     cdef long long node, e, stack[128]
-    cdef double x, y, gx, gy, b0, b1, d2, worst
+    cdef double x, y, b0, b1, d2, worst
     cdef long long worst_i
     with nogil:
         for q in range(nq):
@@ -49,18 +43,12 @@ def nearest(
             while top > 0:
                 top -= 1
                 node = stack[top]
-                gx = _gap(box[4 * node], box[4 * node + 1], x)
-                gy = _gap(box[4 * node + 2], box[4 * node + 3], y)
-                if gx * gx + gy * gy > dist[q, k - 1]:
+                if gap2(box, node, x, y, 0.0, 0.0) > dist[q, k - 1]:
                     continue
                 if node < leaf0:
                     c = 2 * node
-                    gx = _gap(box[4 * c], box[4 * c + 1], x)
-                    gy = _gap(box[4 * c + 2], box[4 * c + 3], y)
-                    b0 = gx * gx + gy * gy
-                    gx = _gap(box[4 * c + 4], box[4 * c + 5], x)
-                    gy = _gap(box[4 * c + 6], box[4 * c + 7], y)
-                    b1 = gx * gx + gy * gy
+                    b0 = gap2(box, c, x, y, 0.0, 0.0)
+                    b1 = gap2(box, c + 1, x, y, 0.0, 0.0)
                     if b0 <= b1:
                         stack[top] = c + 1
                         stack[top + 1] = c

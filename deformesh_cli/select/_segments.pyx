@@ -9,13 +9,7 @@ multiply-adds: the arithmetic is the same on every processor.
 
 from libc.math cimport INFINITY, fabs, hypot, sqrt
 
-
-cdef inline double _gap(double lo, double hi, double c) noexcept nogil:
-    cdef double g = lo - c
-    cdef double other = c - hi
-    if other > g:
-        g = other
-    return g if g > 0.0 else 0.0
+from ._boxes cimport gap2
 
 
 cdef inline int _half(double fx, double fy, double zx, double zy) noexcept nogil:
@@ -73,7 +67,7 @@ def clearance(
     cdef Py_ssize_t nq = qx.shape[0]
     cdef Py_ssize_t q, i, e, k, lo, hi, top
     cdef long long stack[128]
-    cdef double best, x, y, r, gx, gy, bound, ex, ey, ll, t, px, py, d, along, other, wrap
+    cdef double best, x, y, r, bound, ex, ey, ll, t, px, py, d, along, other, wrap
     with nogil:
         for q in range(nq):
             x = qx[q]
@@ -85,9 +79,7 @@ def clearance(
             while top > 0:
                 top -= 1
                 k = stack[top]
-                gx = _gap(box[4 * k], box[4 * k + 1], x)
-                gy = _gap(box[4 * k + 2], box[4 * k + 3], y)
-                bound = sqrt(gx * gx + gy * gy)
+                bound = sqrt(gap2(box, k, x, y, 0.0, 0.0))
                 if bound > r or not bound < best:
                     continue
                 if k < leaf0:

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -334,9 +335,10 @@ def build_from(
     field it was refined to, but ``field``."""
     if not growth > 1.0:
         raise OptionError(f"--growth must be > 1 (cells grow away from the contour), got {growth}")
-    s = graded_sizes(points, sizes, growth)
-    tree = _lay(points, s, box, growth, max_h, box_given, max_nodes, roots, field)
-    return tree, SizeField(points, s, growth, max_h)
+    laid_for = SizeField(points, graded_sizes(points, sizes, growth), growth, max_h)
+    tree = _lay(points, laid_for.s, box, growth, max_h, box_given, max_nodes, roots, field,
+                laid_for.cones)  # fmt: skip
+    return tree, laid_for
 
 
 @dataclass
@@ -352,15 +354,21 @@ class SizeField:
     growth: float
     max_h: float | None = None
 
+    @cached_property
+    def cones(self) -> Cones:
+        """The cones of ``points`` and ``s`` (built once: :func:`refine` walks them too)."""
+        return Cones(self.points, self.s, self.growth - 1.0)
+
     def __call__(self, q: np.ndarray) -> np.ndarray:
-        out = Cones(self.points, self.s, self.growth - 1.0).least(q)
+        out = self.cones.least(q)
         if self.max_h is not None:  # (no edge a collapse makes longer than max_h)
             out = np.minimum(out, self.max_h / 2.0)
         return out
 
 
-def _lay(points, s, box, growth, max_h, box_given, max_nodes, roots, field) -> Quadtree:
-    """Root cells over ``box`` for the sizes ``s`` at ``points``, refined and balanced."""
+def _lay(points, s, box, growth, max_h, box_given, max_nodes, roots, field, cones=None) -> Quadtree:
+    """Root cells over ``box`` for the sizes ``s`` at ``points``, refined and balanced
+    (``cones``: theirs, if already built)."""
     xmin, ymin, xmax, ymax = box
     w, h = xmax - xmin, ymax - ymin
     nx, ny, top, h0 = root_cells(w, h, float(s.min()), max_h, exact=box_given, roots=roots)
@@ -389,7 +397,7 @@ def _lay(points, s, box, growth, max_h, box_given, max_nodes, roots, field) -> Q
         x0, y0, hx, hy, top, nx, ny,
         np.full(nx * ny, top, np.int64), i.ravel().astype(np.int64), j.ravel().astype(np.int64),
     )  # fmt: skip
-    tree = refine(tree, points, s, growth, max_nodes, field)
+    tree = refine(tree, points, s, growth, max_nodes, field, cones)
     return balance(tree)
 
 
@@ -444,11 +452,14 @@ def refine(
     growth: float,
     max_nodes: int | None = None,
     field=None,
+    cones: Cones | None = None,
 ) -> Quadtree:
     """Split every leaf larger than the size field ``min over q of s_q + (growth - 1)
     d(q, cell)`` (``d`` the distance from point ``q`` to the cell), and than ``field``
-    at its centre if given, level by level from the root."""
-    cones = Cones(points, s, growth - 1.0)
+    at its centre if given, level by level from the root (``cones``: those of
+    ``points`` and ``s``, if already built)."""
+    if cones is None:
+        cones = Cones(points, s, growth - 1.0)
     lv, i, j = tree.level, tree.i, tree.j
     keep_l, keep_i, keep_j = [], [], []
     while len(lv):
