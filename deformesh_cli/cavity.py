@@ -4,7 +4,7 @@ A cavity grown by whole stars (:func:`grow`), the nodes it holds inside
 (:func:`inner_nodes`), its outline (:func:`outline`, :func:`loop`), the
 triangulation of an outline with the largest smallest angle
 (:func:`best_triangulation` over every chord, cubic in the outline's length;
-:func:`delaunay_polygon`, the same angle in O(k log k)), and a mesh renumbered
+:func:`delaunay_polygon`, the same angle in O(k^2) at most, compiled), and a mesh renumbered
 without the nodes a re-meshing took out (:func:`renumber`).  Nothing here
 prints or exits.
 """
@@ -182,48 +182,15 @@ def loop(cavity: np.ndarray, inner: set[int]) -> list[int] | None:
 def delaunay_polygon(p: np.ndarray) -> np.ndarray | None:
     """The constrained Delaunay triangulation of the simple counter-clockwise polygon
     ``p`` (k, 2), its own vertices only, as (k - 2, 3) local indices, every triangle
-    counter-clockwise; None if one is not (vertices collinear to round-off).
+    counter-clockwise (of positive :func:`.geometry.signed_areas`), each row from its
+    least index, rows ascending; None if the polygon has none in floating point
+    (vertices collinear to round-off).
 
     Among all triangulations of a polygon's vertices, the constrained Delaunay one
     has the largest smallest angle (Lee and Lin 1986), so this is
-    :func:`best_triangulation`'s answer up to ties, in O(k log k) for typical
-    polygons (GEOS: ear clipping, then flips to the Delaunay condition)."""
-    import shapely
+    :func:`best_triangulation`'s answer up to ties.  Compiled (``_recover.pyx``):
+    ear clipping, then flips of the inner diagonals while a flip raises the pair's
+    angles, ascending, lexicographically (which ends, and ends Delaunay)."""
+    from ._recover import polygon_cdt
 
-    k = len(p)
-    if k < 3:
-        return None
-    # each triangle's ring (four points, the first repeated), in one array
-    xy = shapely.get_coordinates(shapely.constrained_delaunay_triangles(shapely.Polygon(p)))
-    if len(xy) != 4 * (k - 2):
-        return None
-    # exact coordinates: GEOS hands back the polygon's own vertices (the first of equal
-    # ones).  A polygon has few vertices: plain Python, the arithmetic of signed_areas
-    pl = p.tolist()
-    index: dict[tuple[float, float], int] = {}
-    for i, q in enumerate(map(tuple, pl)):
-        index.setdefault(q, i)
-    try:
-        idx = [index[q] for q in map(tuple, xy.tolist())]
-    except KeyError:
-        return None
-    rows = []
-    for t in range(0, len(idx), 4):
-        tri = (idx[t], idx[t + 1], idx[t + 2])
-        if _area(pl, tri) < 0:
-            tri = tri[::-1]
-            if _area(pl, tri) <= 0:
-                return None
-        elif _area(pl, tri) <= 0:
-            return None
-        # from its least vertex, rows sorted: the same triangles give the same array
-        # wherever the polygon lies (GEOS starts them where its coordinates lead it)
-        f = tri.index(min(tri))
-        rows.append(tri[f:] + tri[:f])
-    return np.array(sorted(rows), dtype=np.int64)
-
-
-def _area(p: list, t: tuple[int, int, int]) -> float:
-    """:func:`.geometry.signed_areas` of one triangle, the same operations in order."""
-    (x0, y0), (x1, y1), (x2, y2) = p[t[0]], p[t[1]], p[t[2]]
-    return 0.5 * ((x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0))
+    return polygon_cdt(np.ascontiguousarray(p, dtype=np.float64))

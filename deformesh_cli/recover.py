@@ -29,7 +29,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .cavity import delaunay_polygon, outline, renumber
+from ._recover import recover_runs, runs
+from .cavity import renumber
 from .mesh import Mesh
 
 
@@ -39,129 +40,42 @@ def recover(mesh: Mesh, only: set[tuple[int, int]] | None = None) -> tuple[Mesh,
 
     A run of one node whose polygon has no counter-clockwise triangulation in
     floating point (its neighbours collinear to round-off) stays, and the
-    contract check counts it.
+    contract check counts it.  The loop over the runs is compiled
+    (``_recover.pyx``); its cavities are triangulated by
+    :func:`.cavity.delaunay_polygon`'s kernel.
     """
     m, e = mesh.n_contour, mesh.n_extra
     if e == 0:
         return mesh, 0
-    tri = mesh.triangles.tolist()
-    pts = mesh.points
-    n = len(pts)
-    alive = [True] * len(tri)
-    star = _Stars(mesh.triangles, n)
+    n = len(mesh.points)
+    lines = np.ascontiguousarray(mesh.lines, dtype=np.int64)
     nxt = np.full(n, -1, dtype=np.int64)
-    nxt[mesh.lines[:, 0]] = mesh.lines[:, 1]
-    gone = np.zeros(n, dtype=bool)
-    extra = np.zeros(n, dtype=bool)
-    extra[m : m + e] = True
-    # runs of extra nodes, each between two contour points
-    runs = []
-    for a in mesh.lines[~extra[mesh.lines[:, 0]], 0].tolist():
-        run = []
-        x = int(nxt[a])
-        while extra[x]:
-            run.append(x)
-            x = int(nxt[x])
-        if run and (only is None or (a, x) in only or (x, a) in only):
-            runs.append((a, run, x))
-    boundary = np.zeros(n, dtype=bool)
-    boundary[mesh.lines.ravel()] = True
-
-    def replace(cav: list[int], poly: list[int], tris: np.ndarray) -> None:
-        """The triangles ``cav`` replaced by ``tris`` over the polygon ``poly``."""
-        for t in cav:
-            alive[t] = False
-            for v in tri[t]:
-                star[v].discard(t)
-        for u, v, w in np.asarray(poly)[tris].tolist():
-            star[u].add(len(tri))
-            star[v].add(len(tri))
-            star[w].add(len(tri))
-            tri.append([u, v, w])
-            alive.append(True)
-
-    def in_disk(v: int, a: int, b: int) -> bool:
-        """``v`` is an inner node strictly inside the diametral disk of ``a b`` (it sees
-        the segment under more than a right angle: ``(v - a) . (v - b) < 0``)."""
-        return not boundary[v] and float(np.dot(pts[v] - pts[a], pts[v] - pts[b])) < 0.0
-
-    def take(run: list[int], a: int = -1, b: int = -1) -> bool:
-        cav_set = {t for c in run for t in star[c]}
-        if a >= 0:  # grown by the inner nodes in the disk of a b it reaches
-            seen: set[int] = set()
-            todo = {v for t in cav_set for v in tri[t]}
-            while todo:
-                v = todo.pop()
-                seen.add(v)
-                if not in_disk(v, a, b):
-                    continue
-                for t in star[v]:
-                    if t not in cav_set:
-                        cav_set.add(t)
-                        todo |= {w for w in tri[t] if w not in seen}
-        cav = sorted(cav_set)
-        found = outline([tri[t] for t in cav])
-        tris = None
-        if found is not None:
-            ring, inner = found
-            drop = set(run)
-            poly = [v for v in ring if v not in drop]
-            tris = delaunay_polygon(pts[poly])
-        if tris is None:
-            if a < 0 and len(run) > 1:
-                half = len(run) // 2
-                take(run[:half])
-                take(run[half:])
-            return False
-        replace(cav, poly, tris)
-        gone[run] = True
-        gone[list(inner)] = True
-        return True
-
-    def clear(a: int, b: int) -> None:
-        """Inner nodes in the diametral disk of ``a b`` taken out while one is the apex
-        of the triangle on ``a b``, each by meshing its star again (star-shaped from
-        it, so the polygon of its neighbours is simple)."""
-        while True:
-            on = list(star[a] & star[b])  # (stars hold live triangles only)
-            if len(on) != 1:
-                return
-            x = next(v for v in tri[on[0]] if v != a and v != b)
-            if not in_disk(x, a, b):
-                return
-            cav = sorted(star[x])
-            found = outline([tri[t] for t in cav])  # (x's star: its neighbours around it)
-            tris = None if found is None else delaunay_polygon(pts[found[0]])
-            if tris is None:
-                return
-            replace(cav, found[0], tris)
-            gone[x] = True
-
-    for a, run, b in runs:
-        if not take(run, a, b):
-            take(run)
-            if gone[run].all():
-                clear(a, b)
-    taken = int(gone[m : m + e].sum())
+    nxt[lines[:, 0]] = lines[:, 1]
+    extra = np.zeros(n, dtype=np.uint8)
+    extra[m : m + e] = 1
+    # runs of extra nodes, each between two contour points, in the boundary's order
+    starts = lines[(extra[lines[:, 0]] == 0) & (extra[lines[:, 1]] == 1), 0]
+    ptr, nodes, ends = runs(nxt, extra, starts)
+    if only is not None:
+        pairs = np.array(sorted({(min(a, b), max(a, b)) for a, b in only}), dtype=np.int64)
+        pairs = pairs.reshape(-1, 2)
+        key = np.minimum(starts, ends) * n + np.maximum(starts, ends)
+        pick = np.isin(key, pairs[:, 0] * n + pairs[:, 1])
+        lengths = np.diff(ptr)[pick]
+        nodes = nodes[np.repeat(pick, np.diff(ptr))]
+        ptr = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
+        starts, ends = starts[pick], ends[pick]
+    boundary = np.zeros(n, dtype=np.uint8)
+    boundary[lines.ravel()] = 1
+    kept, gone = recover_runs(
+        np.ascontiguousarray(mesh.points, dtype=np.float64),
+        np.ascontiguousarray(mesh.triangles, dtype=np.int64),
+        ptr,
+        nodes,
+        np.ascontiguousarray(starts),
+        np.ascontiguousarray(ends),
+        boundary,
+    )
     if not gone.any():
         return mesh, 0
-    kept = np.array(tri, dtype=np.int64)[np.array(alive)]
-    return renumber(mesh, kept, gone), taken
-
-
-class _Stars:
-    """Each node's triangles, as a set made when first asked for (from one sort of the
-    mesh's corners): recovery reads and changes the stars of the few nodes near the
-    boundary, not of all."""
-
-    def __init__(self, tri: np.ndarray, n: int):
-        flat = np.asarray(tri, dtype=np.int64).ravel()
-        self._order = (np.argsort(flat, kind="stable") // 3).tolist()
-        self._start = np.concatenate([[0], np.cumsum(np.bincount(flat, minlength=n))]).tolist()
-        self._made: dict[int, set[int]] = {}
-
-    def __getitem__(self, v: int) -> set[int]:
-        s = self._made.get(v)
-        if s is None:
-            s = self._made[v] = set(self._order[self._start[v] : self._start[v + 1]])
-        return s
+    return renumber(mesh, kept, gone), int(gone[m : m + e].sum())
