@@ -570,3 +570,43 @@ def test_apex_quality_is_the_numpy_expression():
     assert np.isinf(got).any() and np.isfinite(got).any()
     one = _apex_quality(first, ax, ay, bx, by)(px[:, :1], py[:, :1])
     assert np.array_equal(one, want[:, :1], equal_nan=True)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_segments_meet_triangles_is_shapely_intersects(seed):
+    """Exact predicates: the same answers as GEOS's ``intersects`` for segments against
+    closed triangles, on small-integer coordinates where touches, shared vertices and
+    collinear overlaps are common, and on random ones."""
+    import shapely
+
+    from deformesh_cli._predicates import segments_meet_triangles
+
+    rng = np.random.default_rng(seed)
+    k = 3000
+    if seed % 2:
+        pts = rng.integers(0, 5, (3 * k, 2)).astype(float)
+        a, b = rng.integers(0, 5, (k, 2)).astype(float), rng.integers(0, 5, (k, 2)).astype(float)
+    else:
+        pts = rng.random((3 * k, 2))
+        a, b = rng.random((k, 2)), rng.random((k, 2))
+    tri = np.arange(3 * k).reshape(k, 3)
+    area = (pts[tri[:, 1], 0] - pts[tri[:, 0], 0]) * (pts[tri[:, 2], 1] - pts[tri[:, 0], 1]) - (
+        pts[tri[:, 2], 0] - pts[tri[:, 0], 0]
+    ) * (pts[tri[:, 1], 1] - pts[tri[:, 0], 1])
+    tri[area < 0] = tri[area < 0][:, ::-1]
+    t = np.flatnonzero(area != 0)
+    ok = a[t] != b[t]
+    t = t[ok.any(axis=1)]
+    out = np.empty(len(t), dtype=np.uint8)
+    segments_meet_triangles(pts, tri, t, a[t], b[t], out)
+    want = shapely.intersects(
+        shapely.polygons(pts[tri[t]]), shapely.linestrings(np.stack([a[t], b[t]], axis=1))
+    )
+    assert len(t) > 2000
+    assert np.array_equal(out.view(bool), want)
+    # a point on a side, in exact arithmetic but not in the float determinant's
+    p = np.array([[0.1, 0.1], [0.3, 0.3], [0.0, 1.0]])
+    q = np.array([[0.2, 0.2], [0.2, 0.9]])
+    out = np.empty(1, dtype=np.uint8)
+    segments_meet_triangles(p, np.array([[0, 1, 2]]), np.array([0]), q[:1], q[1:], out)
+    assert out[0] == shapely.intersects(shapely.Polygon(p), shapely.LineString(q))

@@ -40,6 +40,7 @@ from typing import ClassVar
 import numpy as np
 import shapely
 
+from .._predicates import segments_meet_triangles
 from ..contour import Contour, far_field_box, grown_box
 from ..errors import LimitError, OptionError, SelectionError
 from ..geometry import boundary_edges, edge_uses, next_on_ring, prev_on_ring, signed_areas
@@ -663,10 +664,11 @@ def across_gaps(
             lo = np.where(den > 0, np.maximum(lo, r), lo)
             hi = np.where(den < 0, np.minimum(hi, r), hi)
             hi = np.where((den == 0) & (num < 0), -1.0, hi)
-    # (whether they meet, exactly, a touch included; the pieces as round-off has them)
-    meet = shapely.intersects(
-        shapely.polygons(v), shapely.linestrings(np.stack([a, a + ab], axis=1))
-    )
+    # (whether they meet, exactly, a touch included (compiled exact predicates); the
+    # pieces as round-off has them)
+    meet = np.empty(len(t), dtype=np.uint8)
+    segments_meet_triangles(points, tri, t, a, a + ab, meet)
+    meet = meet.view(bool)
     lo, hi = np.minimum(lo, hi), np.maximum(lo, hi)
     t, e, lo, hi, a, ab = t[meet], e[meet], lo[meet], hi[meet], a[meet], ab[meet]
     order = np.lexsort((e, t))
