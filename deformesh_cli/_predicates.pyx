@@ -90,3 +90,77 @@ def segments_meet_triangles(
             hit = segments_meet(px, py, qx, qy, x[s], y[s], x[(s + 1) % 3], y[(s + 1) % 3])
             s += 1
         out[k] = hit
+
+
+cdef bint segment_meets_box(
+    double ax, double ay, double bx, double by, double x0, double x1, double y0, double y1
+) noexcept:
+    """The closed segment ``a b`` and the closed box ``[x0, x1] x [y0, y1]`` share a
+    point: their extents overlap on both axes and the box's corners are not all
+    strictly on one side of the segment's line (no separating axis)."""
+    cdef int s0, s1, s2, s3
+    if (ax < x0 and bx < x0) or (ax > x1 and bx > x1):
+        return False
+    if (ay < y0 and by < y0) or (ay > y1 and by > y1):
+        return False
+    s0 = orient(ax, ay, bx, by, x0, y0)
+    s1 = orient(ax, ay, bx, by, x1, y0)
+    s2 = orient(ax, ay, bx, by, x1, y1)
+    s3 = orient(ax, ay, bx, by, x0, y1)
+    return not ((s0 > 0 and s1 > 0 and s2 > 0 and s3 > 0) or (s0 < 0 and s1 < 0 and s2 < 0 and s3 < 0))
+
+
+def boxes_meet_segments(
+    const double[:] x0,
+    const double[:] x1,
+    const double[:] y0,
+    const double[:] y1,
+    const double[:] ax,
+    const double[:] ay,
+    const double[:] bx,
+    const double[:] by,
+    const long long[:] order,
+    const long long[:] start,
+    const double[:] box,
+    long long leaf0,
+    long long[:] out_box,
+    long long[:] out_seg,
+):
+    """Every pair of a box ``q`` and a segment ``e`` (``a[e]`` to ``b[e]``, held in the
+    tree ``order``, ``start``, ``box``, ``leaf0`` of :mod:`.select.boxtree`) that share a
+    point, exactly, by query then segment number into ``out_box``, ``out_seg``;
+    returns how many (past the arrays' length only counted: call again with room)."""
+    cdef Py_ssize_t nq = x0.shape[0], cap = out_box.shape[0]
+    cdef Py_ssize_t q, i, k, top, m = 0, first, j, v
+    cdef long long e
+    cdef long long stack[128]
+    for q in range(nq):
+        first = m
+        stack[0] = 1
+        top = 1
+        while top > 0:
+            top -= 1
+            k = stack[top]
+            if box[4 * k] > x1[q] or box[4 * k + 1] < x0[q] or box[4 * k + 2] > y1[q] or box[4 * k + 3] < y0[q]:
+                continue  # (an empty node's inverted box is skipped here too)
+            if k < leaf0:
+                stack[top] = 2 * k + 1
+                stack[top + 1] = 2 * k
+                top += 2
+                continue
+            for i in range(start[k - leaf0], start[k - leaf0 + 1]):
+                e = order[i]
+                if segment_meets_box(ax[e], ay[e], bx[e], by[e], x0[q], x1[q], y0[q], y1[q]):
+                    if m < cap:
+                        out_box[m] = q
+                        out_seg[m] = e
+                    m += 1
+        if m <= cap:  # (this query's segments ascending: insertion sort, a few each)
+            for j in range(first + 1, m):
+                v = out_seg[j]
+                i = j - 1
+                while i >= first and out_seg[i] > v:
+                    out_seg[i + 1] = out_seg[i]
+                    i -= 1
+                out_seg[i + 1] = v
+    return m

@@ -610,3 +610,39 @@ def test_segments_meet_triangles_is_shapely_intersects(seed):
     out = np.empty(1, dtype=np.uint8)
     segments_meet_triangles(p, np.array([[0, 1, 2]]), np.array([0]), q[:1], q[1:], out)
     assert out[0] == shapely.intersects(shapely.Polygon(p), shapely.LineString(q))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_boxes_meet_segments_is_the_strtree_query(seed):
+    """Every (box, segment) pair that shares a point, as GEOS finds them (STRtree query
+    with ``intersects``), by box then segment: on small-integer coordinates, where
+    segments along a box's side or through its corner are common, and random ones."""
+    import shapely
+
+    from deformesh_cli._predicates import boxes_meet_segments
+
+    rng = np.random.default_rng(seed)
+    nb, ns = 400, 300
+    if seed % 2:
+        lo = rng.integers(0, 8, (nb, 2)).astype(float)
+        hi = lo + rng.integers(1, 3, (nb, 2))
+        a = rng.integers(0, 10, (ns, 2)).astype(float)
+        b = rng.integers(0, 10, (ns, 2)).astype(float)
+    else:
+        lo = rng.random((nb, 2))
+        hi = lo + 0.1 * rng.random((nb, 2))
+        a, b = rng.random((ns, 2)), rng.random((ns, 2))
+    t = box_tree(np.minimum(a, b), np.maximum(a, b), 4)
+    leaf = np.empty(10, dtype=np.int64)
+    seg = np.empty(10, dtype=np.int64)
+    f8 = np.ascontiguousarray
+    args = (f8(lo[:, 0]), f8(hi[:, 0]), f8(lo[:, 1]), f8(hi[:, 1]))
+    args += (f8(a[:, 0]), f8(a[:, 1]), f8(b[:, 0]), f8(b[:, 1]), t.order, t.start, t.box, t.leaf0)
+    m = boxes_meet_segments(*args, leaf, seg)  # (too little room: counted only)
+    leaf, seg = np.empty(m, dtype=np.int64), np.empty(m, dtype=np.int64)
+    assert boxes_meet_segments(*args, leaf, seg) == m
+    tree = shapely.STRtree(shapely.linestrings(np.stack([a, b], axis=1)))
+    want = tree.query(shapely.box(lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1]), predicate="intersects")
+    want = want[:, np.lexsort((want[1], want[0]))]
+    assert m > 100
+    assert np.array_equal(leaf, want[0]) and np.array_equal(seg, want[1])

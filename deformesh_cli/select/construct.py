@@ -40,12 +40,13 @@ from typing import ClassVar
 import numpy as np
 import shapely
 
-from .._predicates import segments_meet_triangles
+from .._predicates import boxes_meet_segments, segments_meet_triangles
 from ..contour import Contour, far_field_box, grown_box
 from ..errors import LimitError, OptionError, SelectionError
 from ..geometry import boundary_edges, edge_uses, next_on_ring, prev_on_ring, signed_areas
 from . import graded
 from ._monotone import between_costs, programme
+from .boxtree import box_tree
 from .nearest import Nearest
 from .segments import Segments
 from .uniform import DEFAULT_MAX_NODES
@@ -769,17 +770,30 @@ class _Crowded(SelectionError):
 def leaf_edges(contour: Contour, tree: graded.Quadtree) -> tuple[np.ndarray, np.ndarray]:
     """``(leaf, edge)``: each pair of a leaf and a contour edge (named by its first
     point) that meet, and a few that pass within round-off of the leaf (its box
-    grown by a billionth of its side: an edge along a side of the leaf counts)."""
+    grown by a billionth of its side: an edge along a side of the leaf counts); by
+    leaf, then edge.  Exact predicates, by a compiled walk over a tree of the
+    edges' bounding boxes."""
     side = tree.sizes()
     height = tree.hy * 2.0**tree.level
     x0 = tree.x0 + tree.i * side
     y0 = tree.y0 + tree.j * height
     pad = 1e-9 * side
-    boxes = shapely.box(x0 - pad, y0 - pad, x0 + side + pad, y0 + height + pad)
     p = contour.points
     q = p[next_on_ring(contour.ring)]
-    segs = shapely.linestrings(np.stack([p, q], axis=1))
-    return shapely.STRtree(segs).query(boxes, predicate="intersects")
+    edges = box_tree(np.minimum(p, q), np.maximum(p, q), 4)
+    f8 = lambda v: np.ascontiguousarray(v, dtype=np.float64)  # noqa: E731
+    boxes = (f8(x0 - pad), f8(x0 + side + pad), f8(y0 - pad), f8(y0 + height + pad))
+    ends = (f8(p[:, 0]), f8(p[:, 1]), f8(q[:, 0]), f8(q[:, 1]))
+    room = 4 * (len(p) + len(x0))
+    while True:
+        leaf = np.empty(room, dtype=np.int64)
+        seg = np.empty(room, dtype=np.int64)
+        m = boxes_meet_segments(
+            *boxes, *ends, edges.order, edges.start, edges.box, edges.leaf0, leaf, seg
+        )
+        if m <= room:
+            return leaf[:m], seg[:m]
+        room = m
 
 
 def diagonals_along(contour: Contour, tree: graded.Quadtree, pairs=None) -> np.ndarray:
