@@ -197,18 +197,8 @@ def _move(pts, tri, nodes, inc, slot) -> int:
     px[take], py[take], best[take] = ex[take], ey[take], q[take]
     length = np.where(valid, np.hypot(ax - px[:, None], ay - py[:, None]), 0.0)
     step = 0.2 * length.sum(axis=1) / count
-    rows = np.arange(len(nodes))
-    bar = _raised(best)  # what a candidate must beat, kept as ``best`` changes
-    for _ in range(SEARCH_STEPS):
-        cx = px[:, None] + step[:, None] * _DIRS[None, :, 0]
-        cy = py[:, None] + step[:, None] * _DIRS[None, :, 1]
-        q = quality(cx, cy)
-        k = np.argmax(q, axis=1)
-        qk = q[rows, k]
-        take = qk > bar
-        px[take], py[take], best[take] = cx[take, k[take]], cy[take, k[take]], qk[take]
-        bar[take] = _raised(best[take])
-        step = np.where(take, step, 0.5 * step)
+    # the pattern search, every node at once (compiled: :mod:`._smoothing`)
+    quality.search(px, py, best, step)
     moved = best > _raised(start)
     pts[nodes[moved], 0] = px[moved]
     pts[nodes[moved], 1] = py[moved]
@@ -223,7 +213,8 @@ def _apex_quality(first, ax, ay, bx, by):
     :func:`tan_min_angle`'s arithmetic operation for operation, so the same bits,
     but with the side ``a -> b``, which no candidate moves, squared once, in a
     compiled loop (:mod:`._smoothing`): the quality stage spends most of its time
-    here."""
+    here.  ``quality.search(px, py, best, step)`` runs :func:`_move`'s pattern search
+    for the (n,) positions on the same triangles, compiled too."""
     from ._smoothing import apex_quality
 
     flat = [np.ascontiguousarray(v, dtype=np.float64).ravel() for v in (ax, ay, bx, by)]
@@ -235,6 +226,14 @@ def _apex_quality(first, ax, ay, bx, by):
     s0 = np.ascontiguousarray(s0).ravel()
     first = np.ascontiguousarray(first, dtype=np.int64)
 
+    def search(px, py, best, step):
+        """:data:`SEARCH_STEPS` rounds from ``(px, py)`` (each node's worst tangent
+        ``best``): along :data:`_DIRS` at ``step``, the best taken where it beats the
+        raised ``best``, else the step halved; all four updated in place."""
+        from ._smoothing import search as run
+
+        run(first, *flat, s0, _DIRS, SEARCH_STEPS, _GAIN_TAN, _RIGHT, px, py, best, step)
+
     def quality(px, py):
         shape = np.broadcast_shapes(np.shape(px), np.shape(py))
         px = np.ascontiguousarray(np.broadcast_to(px, shape), dtype=np.float64)
@@ -243,18 +242,28 @@ def _apex_quality(first, ax, ay, bx, by):
         apex_quality(first, *flat, s0, px, py, out)
         return out
 
+    quality.search = search
     return quality
 
 
-_GAIN_RADIANS = np.radians(GAIN)
+#: The tangent of :data:`GAIN` degrees (``math.tan(math.radians(GAIN))``, written out:
+#: the raise below is plain arithmetic, the same bits on every machine).
+_GAIN_TAN = 0.0001745329269716253
 
-_BELOW_RIGHT = np.pi / 2 - 1e-12
+#: No raise goes past this tangent (of an angle 1e-12 radians short of a right angle).
+_RIGHT = 1e12
 
 
 def _raised(tan_angle: np.ndarray) -> np.ndarray:
-    """The tangent of an angle :data:`GAIN` degrees larger (a move must beat it); NaN
-    stays NaN, -inf (a folded triangle) the tangent of GAIN over -90 degrees."""
-    a = np.arctan(tan_angle)
-    a += _GAIN_RADIANS
-    np.minimum(a, _BELOW_RIGHT, out=a)
-    return np.tan(a, out=a)
+    """The tangent of an angle :data:`GAIN` degrees larger (a move must beat it), by the
+    tangent addition formula ``(t + g) / (1 - t g)`` (no ``arctan``/``tan``, whose SIMD
+    versions differ in the last bits between processors), at most :data:`_RIGHT`;
+    NaN stays NaN, -inf (a folded triangle) gives ``-1 / g``, the tangent of GAIN
+    over -90 degrees.  The compiled search (:mod:`._smoothing`) does the same
+    operations."""
+    t = np.asarray(tan_angle, dtype=np.float64)
+    with np.errstate(all="ignore"):
+        den = 1.0 - t * _GAIN_TAN
+        r = np.where(den > 0, np.minimum((t + _GAIN_TAN) / den, _RIGHT), _RIGHT)
+    r = np.where(np.isnan(t), t, r)
+    return np.where(t == -np.inf, -1.0 / _GAIN_TAN, r)

@@ -646,3 +646,56 @@ def test_boxes_meet_segments_is_the_strtree_query(seed):
     want = want[:, np.lexsort((want[1], want[0]))]
     assert m > 100
     assert np.array_equal(leaf, want[0]) and np.array_equal(seg, want[1])
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_pattern_search_is_the_numpy_loop(seed):
+    """The compiled pattern search takes the same steps as the numpy loop it replaced
+    (every node at once: the best of the eight directions where it beats the raised
+    best, else the step halved): the same positions, tangents and steps, bit for bit."""
+    from deformesh_cli.smoothing import _DIRS, SEARCH_STEPS, _apex_quality, _raised
+
+    rng = np.random.default_rng(seed)
+    n, d = 300, 7
+    first = np.arange(n) * d
+    ang = np.sort(rng.uniform(0, 2 * np.pi, (n, d + 1)), axis=1)
+    ang[:, -1] = ang[:, 0] + 2 * np.pi
+    r = rng.uniform(0.5, 1.5, (n, d + 1))
+    ring_x, ring_y = r * np.cos(ang), r * np.sin(ang)
+    ax, ay = ring_x[:, :-1].reshape(-1, 1), ring_y[:, :-1].reshape(-1, 1)
+    bx, by = ring_x[:, 1:].reshape(-1, 1), ring_y[:, 1:].reshape(-1, 1)
+    quality = _apex_quality(first, ax, ay, bx, by)
+    px, py = rng.uniform(-0.3, 0.3, n), rng.uniform(-0.3, 0.3, n)
+    best = quality(px[:, None], py[:, None])[:, 0]
+    step = rng.uniform(0.05, 0.3, n)
+    x0 = px.copy()
+    wx, wy, wbest, wstep = (v.copy() for v in (px, py, best, step))
+    quality.search(px, py, best, step)
+    rows = np.arange(n)
+    bar = _raised(wbest)
+    for _ in range(SEARCH_STEPS):
+        cx = wx[:, None] + wstep[:, None] * _DIRS[None, :, 0]
+        cy = wy[:, None] + wstep[:, None] * _DIRS[None, :, 1]
+        q = quality(cx, cy)
+        k = np.argmax(q, axis=1)
+        qk = q[rows, k]
+        take = qk > bar
+        wx[take], wy[take], wbest[take] = cx[take, k[take]], cy[take, k[take]], qk[take]
+        bar[take] = _raised(wbest[take])
+        wstep = np.where(take, wstep, 0.5 * wstep)
+    assert (wx != x0).any()  # (it moved)
+    for got, ref in zip((px, py, best, step), (wx, wy, wbest, wstep)):
+        assert np.array_equal(got, ref)
+
+
+def test_raised_is_the_angle_raised_by_the_gain():
+    """The tangent addition formula is the tangent of the angle GAIN degrees larger (to
+    round-off), capped short of a right angle; NaN stays NaN; -inf is GAIN over -90."""
+    from deformesh_cli.smoothing import _RIGHT, GAIN, _raised
+
+    t = np.tan(np.radians(np.linspace(-89, 89.98, 1001)))
+    want = np.tan(np.minimum(np.arctan(t) + np.radians(GAIN), np.pi / 2 - 1e-12))
+    assert np.allclose(_raised(t), want, rtol=1e-9)
+    assert _raised(np.array([np.inf]))[0] == _RIGHT
+    assert np.isnan(_raised(np.array([np.nan]))[0])
+    assert _raised(np.array([-np.inf]))[0] == pytest.approx(np.tan(np.radians(GAIN - 90)))
