@@ -218,6 +218,16 @@ def test_areas_with_margin_are_the_numpy_ones(seed):
     assert np.array_equal(areas_with_margin(p, tri, 0.0), a)
     for sign in (1.0, -1.0):
         assert np.array_equal(areas_with_margin(p, tri, sign), a + sign * flat_margin(p, tri))
+    # the tangled test, area against margin, on triangles flat to round-off as well
+    from deformesh_cli.untangle import tangled
+
+    flat = tri[::5].copy()
+    q = p.copy()
+    q[flat[:, 2]] = 0.5 * (q[flat[:, 0]] + q[flat[:, 1]])  # (on the opposite side)
+    for pts in (p, q):
+        want = signed_areas(pts, tri) <= flat_margin(pts, tri)
+        assert np.array_equal(tangled(pts, tri), want)
+    assert tangled(q, tri).sum() > len(tri) // 10
 
 
 def _weigh_reference(pts, tri, stars, deg, need, nodes, tan_floor, boundary):
