@@ -6,6 +6,7 @@ tests compare them), so the choices are the same.
 """
 
 from libc.math cimport INFINITY, sqrt
+from libc.stdlib cimport free, malloc
 
 
 def weigh(
@@ -130,3 +131,106 @@ def weigh(
                 continue
             b_out[i] = b
             key_out[i] = best
+
+
+def collapse_width(
+    const long long[:, :] tri,
+    const long long[:, :] stars,
+    const long long[:] deg,
+    const long long[:] wa,
+    const long long[:] wb,
+):
+    """The widest star :func:`collapse` makes: ``b``'s triangles and ``a``'s, less the
+    ones on the edge ``a b`` (counted in both)."""
+    cdef Py_ssize_t i, j, k
+    cdef long long a, b, t, on, width = 0
+    with nogil:
+        for i in range(wa.shape[0]):
+            a = wa[i]
+            b = wb[i]
+            on = 0
+            for j in range(deg[a]):
+                t = stars[a, j]
+                for k in range(3):
+                    if tri[t, k] == b:
+                        on += 1
+            if deg[a] + deg[b] - 2 * on > width:
+                width = deg[a] + deg[b] - 2 * on
+    return width
+
+
+cdef inline bint _among(long long v, const long long *items, Py_ssize_t n) noexcept nogil:
+    cdef Py_ssize_t d
+    for d in range(n):
+        if items[d] == v:
+            return True
+    return False
+
+
+def collapse(
+    long long[:, :] tri,
+    long long[:, :] stars,
+    long long[:] deg,
+    unsigned char[:] alive,
+    const long long[:] wa,
+    const long long[:] wb,
+):
+    """Each ``wa[i]`` collapsed into ``wb[i]`` (no two share a triangle, a ``b``, or a
+    ``b`` next to the other's ``a``), one after the other, which for such a set is
+    the same as all at once: ``a``'s triangles take ``b`` for ``a``, the ones that
+    held ``b`` die, ``b``'s star becomes its own then ``a``'s live triangles (in
+    order) and the third corners of the dead lose them; ``stars`` must be wide
+    enough (:func:`collapse_width`)."""
+    cdef Py_ssize_t i, j, k, m, nd, w = stars.shape[1]
+    cdef long long a, b, t, x, c
+    cdef bint holds
+    cdef long long *dead = <long long *> malloc((w + 1) * sizeof(long long))
+    if dead == NULL:
+        raise MemoryError("coarsening")
+    with nogil:
+        for i in range(wa.shape[0]):
+            a = wa[i]
+            b = wb[i]
+            nd = 0
+            for j in range(deg[a]):
+                t = stars[a, j]
+                holds = tri[t, 0] == b or tri[t, 1] == b or tri[t, 2] == b
+                for k in range(3):
+                    if tri[t, k] == a:
+                        tri[t, k] = b
+                if holds:
+                    alive[t] = 0
+                    dead[nd] = t
+                    nd += 1
+            # b's star: its own, then a's, without the dead (kept in order)
+            m = 0
+            for j in range(deg[b]):
+                t = stars[b, j]
+                if not _among(t, dead, nd):
+                    stars[b, m] = t
+                    m += 1
+            for j in range(deg[a]):
+                t = stars[a, j]
+                if not _among(t, dead, nd):
+                    stars[b, m] = t
+                    m += 1
+            for j in range(m, w):
+                stars[b, j] = -1
+            deg[b] = m
+            # the third corners of the dead lose them
+            for j in range(nd):
+                for k in range(3):
+                    x = tri[dead[j], k]
+                    if x == b:
+                        continue
+                    m = 0
+                    for c in range(deg[x]):
+                        t = stars[x, c]
+                        if not _among(t, dead, nd):
+                            stars[x, m] = t
+                            m += 1
+                    for c in range(m, deg[x]):
+                        stars[x, c] = -1
+                    deg[x] = m
+            deg[a] = 0
+    free(dead)

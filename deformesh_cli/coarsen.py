@@ -219,43 +219,13 @@ def _weigh(pts, tri, stars, deg, need, nodes, tan_floor, boundary):
 def _collapse(tri, stars, deg, alive, wa, wb):
     """Collapse each ``wa`` into its ``wb`` (their stars apart): the triangles renamed,
     the two on each edge dead, the stars of ``wb`` and of the two across mended (the
-    star array, widened if a star outgrew it)."""
-    w = stars.shape[1]
-    sa = stars[wa]
-    va = np.arange(w) < deg[wa, None]
-    ids = sa[va]
-    t = tri[ids]
-    owner = np.repeat(wa, va.sum(axis=1))
-    into = np.repeat(wb, va.sum(axis=1))
-    holds_b = (t == into[:, None]).any(axis=1)
-    t = np.where(t == owner[:, None], into[:, None], t)
-    tri[ids] = t
-    dead = ids[holds_b]
-    alive[dead] = False
-    # b's star: its own and a's, without the dead; the two across lose theirs
-    sb = stars[wb]
-    vb = np.arange(w) < deg[wb, None]
-    merged = np.concatenate([np.where(vb, sb, -1), np.where(va, sa, -1)], axis=1)
-    across = np.unique(tri[dead].ravel())
-    across = across[~np.isin(across, wb)]
-    rows_nodes = np.concatenate([wb, across])
-    blocks = [merged]
-    sx = stars[across]
-    vx = np.arange(w) < deg[across, None]
-    blocks.append(np.concatenate([np.where(vx, sx, -1), np.full((len(across), w), -1)], axis=1))
-    block = np.concatenate(blocks)
-    keep = block >= 0
-    keep[keep] = ~np.isin(block[keep], dead)
-    count = keep.sum(axis=1)
-    order = np.argsort(~keep, axis=1, kind="stable")
-    packed = np.take_along_axis(block, order, axis=1)
-    width = max(w, int(count.max()) if len(count) else w)
-    if width > w:
-        stars = np.concatenate([stars, np.full((len(stars), width - w), -1)], axis=1)
-    packed = np.where(np.arange(packed.shape[1]) < count[:, None], packed, -1)[:, :width]
-    stars[rows_nodes] = np.pad(
-        packed, ((0, 0), (0, max(0, width - packed.shape[1]))), constant_values=-1
-    )
-    deg[rows_nodes] = count
-    deg[wa] = 0
+    star array, widened if a star outgrew it).  A compiled loop (:mod:`._coarsen`)."""
+    from ._coarsen import collapse, collapse_width
+
+    wa = np.ascontiguousarray(wa, dtype=np.int64)
+    wb = np.ascontiguousarray(wb, dtype=np.int64)
+    width = collapse_width(tri, stars, deg, wa, wb)
+    if width > stars.shape[1]:
+        stars = np.concatenate([stars, np.full((len(stars), width - stars.shape[1]), -1)], axis=1)
+    collapse(tri, stars, deg, alive.view(np.uint8), wa, wb)
     return stars
