@@ -39,9 +39,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .cholesky import Cholesky
-from .divcurl import gradients, unique_inverse
+from .divcurl import gradients
 from .errors import FoldError, InputError, MonitorError, OptionError
-from .geometry import boundary_edges, signed_areas
+from .geometry import boundary_edges, signed_areas, unique_inverse
 from .quality import measures
 from .size import positive_values
 

@@ -99,20 +99,6 @@ class SymmetricCSR(CSR):
         return sp.csr_matrix((self.data, self.indices, self.indptr), shape=self.shape)
 
 
-def unique_inverse(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``np.unique(keys, return_inverse=True)``, by a stable sort: the keys of a mesh's
-    element entries come in runs (triangles in grid order), which a merge sort takes
-    fast (0.25 s against 0.54 s for 3.8 million)."""
-    order = np.argsort(keys, kind="stable")
-    sk = keys[order]
-    new = np.empty(len(sk), dtype=bool)
-    new[:1] = True
-    np.not_equal(sk[1:], sk[:-1], out=new[1:])
-    inverse = np.empty(len(sk), dtype=np.int64)
-    inverse[order] = np.cumsum(new) - 1
-    return sk[new], inverse
-
-
 class Assembler:
     """Assemble the split div-curl system on a fixed connectivity, many times.
 

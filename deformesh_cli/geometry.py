@@ -163,6 +163,21 @@ def domain(rings: list[np.ndarray], box: tuple | None = None):
     return shapely.box(*box).difference(inside)
 
 
+def unique_inverse(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(keys, return_inverse=True)``, by a stable sort: the keys of a mesh's
+    element entries come in runs (triangles in grid order), which a merge sort takes
+    fast (0.25 s against 0.54 s for 3.8 million
+    element entries; 0.31 s against 0.66 s for a graded grid's 7.8 million corners)."""
+    order = np.argsort(keys, kind="stable")
+    sk = keys[order]
+    new = np.empty(len(sk), dtype=bool)
+    new[:1] = True
+    np.not_equal(sk[1:], sk[:-1], out=new[1:])
+    inverse = np.empty(len(sk), dtype=np.int64)
+    inverse[order] = np.cumsum(new) - 1
+    return sk[new], inverse
+
+
 def morton(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Morton (Z-order) codes of lattice cells ``(x, y)``, each below 2**28: their bits
     interleaved, x's in the even places (sorted, nearby cells come mostly together)."""

@@ -556,3 +556,57 @@ def test_balance_asks_again_only_where_a_neighbour_split(name):
     assert got.n_leaves > tree.n_leaves
     for f in ("level", "i", "j"):
         assert np.array_equal(getattr(got, f), getattr(want, f))
+
+
+def _triangulate_reference(self, diagonals):
+    """The quadtree's triangulation in numpy: every kind of triangle at once, then
+    sorted by leaf (what the compiled loop must give, in the same order)."""
+    lay = self.layout()
+    n = self.n_leaves
+    corners, mids, centre, finer = lay.corners, lay.mids, lay.centre, lay.finer
+    if diagonals is None:
+        diagonals = np.zeros(n, dtype=np.uint8)
+    plain = lay.plain
+    tris: list[np.ndarray] = []  # (t, 3, 2) lattice coordinates
+    cells: list[np.ndarray] = []
+    # plain leaves: two triangles along the diagonal
+    for d, (a, b) in ((0, ((0, 1, 2), (0, 2, 3))), (1, ((0, 1, 3), (1, 2, 3)))):
+        on = np.flatnonzero(plain & (diagonals == d))
+        for tri in (a, b):
+            tris.append(corners[on][:, list(tri)])
+            cells.append(on)
+    # fan leaves: per side, one or two triangles to the centre
+    fan = np.flatnonzero(~plain)
+    for s in range(4):
+        a, b = corners[fan, s], corners[fan, (s + 1) % 4]
+        c = centre[fan]
+        split = finer[fan, s]
+        whole = ~split
+        tris.append(np.stack([a[whole], b[whole], c[whole]], axis=1))
+        cells.append(fan[whole])
+        m = mids[fan, s]
+        tris.append(np.stack([a[split], m[split], c[split]], axis=1))
+        cells.append(fan[split])
+        tris.append(np.stack([m[split], b[split], c[split]], axis=1))
+        cells.append(fan[split])
+    lattice = np.concatenate(tris)
+    cell = np.concatenate(cells)
+    ukey, inv = np.unique(lay.key(lattice.reshape(-1, 2)), return_inverse=True)
+    li, lj = ukey // lay.stride, ukey % lay.stride
+    points = np.column_stack([self.x0 + li * (self.hx / 2), self.y0 + lj * (self.hy / 2)])
+    triangles = inv.reshape(-1, 3).astype(np.int64)
+    order = np.argsort(cell, kind="stable")
+    return points, triangles[order], cell[order]
+
+
+def test_the_compiled_triangulation_is_the_numpy_one():
+    """Same nodes, triangles and leaves, in the same order, for random diagonals."""
+    c = load_contour(SAMPLES / "bracket.svg")
+    q = graded.build(c, _box(c))
+    rng = np.random.default_rng(2)
+    diagonals = rng.integers(0, 2, q.n_leaves).astype(np.uint8)
+    got = q.triangulate(diagonals)
+    want = _triangulate_reference(q, diagonals)
+    assert (~q.layout().plain).sum() > 10
+    for g, w in zip(got, want):
+        assert np.array_equal(g, w)

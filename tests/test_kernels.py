@@ -180,7 +180,8 @@ def test_assembly_is_the_element_matrices_summed_in_order(seed):
     pattern of the sorted unique (row, column) keys, element matrices from
     :func:`_stiffness_reference` gathered by ``np.bincount`` over the free-free entries
     and the free-Dirichlet ones, bit for bit."""
-    from deformesh_cli.divcurl import Assembler, unique_inverse
+    from deformesh_cli.divcurl import Assembler
+    from deformesh_cli.geometry import unique_inverse
 
     rng, p, tri = _random_mesh(seed)
     n = len(p)

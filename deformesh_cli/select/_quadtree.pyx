@@ -67,3 +67,81 @@ def leaf_index(
             leaf = order[lo - 1]
             if leaf_level[leaf] >= lv:
                 out[c] = leaf
+
+
+def emit(
+    const long long[:] level,
+    const long long[:] i,
+    const long long[:] j,
+    const unsigned char[:, :] finer,
+    const unsigned char[:] diagonals,
+    long long stride,
+    long long[:, :] keys,
+    long long[:] cell,
+):
+    """The loop of :meth:`deformesh_cli.select.graded.Quadtree.triangulate`: each leaf's
+    triangles in order, as the lattice keys (``x * stride + y``, half finest cells)
+    of their corners: a leaf with no finer neighbour two along its diagonal (0:
+    ``/``, 1: ``\\``), else a fan from its centre, one triangle per side or two where
+    that side has a finer neighbour (its midpoint a node); ``cell[t]``, the leaf."""
+    cdef Py_ssize_t n = level.shape[0], leaf, t = 0, s
+    cdef long long side, half, x, y, c, m
+    cdef long long k[4]
+    cdef bint plain
+    with nogil:
+        for leaf in range(n):
+            side = 2 * ((<long long> 1) << level[leaf])
+            half = side // 2
+            x = i[leaf] * side
+            y = j[leaf] * side
+            k[0] = x * stride + y
+            k[1] = (x + side) * stride + y
+            k[2] = (x + side) * stride + (y + side)
+            k[3] = x * stride + (y + side)
+            plain = not (finer[leaf, 0] or finer[leaf, 1] or finer[leaf, 2] or finer[leaf, 3])
+            if plain:
+                if diagonals[leaf] == 0:
+                    keys[t, 0] = k[0]
+                    keys[t, 1] = k[1]
+                    keys[t, 2] = k[2]
+                    keys[t + 1, 0] = k[0]
+                    keys[t + 1, 1] = k[2]
+                    keys[t + 1, 2] = k[3]
+                else:
+                    keys[t, 0] = k[0]
+                    keys[t, 1] = k[1]
+                    keys[t, 2] = k[3]
+                    keys[t + 1, 0] = k[1]
+                    keys[t + 1, 1] = k[2]
+                    keys[t + 1, 2] = k[3]
+                cell[t] = leaf
+                cell[t + 1] = leaf
+                t += 2
+                continue
+            c = (x + half) * stride + (y + half)
+            for s in range(4):
+                if not finer[leaf, s]:
+                    keys[t, 0] = k[s]
+                    keys[t, 1] = k[(s + 1) % 4]
+                    keys[t, 2] = c
+                    cell[t] = leaf
+                    t += 1
+                    continue
+                if s == 0:
+                    m = (x + half) * stride + y
+                elif s == 1:
+                    m = (x + side) * stride + (y + half)
+                elif s == 2:
+                    m = (x + half) * stride + (y + side)
+                else:
+                    m = x * stride + (y + half)
+                keys[t, 0] = k[s]
+                keys[t, 1] = m
+                keys[t, 2] = c
+                keys[t + 1, 0] = m
+                keys[t + 1, 1] = k[(s + 1) % 4]
+                keys[t + 1, 2] = c
+                cell[t] = leaf
+                cell[t + 1] = leaf
+                t += 2
+    return t

@@ -37,7 +37,7 @@ import numpy as np
 
 from ..contour import Contour
 from ..errors import LimitError, OptionError
-from ..geometry import morton, prev_on_ring
+from ..geometry import morton, prev_on_ring, unique_inverse
 from .cones import Cones
 
 #: Default growth: how much larger a cell may be than the contour's local size
@@ -221,42 +221,25 @@ class Quadtree:
         triangle ``t``.  Triangles are counter-clockwise.  The node numbering does
         not depend on ``diagonals``.  ``layout``: :meth:`layout`, if already made.
         """
+        from ._quadtree import emit
+
         lay = self.layout() if layout is None else layout
         n = self.n_leaves
-        corners, mids, centre, finer = lay.corners, lay.mids, lay.centre, lay.finer
         if diagonals is None:
             diagonals = np.zeros(n, dtype=np.uint8)
-        plain = lay.plain
-        tris: list[np.ndarray] = []  # (t, 3, 2) lattice coordinates
-        cells: list[np.ndarray] = []
-        # plain leaves: two triangles along the diagonal
-        for d, (a, b) in ((0, ((0, 1, 2), (0, 2, 3))), (1, ((0, 1, 3), (1, 2, 3)))):
-            on = np.flatnonzero(plain & (diagonals == d))
-            for tri in (a, b):
-                tris.append(corners[on][:, list(tri)])
-                cells.append(on)
-        # fan leaves: per side, one or two triangles to the centre
-        fan = np.flatnonzero(~plain)
-        for s in range(4):
-            a, b = corners[fan, s], corners[fan, (s + 1) % 4]
-            c = centre[fan]
-            split = finer[fan, s]
-            whole = ~split
-            tris.append(np.stack([a[whole], b[whole], c[whole]], axis=1))
-            cells.append(fan[whole])
-            m = mids[fan, s]
-            tris.append(np.stack([a[split], m[split], c[split]], axis=1))
-            cells.append(fan[split])
-            tris.append(np.stack([m[split], b[split], c[split]], axis=1))
-            cells.append(fan[split])
-        lattice = np.concatenate(tris)
-        cell = np.concatenate(cells)
-        ukey, inv = np.unique(lay.key(lattice.reshape(-1, 2)), return_inverse=True)
+        finer = np.ascontiguousarray(lay.finer, dtype=np.uint8)
+        count = np.where(lay.plain, 2, 4 + finer.sum(axis=1, dtype=np.int64))
+        keys = np.empty((int(count.sum()), 3), dtype=np.int64)
+        cell = np.empty(len(keys), dtype=np.int64)
+        i64 = lambda v: np.ascontiguousarray(v, dtype=np.int64)  # noqa: E731
+        emit(
+            i64(self.level), i64(self.i), i64(self.j), finer,
+            np.ascontiguousarray(diagonals, dtype=np.uint8), lay.stride, keys, cell,
+        )  # fmt: skip
+        ukey, inv = unique_inverse(keys.ravel())
         li, lj = ukey // lay.stride, ukey % lay.stride
         points = np.column_stack([self.x0 + li * (self.hx / 2), self.y0 + lj * (self.hy / 2)])
-        triangles = inv.reshape(-1, 3).astype(np.int64)
-        order = np.argsort(cell, kind="stable")
-        return points, triangles[order], cell[order]
+        return points, inv.reshape(-1, 3).astype(np.int64), cell
 
     def node_keys(self, layout: Layout | None = None) -> np.ndarray:
         """The sorted lattice keys of the nodes (node ``k`` of :meth:`triangulate` has
