@@ -1,160 +1,253 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
-"""The loops of :mod:`deformesh_cli.ldl`: a nested-dissection ordering of a sparse
-symmetric matrix's graph, and the elimination tree, numeric factorisation and solves
+"""The loops of :mod:`deformesh_cli.ldl`: an approximate minimum degree ordering of a
+sparse symmetric matrix's graph, the elimination tree and its postorder, and the
+numeric factorisation and solves
 of ``A = L D L^T`` (the up-looking method of QDLDL: Stellato, Banjac, Goulart, Bemporad
 and Boyd, "OSQP: an operator splitting solver for quadratic programs", 2020), written
 here from the method's description.  Compiled without fused multiply-adds: the same
 bits on every processor."""
 
-from libc.stdlib cimport free, malloc
+from libc.stdlib cimport calloc, free, malloc, realloc
 
 
-cdef Py_ssize_t _bfs(
-    const long long[:] indptr, const long long[:] indices, long long[:] label,
-    long long sid, long long root, long long[:] level, long long[:] queue,
-) noexcept nogil:
-    # breadth-first from root over the nodes labelled sid; level[v] set (from 0) for
-    # the nodes reached, which are queue[0 .. count - 1] in order; returns count
-    cdef Py_ssize_t head = 0, tail = 1, p
-    cdef long long v, w
-    queue[0] = root
-    level[root] = 0
-    label[root] = -sid - 2  # (seen in this search)
-    while head < tail:
-        v = queue[head]
-        head += 1
-        for p in range(indptr[v], indptr[v + 1]):
-            w = indices[p]
-            if label[w] == sid:
-                label[w] = -sid - 2
-                level[w] = level[v] + 1
-                queue[tail] = w
-                tail += 1
-    for p in range(tail):
-        label[queue[p]] = sid
-    return tail
+cdef struct Vec:
+    long long *d
+    long long n
+    long long cap
 
 
-def nested_dissection(
-    const long long[:] indptr,
-    const long long[:] indices,
-    long long leaf,
-    long long[:] perm,
-):
-    """``perm[k]``: the node eliminated ``k``-th.  A part of the graph is ordered as: its
-    connected components one after the other; a component of more than ``leaf`` nodes
-    as its two sides, then its separator, the smallest level of a breadth-first
-    search from a far node (found by two searches) among its middle third; a smaller
-    one in that search's order."""
+cdef int _push(Vec *v, long long x) noexcept nogil:
+    cdef long long *nd
+    if v.n == v.cap:
+        nd = <long long *> realloc(v.d, (2 * v.cap + 8) * sizeof(long long))
+        if nd == NULL:
+            return -1
+        v.d = nd
+        v.cap = 2 * v.cap + 8
+    v.d[v.n] = x
+    v.n += 1
+    return 0
+
+
+cdef inline void _unlink(long long i, long long *head, long long *nxt, long long *prv,
+                         long long *deg) noexcept nogil:
+    if prv[i] >= 0:
+        nxt[prv[i]] = nxt[i]
+    else:
+        head[deg[i]] = nxt[i]
+    if nxt[i] >= 0:
+        prv[nxt[i]] = prv[i]
+
+
+cdef inline void _link(long long i, long long d, long long *head, long long *nxt,
+                       long long *prv, long long *deg) noexcept nogil:
+    deg[i] = d
+    prv[i] = -1
+    nxt[i] = head[d]
+    if head[d] >= 0:
+        prv[head[d]] = i
+    head[d] = i
+
+
+def minimum_degree(const long long[:] indptr, const long long[:] indices, long long[:] perm):
+    """``perm[k]``: the node eliminated ``k``-th, by approximate minimum degree on the
+    quotient graph (Amestoy, Davis and Duff, 1996): each step eliminates a node of
+    least approximate degree (the first in its degree's list; a node's list place is
+    where its last degree update put it, so the order is a function of the graph),
+    makes it an element whose variables are its variable neighbours and those of the
+    elements it absorbs, and bounds each such variable's degree by its variable
+    neighbours, the new element's other variables and, per other element, the
+    variables that element holds outside the new one (elements held wholly inside
+    are absorbed too).  Returns 0, or -1 out of memory."""
     cdef Py_ssize_t n = indptr.shape[0] - 1
-    cdef long long *stack_lo = <long long *> malloc((2 * n + 2) * sizeof(long long))
-    cdef long long *stack_hi = <long long *> malloc((2 * n + 2) * sizeof(long long))
-    cdef long long *stack_out = <long long *> malloc((2 * n + 2) * sizeof(long long))
-    cdef long long[:] nodes = perm.copy()
-    cdef long long[:] label = perm.copy()
-    cdef long long[:] level = perm.copy()
-    cdef long long[:] queue = perm.copy()
-    cdef long long[:] count = perm.copy()
-    cdef Py_ssize_t top, lo, hi, out, size, reached, i, k, far, depth, best, a, b
-    cdef long long sid = 0, v, root, m
+    cdef Vec *var = <Vec *> calloc(n + 1, sizeof(Vec))
+    cdef Vec *elem = <Vec *> calloc(n + 1, sizeof(Vec))
+    cdef Vec *lst = <Vec *> calloc(n + 1, sizeof(Vec))
+    cdef long long *head = <long long *> malloc((n + 1) * sizeof(long long))
+    cdef long long *nxt = <long long *> malloc((n + 1) * sizeof(long long))
+    cdef long long *prv = <long long *> malloc((n + 1) * sizeof(long long))
+    cdef long long *deg = <long long *> malloc((n + 1) * sizeof(long long))
+    cdef long long *mark = <long long *> calloc(n + 1, sizeof(long long))
+    cdef long long *wmark = <long long *> calloc(n + 1, sizeof(long long))
+    cdef long long *w = <long long *> malloc((n + 1) * sizeof(long long))
+    cdef unsigned char *state = <unsigned char *> calloc(n + 1, sizeof(unsigned char))
+    cdef Vec lp
+    cdef Py_ssize_t i, j, q, k, m
+    cdef long long v, e, pv, d, stamp = 0, mindeg = 0, bad = 0
+    lp.d = NULL
+    lp.n = 0
+    lp.cap = 0
+    if (var == NULL or elem == NULL or lst == NULL or head == NULL or nxt == NULL
+            or prv == NULL or deg == NULL or mark == NULL or wmark == NULL or w == NULL
+            or state == NULL):
+        bad = -1
     with nogil:
-        for i in range(n):
-            nodes[i] = i
-            label[i] = 0
-        top = 0
-        if n > 0:
-            stack_lo[0] = 0
-            stack_hi[0] = n
-            stack_out[0] = 0
+        if bad == 0:
+            for i in range(n + 1):
+                head[i] = -1
+            # state: 0 a variable, 1 an element, 2 absorbed
+            for i in range(n - 1, -1, -1):  # (so that the first node heads its list)
+                for q in range(indptr[i], indptr[i + 1]):
+                    v = indices[q]
+                    if v != i and _push(&var[i], v) < 0:
+                        bad = -1
+                _link(i, var[i].n, head, nxt, prv, deg)
+        k = 0
+        while bad == 0 and k < n:
+            while head[mindeg] < 0:
+                mindeg += 1
+            pv = head[mindeg]
+            _unlink(pv, head, nxt, prv, deg)
+            perm[k] = pv
+            k += 1
+            state[pv] = 1
+            stamp += 1
+            lp.n = 0
+            for q in range(var[pv].n):
+                v = var[pv].d[q]
+                if state[v] == 0 and mark[v] != stamp:
+                    mark[v] = stamp
+                    if _push(&lp, v) < 0:
+                        bad = -1
+            for q in range(elem[pv].n):
+                e = elem[pv].d[q]
+                if state[e] != 1:
+                    continue
+                for j in range(lst[e].n):
+                    v = lst[e].d[j]
+                    if state[v] == 0 and mark[v] != stamp:
+                        mark[v] = stamp
+                        if _push(&lp, v) < 0:
+                            bad = -1
+                state[e] = 2
+                free(lst[e].d)
+                lst[e].d = NULL
+                lst[e].n = 0
+                lst[e].cap = 0
+            free(var[pv].d)
+            free(elem[pv].d)
+            var[pv].d = NULL
+            elem[pv].d = NULL
+            var[pv].n = 0
+            elem[pv].n = 0
+            for q in range(lp.n):
+                if _push(&lst[pv], lp.d[q]) < 0:
+                    bad = -1
+            # each variable of the new element: its elements (the absorbed gone, the
+            # new one added) and its variable neighbours (those now in it gone)
+            for q in range(lp.n):
+                i = lp.d[q]
+                m = 0
+                for j in range(elem[i].n):
+                    e = elem[i].d[j]
+                    if state[e] == 1:
+                        elem[i].d[m] = e
+                        m += 1
+                elem[i].n = m
+                if _push(&elem[i], pv) < 0:
+                    bad = -1
+                m = 0
+                for j in range(var[i].n):
+                    v = var[i].d[j]
+                    if state[v] == 0 and mark[v] != stamp:
+                        var[i].d[m] = v
+                        m += 1
+                var[i].n = m
+            # |Le \ Lp| for every other element of those variables
+            for q in range(lp.n):
+                i = lp.d[q]
+                for j in range(elem[i].n):
+                    e = elem[i].d[j]
+                    if e == pv:
+                        continue
+                    if wmark[e] != stamp:
+                        wmark[e] = stamp
+                        w[e] = lst[e].n
+                    w[e] -= 1
+            for q in range(lp.n):
+                i = lp.d[q]
+                d = var[i].n + lp.n - 1
+                for j in range(elem[i].n):
+                    e = elem[i].d[j]
+                    if e == pv or state[e] != 1:
+                        continue
+                    if w[e] == 0:  # (held wholly in the new element: absorbed)
+                        state[e] = 2
+                        free(lst[e].d)
+                        lst[e].d = NULL
+                        lst[e].n = 0
+                        lst[e].cap = 0
+                        continue
+                    d += w[e]
+                if d > n - k - 1:
+                    d = n - k - 1
+                _unlink(i, head, nxt, prv, deg)
+                _link(i, d, head, nxt, prv, deg)
+                if d < mindeg:
+                    mindeg = d
+    for i in range(n + 1):
+        if var != NULL:
+            free(var[i].d)
+        if elem != NULL:
+            free(elem[i].d)
+        if lst != NULL:
+            free(lst[i].d)
+    free(var)
+    free(elem)
+    free(lst)
+    free(head)
+    free(nxt)
+    free(prv)
+    free(deg)
+    free(mark)
+    free(wmark)
+    free(w)
+    free(state)
+    free(lp.d)
+    return bad
+
+
+def postorder(const long long[:] parent, long long[:] out):
+    """``out``: the nodes of the forest ``parent`` (-1 at a root) in postorder, each
+    node's children in increasing order, the trees by their roots' order (so a
+    subtree's columns are eliminated together: the factor is read in runs)."""
+    cdef Py_ssize_t n = parent.shape[0]
+    cdef long long *first = <long long *> malloc((n + 1) * sizeof(long long))
+    cdef long long *sibling = <long long *> malloc((n + 1) * sizeof(long long))
+    cdef long long *stack = <long long *> malloc((n + 1) * sizeof(long long))
+    cdef Py_ssize_t j, k = 0, top
+    cdef long long v, c
+    if first == NULL or sibling == NULL or stack == NULL:
+        free(first)
+        free(sibling)
+        free(stack)
+        raise MemoryError("postorder")
+    with nogil:
+        for j in range(n):
+            first[j] = -1
+        for j in range(n - 1, -1, -1):  # (children linked in increasing order)
+            if parent[j] >= 0:
+                sibling[j] = first[parent[j]]
+                first[parent[j]] = j
+        for j in range(n):
+            if parent[j] >= 0:
+                continue
+            stack[0] = j
             top = 1
-        while top > 0:
-            top -= 1
-            lo = stack_lo[top]
-            hi = stack_hi[top]
-            out = stack_out[top]
-            size = hi - lo
-            sid += 1
-            for i in range(lo, hi):
-                label[nodes[i]] = sid
-            root = nodes[lo]
-            reached = _bfs(indptr, indices, label, sid, root, level, queue)
-            if reached < size:
-                # the component of root first, then the rest (both ordered again)
-                for i in range(reached):
-                    label[queue[i]] = -1
-                k = reached
-                for i in range(lo, hi):
-                    if label[nodes[i]] != -1:
-                        queue[k] = nodes[i]
-                        k += 1
-                for i in range(size):
-                    nodes[lo + i] = queue[i]
-                    label[queue[i]] = 0
-                stack_lo[top] = lo + reached
-                stack_hi[top] = hi
-                stack_out[top] = out + reached
-                stack_lo[top + 1] = lo
-                stack_hi[top + 1] = lo + reached
-                stack_out[top + 1] = out
-                top += 2
-                continue
-            if size <= leaf:
-                for i in range(size):
-                    perm[out + i] = queue[i]
-                    label[queue[i]] = 0
-                continue
-            far = queue[size - 1]  # (a node far from root: search again from it)
-            _bfs(indptr, indices, label, sid, far, level, queue)
-            depth = level[queue[size - 1]]
-            if depth < 2:
-                for i in range(size):
-                    perm[out + i] = queue[i]
-                    label[queue[i]] = 0
-                continue
-            for i in range(depth + 1):
-                count[i] = 0
-            for i in range(size):
-                count[level[queue[i]]] += 1
-            best = depth // 3 if depth // 3 >= 1 else 1
-            m = best
-            for i in range(best, 2 * depth // 3 + 1):
-                if i >= 1 and i <= depth - 1 and count[i] < count[m]:
-                    m = i
-            # sides: levels below m, then above; the separator (level m) last
-            a = 0
-            b = 0
-            for i in range(size):
-                if level[queue[i]] < m:
-                    a += 1
-                elif level[queue[i]] > m:
-                    b += 1
-            k = 0
-            for i in range(size):
-                v = queue[i]
-                label[v] = 0
-                if level[v] < m:
-                    nodes[lo + k] = v
+            while top > 0:
+                v = stack[top - 1]
+                c = first[v]
+                if c >= 0:
+                    first[v] = sibling[c]  # (the next child, when v comes up again)
+                    stack[top] = c
+                    top += 1
+                else:
+                    top -= 1
+                    out[k] = v
                     k += 1
-            for i in range(size):
-                v = queue[i]
-                if level[v] > m:
-                    nodes[lo + k] = v
-                    k += 1
-            for i in range(size):
-                v = queue[i]
-                if level[v] == m:
-                    perm[out + k] = v
-                    k += 1
-            stack_lo[top] = lo + a
-            stack_hi[top] = lo + a + b
-            stack_out[top] = out + a
-            stack_lo[top + 1] = lo
-            stack_hi[top + 1] = lo + a
-            stack_out[top + 1] = out
-            top += 2
-    free(stack_lo)
-    free(stack_hi)
-    free(stack_out)
+    free(first)
+    free(sibling)
+    free(stack)
 
 
 def etree(
@@ -273,3 +366,53 @@ def solve(
         for i in range(n - 1, -1, -1):
             for j in range(Lp[i], Lp[i + 1]):
                 x[i] = x[i] - Lx[j] * x[Li[j]]
+
+
+def permute_upper(
+    const long long[:] indptr, const long long[:] indices, const long long[:] pinv,
+    long long[:] Ap, long long[:] Ai, long long[:] src,
+):
+    """The upper triangle of the symmetric matrix (CSR ``indptr``, ``indices``) with its
+    rows and columns renumbered by ``pinv``, by columns (``Ap``, ``Ai``: rows
+    ascending within each) and each entry's place in ``indices`` (``src``): a
+    counting sort by column, then each column's few rows sorted; returns its
+    entries' count."""
+    cdef Py_ssize_t n = indptr.shape[0] - 1
+    cdef Py_ssize_t i, q, j, t, m = 0
+    cdef long long r, c, vr, vs
+    with nogil:
+        for i in range(n + 1):
+            Ap[i] = 0
+        for i in range(n):
+            r = pinv[i]
+            for q in range(indptr[i], indptr[i + 1]):
+                c = pinv[indices[q]]
+                if r <= c:
+                    Ap[c + 1] += 1
+        for i in range(n):
+            Ap[i + 1] += Ap[i]
+        m = Ap[n]
+        for i in range(n):
+            r = pinv[i]
+            for q in range(indptr[i], indptr[i + 1]):
+                c = pinv[indices[q]]
+                if r <= c:
+                    t = Ap[c]
+                    Ai[t] = r
+                    src[t] = q
+                    Ap[c] += 1
+        for i in range(n, 0, -1):  # (Ap[c] ran to the column's end: shift back)
+            Ap[i] = Ap[i - 1]
+        Ap[0] = 0
+        for c in range(n):
+            for j in range(Ap[c] + 1, Ap[c + 1]):  # insertion sort by row
+                vr = Ai[j]
+                vs = src[j]
+                t = j
+                while t > Ap[c] and Ai[t - 1] > vr:
+                    Ai[t] = Ai[t - 1]
+                    src[t] = src[t - 1]
+                    t -= 1
+                Ai[t] = vr
+                src[t] = vs
+    return m

@@ -1,8 +1,7 @@
 """The sparse factorisation of adapt's velocity systems: QDLDL's LDL^T (Apache-2.0),
 its own approximate-minimum-degree order, symbolic analysis once per pattern and then
 only refactorised.  QDLDL uses no BLAS, so the same system gives the same bits on every
-processor, with no kernel or thread setting (the deformation's larger direct solves use
-it too)."""
+processor, with no kernel or thread setting (the deformation's solves use :mod:`.ldl`)."""
 
 from __future__ import annotations
 

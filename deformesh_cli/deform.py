@@ -21,7 +21,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .cholesky import Cholesky
 from .divcurl import Assembler
 from .errors import BandError, FoldError, OptionError, SolverError
 from .ldl import LDL
@@ -115,20 +114,12 @@ STEP_RTOL = 1e-6
 SOLVES = ("band", "full")
 
 
-#: ``direct`` factorises systems of up to this many unknowns with :class:`.ldl.LDL`
-#: (compiled here, no scipy), larger ones with QDLDL, whose approximate minimum degree
-#: ordering keeps the factor two to three times sparser but whose first use imports
-#: scipy.sparse (about 0.09 s): the two cost the same at about 7,000 unknowns
-#: (``benchmarks/MEASURED.md``).
-OWN_LDL_MAX = 6_000
-
-
 class LinearSolver:
     """Solves the per-step scalar systems ``K X = rhs`` (two right-hand sides).
 
-    ``direct`` factorises ``K = L D L^T`` (:data:`OWN_LDL_MAX`: with
-    :class:`.ldl.LDL`, nested dissection, or QDLDL, approximate minimum
-    degree).  The ordering and the symbolic factorisation are done once; later
+    ``direct`` factorises ``K = L D L^T`` (:class:`.ldl.LDL`: approximate minimum
+    degree, compiled here, no scipy).  The ordering and the symbolic factorisation
+    are done once; later
     steps, whose matrices share the sparsity pattern (the mesh moves, its
     connectivity does not), only refactor the numbers, a tenth of the first
     factorisation's cost (``benchmarks/MEASURED.md``).  ``amg`` runs conjugate
@@ -159,13 +150,7 @@ class LinearSolver:
         return self._solve_amg(K, rhs, x0)
 
     def _solve_ldl(self, K, rhs):
-        if K.shape[0] > OWN_LDL_MAX:  # (QDLDL: it sees the same pattern itself)
-            if self._ldl is None:
-                self._ldl = Cholesky()
-            symbolic = self._ldl.symbolic
-            self._ldl.factorise(K.upper())
-            self.setups += self._ldl.symbolic - symbolic
-        elif self._ldl is not None and K.indices is self._pattern:
+        if self._ldl is not None and K.indices is self._pattern:
             self._ldl.update(K)  # same pattern: new numbers only
         else:
             self._ldl = LDL(K)

@@ -62,7 +62,7 @@ def assemble_coupled(points: np.ndarray, tri: np.ndarray, rhs: np.ndarray | None
 class CSR:
     """A sparse matrix as three CSR arrays (or CSC: the same arrays, transposed).
 
-    Enough for QDLDL, which reads these attributes, without loading
+    Enough for the solvers here, which read these arrays, without loading
     scipy.sparse (a noticeable part of start-up) on the default path.
     """
 
@@ -78,19 +78,7 @@ class CSR:
 
 @dataclass(frozen=True)
 class SymmetricCSR(CSR):
-    """A symmetric matrix in CSR, and where its upper triangle's entries sit."""
-
-    upper_slots: np.ndarray = None  # positions in ``data`` of the entries with col <= row
-    upper_indices: np.ndarray = None
-    upper_indptr: np.ndarray = None
-
-    def upper(self) -> CSR:
-        """The upper triangle in CSC form (the lower triangle's CSR arrays, by symmetry).
-
-        Its ``indices`` and ``indptr`` are the same objects on every matrix one
-        :class:`Assembler` builds, so a solver can tell the pattern is unchanged.
-        """
-        return CSR(self.data[self.upper_slots], self.upper_indices, self.upper_indptr, self.shape)
+    """A symmetric matrix in CSR (its whole pattern: both triangles)."""
 
     def tocsr(self):
         """As a scipy.sparse matrix (for conjugate gradients and multigrid)."""
@@ -128,11 +116,6 @@ class Assembler:
         self._indices = indices[:nnz].astype(np.int32)
         self._indptr = indptr.astype(np.int32)
         self._nnz = nnz
-        rows = np.repeat(np.arange(nf), np.diff(indptr))
-        low = self._indices <= rows
-        self._up = np.flatnonzero(low)
-        self._up_indices = self._indices[low]
-        self._up_indptr = np.searchsorted(rows[low], np.arange(nf + 1)).astype(np.int32)
         # ... else its right-hand side's row (free row, Dirichlet column), else -1
         fr = fidx[t[:, _LOCAL_R].ravel()]
         fc = fidx[t[:, _LOCAL_C].ravel()]
@@ -170,8 +153,5 @@ class Assembler:
             self._indices,
             self._indptr,
             (self.n_free,) * 2,
-            self._up,
-            self._up_indices,
-            self._up_indptr,
         )
         return K, -acc

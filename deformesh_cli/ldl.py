@@ -1,8 +1,9 @@
 """A sparse ``L D L^T`` factorisation for the deformation's symmetric positive definite
 systems, with no BLAS and no scipy: the same bits on every machine.
 
-The unknowns are ordered by nested dissection of the matrix's graph (a mesh's: its
-separators are short), so the factor stays sparse; the ordering and the symbolic
+The unknowns are ordered by approximate minimum degree (the quotient-graph method of
+Amestoy, Davis and Duff, written here), then by a postorder of the elimination tree,
+so the factor stays sparse and is read in runs; the ordering and the symbolic
 factorisation (elimination tree, column counts) are made once per pattern, and
 :meth:`LDL.update` refactors new numbers on the same pattern.  The loops are compiled
 (:mod:`._ldl`).
@@ -12,11 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._ldl import etree, factor, nested_dissection, solve
-from .errors import SolverError
-
-#: Parts of the graph this small are not dissected further (ordered by one search).
-LEAF = 48
+from ._ldl import etree, factor, minimum_degree, permute_upper, postorder, solve
+from .errors import OUT_OF_MEMORY, LimitError, SolverError
 
 
 class LDL:
@@ -28,22 +26,21 @@ class LDL:
         indptr = np.ascontiguousarray(K.indptr, dtype=np.int64)
         indices = np.ascontiguousarray(K.indices, dtype=np.int64)
         perm = np.empty(n, dtype=np.int64)
-        nested_dissection(indptr, indices, LEAF, perm)
-        self.perm = perm
-        pinv = np.empty(n, dtype=np.int64)
-        pinv[perm] = np.arange(n)
-        rows = np.repeat(np.arange(n), np.diff(indptr))
-        r, c = pinv[rows], pinv[indices]
-        upper = r <= c  # (the permuted matrix's upper triangle, by columns)
-        order = np.lexsort((r[upper], c[upper]))
-        self._src = np.flatnonzero(upper)[order]
-        self._Ai = np.ascontiguousarray(r[upper][order])
-        self._Ap = np.searchsorted(c[upper][order], np.arange(n + 1)).astype(np.int64)
-        self._pattern = K.indices
-        self.n = n
+        if minimum_degree(indptr, indices, perm) < 0:
+            raise LimitError(OUT_OF_MEMORY)
         parent = np.empty(n, dtype=np.int64)
         lnz = np.empty(n, dtype=np.int64)
-        total = etree(self._Ap, self._Ai, parent, lnz, np.empty(n, dtype=np.int64))
+        work = np.empty(n, dtype=np.int64)
+        self._permute(perm, indptr, indices)
+        etree(self._Ap, self._Ai, parent, lnz, work)
+        post = np.empty(n, dtype=np.int64)
+        postorder(parent, post)
+        perm = perm[post]  # (the same fill, each subtree's columns together)
+        self._permute(perm, indptr, indices)
+        total = etree(self._Ap, self._Ai, parent, lnz, work)
+        self.perm = perm
+        self._pattern = K.indices
+        self.n = n
         self._parent = parent
         self._Lp = np.concatenate([[0], np.cumsum(lnz)]).astype(np.int64)
         self._Li = np.empty(max(total, 1), dtype=np.int64)
@@ -55,6 +52,18 @@ class LDL:
             np.empty(n, dtype=np.int64), np.empty(n, dtype=np.uint8), np.empty(n),
         )  # fmt: skip
         self.update(K)
+
+    def _permute(self, perm, indptr, indices) -> None:
+        """The permuted matrix's upper triangle by columns (``_Ap``, ``_Ai``) and where
+        each of its entries comes from in ``K`` (``_src``), compiled."""
+        n = len(perm)
+        pinv = np.empty(n, dtype=np.int64)
+        pinv[perm] = np.arange(n)
+        self._Ap = np.empty(n + 1, dtype=np.int64)
+        Ai = np.empty(len(indices), dtype=np.int64)
+        src = np.empty(len(indices), dtype=np.int64)
+        m = permute_upper(indptr, indices, pinv, self._Ap, Ai, src)
+        self._Ai, self._src = Ai[:m], src[:m]
 
     def same_pattern(self, K) -> bool:
         return K.indices is self._pattern
