@@ -286,11 +286,11 @@ def etree(
 
 
 def factor(
-    const long long[:] Ap, const long long[:] Ai, const double[:] Ax,
-    const long long[:] parent, const long long[:] Lp,
-    long long[:] Li, double[:] Lx, double[:] D, double[:] Dinv,
-    long long[:] y_idx, long long[:] elim, long long[:] nxt, unsigned char[:] used,
-    double[:] y,
+    const long long[::1] Ap, const long long[::1] Ai, const double[::1] Ax,
+    const long long[::1] parent, const long long[::1] Lp,
+    long long[::1] Li, double[::1] Lx, double[::1] D, double[::1] Dinv,
+    long long[::1] y_idx, long long[::1] elim, long long[::1] nxt, unsigned char[::1] used,
+    double[::1] y,
 ):
     """``A = L D L^T`` (unit lower ``L`` in CSC ``Lp``, ``Li``, ``Lx``; ``D``) from the
     upper triangle ``Ap``, ``Ai``, ``Ax`` and its elimination tree; returns the first
@@ -351,8 +351,8 @@ def factor(
 
 
 def solve(
-    const long long[:] Lp, const long long[:] Li, const double[:] Lx,
-    const double[:] Dinv, double[:] x,
+    const long long[::1] Lp, const long long[::1] Li, const double[::1] Lx,
+    const double[::1] Dinv, double[::1] x,
 ):
     """``x`` overwritten by ``(L D L^T)^-1 x``."""
     cdef Py_ssize_t n = Lp.shape[0] - 1
