@@ -99,18 +99,21 @@ def _flip_all(pts: np.ndarray, tri: np.ndarray, target: float, max_passes: int =
 
 def _edge_pairs(tri: np.ndarray):
     """Inner edges as (t1, k1, t2, k2): edge k1 of t1 (from corner k1 to k1 + 1) is
-    edge k2 of t2, walked the other way."""
-    t = np.repeat(np.arange(len(tri)), 3)
-    k = np.tile(np.arange(3), len(tri))
-    a = tri.ravel()
-    b = tri[:, [1, 2, 0]].ravel()
-    lo, hi = np.minimum(a, b), np.maximum(a, b)
-    key = lo.astype(np.int64) * (int(hi.max(initial=0)) + 1) + hi
-    order = np.argsort(key, kind="stable")  # (by lo, then hi: as a lexsort of the two)
-    key, t, k, fwd = key[order], t[order], k[order], (a < b)[order]
-    same = (key[1:] == key[:-1]) & (fwd[1:] != fwd[:-1])
-    i = np.flatnonzero(same)
-    return t[i], k[i], t[i + 1], k[i + 1]
+    edge k2 of t2, walked the other way; by their lower node, then their higher
+    (a counting sort, compiled: :mod:`._geometry`)."""
+    from ._geometry import edge_pairs
+
+    tri = np.ascontiguousarray(tri, dtype=np.int64)
+    n = int(tri.max(initial=-1)) + 1
+    e = 3 * len(tri)
+    out = [np.empty(e, dtype=np.int64) for _ in range(4)]
+    scratch = (
+        np.empty(n + 1, dtype=np.int64),
+        np.empty(e, dtype=np.int64),
+        np.empty(e, dtype=np.int64),
+    )
+    m = edge_pairs(tri, n, *scratch, *out)
+    return tuple(o[:m] for o in out)
 
 
 def _smooth(pts: np.ndarray, tri: np.ndarray, movable: np.ndarray) -> int:

@@ -735,3 +735,35 @@ def test_minimum_degree_keeps_the_factor_as_sparse_as_superlus_ordering(seed, n)
             size[parent[j]] += size[j]
     j = np.flatnonzero(parent >= 0)
     assert ((j >= parent[j] - size[parent[j]] + 1) & (j < parent[j])).all()
+
+
+def _edge_pairs_reference(tri: np.ndarray):
+    """(numpy) Inner edges as (t1, k1, t2, k2): edge k1 of t1 (from corner k1 to k1 + 1) is
+    edge k2 of t2, walked the other way."""
+    t = np.repeat(np.arange(len(tri)), 3)
+    k = np.tile(np.arange(3), len(tri))
+    a = tri.ravel()
+    b = tri[:, [1, 2, 0]].ravel()
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    key = lo.astype(np.int64) * (int(hi.max(initial=0)) + 1) + hi
+    order = np.argsort(key, kind="stable")  # (by lo, then hi: as a lexsort of the two)
+    key, t, k, fwd = key[order], t[order], k[order], (a < b)[order]
+    same = (key[1:] == key[:-1]) & (fwd[1:] != fwd[:-1])
+    i = np.flatnonzero(same)
+    return t[i], k[i], t[i + 1], k[i + 1]
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_edge_pairs_are_the_numpy_ones(seed):
+    """The compiled pairing of sides walked both ways: the same pairs in the same order
+    as the stable sort, on meshes with some triangles repeated (a side used three
+    times) and some turned round."""
+    from deformesh_cli.smoothing import _edge_pairs
+
+    _, p, tri = _random_mesh(seed)
+    tri = np.concatenate([tri, tri[::9], tri[::11, ::-1]])
+    got = _edge_pairs(tri)
+    want = _edge_pairs_reference(tri)
+    assert len(got[0]) > len(tri) // 2
+    for g, w in zip(got, want):
+        assert np.array_equal(g, w)
