@@ -563,7 +563,22 @@ def _triangulate_reference(self, diagonals):
     sorted by leaf (what the compiled loop must give, in the same order)."""
     lay = self.layout()
     n = self.n_leaves
-    corners, mids, centre, finer = lay.corners, lay.mids, lay.centre, lay.finer
+    finer = lay.finer
+    side = 2 * (1 << self.level.astype(np.int64))  # (lattice units: half finest cells)
+    half = side // 2
+    x, y = self.i * side, self.j * side
+    corners = np.stack(
+        [np.column_stack(c) for c in ((x, y), (x + side, y), (x + side, y + side), (x, y + side))],
+        axis=1,
+    )
+    mids = np.stack(
+        [
+            np.column_stack(c)
+            for c in ((x + half, y), (x + side, y + half), (x + half, y + side), (x, y + half))
+        ],
+        axis=1,
+    )
+    centre = np.column_stack([x + half, y + half])
     if diagonals is None:
         diagonals = np.zeros(n, dtype=np.uint8)
     plain = lay.plain
@@ -591,7 +606,9 @@ def _triangulate_reference(self, diagonals):
         cells.append(fan[split])
     lattice = np.concatenate(tris)
     cell = np.concatenate(cells)
-    ukey, inv = np.unique(lay.key(lattice.reshape(-1, 2)), return_inverse=True)
+    flat = lattice.reshape(-1, 2)
+    keys = flat[:, 0].astype(np.int64) * lay.stride + flat[:, 1]
+    ukey, inv = np.unique(keys, return_inverse=True)
     li, lj = ukey // lay.stride, ukey % lay.stride
     points = np.column_stack([self.x0 + li * (self.hx / 2), self.y0 + lj * (self.hy / 2)])
     triangles = inv.reshape(-1, 3).astype(np.int64)

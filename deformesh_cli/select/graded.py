@@ -176,13 +176,10 @@ class Quadtree:
         return out
 
     def layout(self) -> Layout:
-        """Every leaf's corners, side midpoints and centre on the lattice, and which of
-        its sides have a finer neighbour (so a midpoint node)."""
+        """Which sides of each leaf have a finer neighbour (so a midpoint node), and the
+        lattice's key stride."""
         n = self.n_leaves
         lv, i, j = self.level, self.i, self.j
-        side = 2 * (1 << lv.astype(np.int64))  # in lattice units (half finest cells)
-        half = side // 2
-        x, y = i * side, j * side  # lower-left corner, lattice units
         finer = np.zeros((n, 4), dtype=bool)  # bottom, right, top, left
         width, height = self.nx * 2**self.top, self.ny * 2**self.top
         for s, (di, dj) in enumerate(((0, -1), (1, 0), (0, 1), (-1, 0))):
@@ -192,26 +189,7 @@ class Quadtree:
             holder[inside] = self.leaf_index(lv[inside], ni[inside], nj[inside])
             # the cell across that side at the same level is split: no leaf holds it
             finer[:, s] = inside & (holder < 0)
-        corners = np.stack(
-            [
-                np.column_stack([x, y]),
-                np.column_stack([x + side, y]),
-                np.column_stack([x + side, y + side]),
-                np.column_stack([x, y + side]),
-            ],
-            axis=1,
-        )  # (n, 4, 2): lower-left, lower-right, upper-right, upper-left
-        mids = np.stack(
-            [
-                np.column_stack([x + half, y]),
-                np.column_stack([x + side, y + half]),
-                np.column_stack([x + half, y + side]),
-                np.column_stack([x, y + half]),
-            ],
-            axis=1,
-        )
-        centre = np.column_stack([x + half, y + half])
-        return Layout(corners, mids, centre, finer, 2 * height + 1)
+        return Layout(finer, 2 * height + 1)
 
     def triangulate(self, diagonals: np.ndarray | None = None, layout: Layout | None = None):
         """The conforming triangulation: ``(points, triangles, cell)``.
@@ -241,32 +219,19 @@ class Quadtree:
         points = np.column_stack([self.x0 + li * (self.hx / 2), self.y0 + lj * (self.hy / 2)])
         return points, inv.reshape(-1, 3).astype(np.int64), cell
 
-    def node_keys(self, layout: Layout | None = None) -> np.ndarray:
-        """The sorted lattice keys of the nodes (node ``k`` of :meth:`triangulate` has
-        key ``node_keys()[k]``)."""
-        lay = self.layout() if layout is None else layout
-        parts = [lay.corners.reshape(-1, 2), lay.centre[~lay.plain]]
-        parts += [lay.mids[lay.finer]]
-        return np.unique(lay.key(np.concatenate(parts)))
-
 
 @dataclass
 class Layout:
-    """The lattice coordinates of each leaf's nodes (see :meth:`Quadtree.layout`)."""
+    """Per leaf, which sides have a finer neighbour (see :meth:`Quadtree.layout`); the
+    lattice keys' stride (key = lattice x * stride + lattice y, in half finest cells)."""
 
-    corners: np.ndarray  # (n, 4, 2): lower-left, lower-right, upper-right, upper-left
-    mids: np.ndarray  # (n, 4, 2): bottom, right, top, left midpoints
-    centre: np.ndarray  # (n, 2)
-    finer: np.ndarray  # (n, 4) bool: that side has a finer neighbour (a midpoint node)
-    stride: int  # key = lattice x * stride + lattice y
+    finer: np.ndarray  # (n, 4) bool: bottom, right, top, left
+    stride: int
 
     @property
     def plain(self) -> np.ndarray:
         """Leaves with no finer neighbour: two triangles along a diagonal."""
         return ~self.finer.any(axis=1)
-
-    def key(self, xy: np.ndarray) -> np.ndarray:
-        return xy[..., 0].astype(np.int64) * self.stride + xy[..., 1]
 
 
 def build(
@@ -385,7 +350,7 @@ def _lay(points, s, box, growth, max_h, box_given, max_nodes, roots, field, cone
 
 
 #: The most finest cells across the box: Morton codes (:func:`..geometry.morton`) and lattice keys
-#: (``Layout.key``) are whole numbers below 2**63 for at most 28 levels of 2**28 cells.
+#: (``Layout.stride``) are whole numbers below 2**63 for at most 28 levels of 2**28 cells.
 MAX_CELLS_ACROSS = 2**28
 
 #: Root cells along the box's shorter side: at least this many, so that the finest
