@@ -166,8 +166,7 @@ def domain(rings: list[np.ndarray], box: tuple | None = None):
 def unique_inverse(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``np.unique(keys, return_inverse=True)``, by a stable sort: the keys of a mesh's
     element entries come in runs (triangles in grid order), which a merge sort takes
-    fast (0.25 s against 0.54 s for 3.8 million
-    element entries; 0.31 s against 0.66 s for a graded grid's 7.8 million corners)."""
+    fast (0.25 s against 0.54 s for 3.8 million element entries)."""
     order = np.argsort(keys, kind="stable")
     sk = keys[order]
     new = np.empty(len(sk), dtype=bool)

@@ -37,7 +37,7 @@ import numpy as np
 
 from ..contour import Contour
 from ..errors import LimitError, OptionError
-from ..geometry import morton, prev_on_ring, unique_inverse
+from ..geometry import morton, prev_on_ring
 from .cones import Cones
 
 #: Default growth: how much larger a cell may be than the contour's local size
@@ -214,7 +214,15 @@ class Quadtree:
             i64(self.level), i64(self.i), i64(self.j), finer,
             np.ascontiguousarray(diagonals, dtype=np.uint8), lay.stride, keys, cell,
         )  # fmt: skip
-        ukey, inv = unique_inverse(keys.ravel())
+        # the nodes: the distinct keys, sorted (a leaf's corners are far apart in key
+        # order, so a sort and a binary search per corner beat an argsort)
+        flat = keys.ravel()
+        ukey = np.sort(flat)
+        new = np.empty(len(ukey), dtype=bool)
+        new[:1] = True
+        np.not_equal(ukey[1:], ukey[:-1], out=new[1:])
+        ukey = ukey[new]
+        inv = np.searchsorted(ukey, flat)
         li, lj = ukey // lay.stride, ukey % lay.stride
         points = np.column_stack([self.x0 + li * (self.hx / 2), self.y0 + lj * (self.hy / 2)])
         return points, inv.reshape(-1, 3).astype(np.int64), cell
