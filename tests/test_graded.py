@@ -627,3 +627,16 @@ def test_the_compiled_triangulation_is_the_numpy_one():
     assert (~q.layout().plain).sum() > 10
     for g, w in zip(got, want):
         assert np.array_equal(g, w)
+
+
+@pytest.mark.parametrize("name", ["peanut.csv", "bracket.svg", "naca0012.csv"])
+def test_balance_keeps_the_leaves_morton_order_as_a_sort_gives_it(name):
+    """The Morton order balance carries from round to round (each split leaf's place
+    taken by its four children) is the one sorting the final leaves' codes gives."""
+    c = load_contour(SAMPLES / name)
+    q = graded.build(c, _box(c))
+    kept = q._sorted
+    fresh = graded.Quadtree(q.x0, q.y0, q.hx, q.hy, q.top, q.nx, q.ny, q.level, q.i, q.j)
+    assert kept is not None
+    for a, b in zip(kept, fresh._morton_order()):
+        assert np.array_equal(a, b)

@@ -148,6 +148,24 @@ class Quadtree:
             self._sorted = (order, start[order])
         return self._sorted
 
+    def _split_order(self, marks: np.ndarray, renum: np.ndarray, kept: int):
+        """:meth:`_morton_order` of the tree with the ``marks``ed leaves split in four,
+        numbered as :func:`balance` numbers them (the kept leaves by ``renum``, then four
+        children per split leaf, in Morton order, after them): each split leaf's place
+        in the order taken by its children, whose codes follow its own in steps of a
+        child's cells."""
+        order, starts = self._morton_order()
+        split = marks[order]
+        child_of = np.cumsum(marks) - 1  # (the split leaf's rank among the split)
+        width = np.where(split, 4, 1)
+        at = np.repeat(np.arange(len(order)), width)
+        q = np.arange(len(at)) - np.repeat(np.cumsum(width) - width, width)
+        leaf = order[at]
+        new_order = np.where(split[at], kept + 4 * child_of[leaf] + q, renum[leaf]).astype(np.int64)
+        # (a child's cells: 4^(level - 1); a leaf of level 0 is never split)
+        step = np.where(split[at], 4 ** np.maximum(self.level[leaf] - 1, 0), 0)
+        return new_order, starts[at] + q * step
+
     def overlapping(self) -> bool:
         """Some two leaves share a cell.  An aligned block is a run of Morton codes and
         two blocks are disjoint or nested, so in the order of their first cells one
@@ -455,8 +473,8 @@ def balance(tree: Quadtree) -> Quadtree:
     change), so the rounds, and the tree, are those of every leaf asking every time."""
     lv, i, j = tree.level, tree.i, tree.j
     ask = np.arange(len(lv))
+    t = Quadtree(tree.x0, tree.y0, tree.hx, tree.hy, tree.top, tree.nx, tree.ny, lv, i, j)
     while True:
-        t = Quadtree(tree.x0, tree.y0, tree.hx, tree.hy, tree.top, tree.nx, tree.ny, lv, i, j)
         marks = np.zeros(len(lv), dtype=bool)
         holders = []
         for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
@@ -479,3 +497,6 @@ def balance(tree: Quadtree) -> Quadtree:
         i = np.concatenate([i[keep], np.repeat(is_, 4) * 2 + np.tile([0, 1, 0, 1], len(is_))])
         j = np.concatenate([j[keep], np.repeat(js, 4) * 2 + np.tile([0, 0, 1, 1], len(js))])
         ask = np.concatenate([again, np.arange(kept, len(lv))])
+        split = t._split_order(marks, renum, kept)
+        t = Quadtree(tree.x0, tree.y0, tree.hx, tree.hy, tree.top, tree.nx, tree.ny, lv, i, j)
+        t._sorted = split  # (the Morton order of the leaves, kept up to date, not re-sorted)
