@@ -14,7 +14,7 @@ $(BIN)/python:
 # (bytecode written once: where PYTHONDONTWRITEBYTECODE is set, every run would
 # otherwise compile the package again, about 0.1 s)
 # (the compiled kernels are built here: a changed .pyx reinstalls)
-KERNELS := $(wildcard deformesh_cli/*.pyx deformesh_cli/*/*.pyx deformesh_cli/*/*.pxd)
+KERNELS := $(wildcard deformesh_cli/*.pyx deformesh_cli/*.pxd deformesh_cli/*/*.pyx deformesh_cli/*/*.pxd)
 
 $(VENV)/.installed: pyproject.toml setup.py $(KERNELS) | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e '.[all]'

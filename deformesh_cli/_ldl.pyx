@@ -7,26 +7,9 @@ and Boyd, "OSQP: an operator splitting solver for quadratic programs", 2020), wr
 here from the method's description.  Compiled without fused multiply-adds: the same
 bits on every processor."""
 
-from libc.stdlib cimport calloc, free, malloc, realloc
+from libc.stdlib cimport calloc, free, malloc
 
-
-cdef struct Vec:
-    long long *d
-    long long n
-    long long cap
-
-
-cdef int _push(Vec *v, long long x) noexcept nogil:
-    cdef long long *nd
-    if v.n == v.cap:
-        nd = <long long *> realloc(v.d, (2 * v.cap + 8) * sizeof(long long))
-        if nd == NULL:
-            return -1
-        v.d = nd
-        v.cap = 2 * v.cap + 8
-    v.d[v.n] = x
-    v.n += 1
-    return 0
+from ._buffers cimport Buf, push
 
 
 cdef inline void _unlink(long long i, long long *head, long long *nxt, long long *prv,
@@ -60,9 +43,9 @@ def minimum_degree(const long long[:] indptr, const long long[:] indices, long l
     variables that element holds outside the new one (elements held wholly inside
     are absorbed too).  Returns 0, or -1 out of memory."""
     cdef Py_ssize_t n = indptr.shape[0] - 1
-    cdef Vec *var = <Vec *> calloc(n + 1, sizeof(Vec))
-    cdef Vec *elem = <Vec *> calloc(n + 1, sizeof(Vec))
-    cdef Vec *lst = <Vec *> calloc(n + 1, sizeof(Vec))
+    cdef Buf *var = <Buf *> calloc(n + 1, sizeof(Buf))
+    cdef Buf *elem = <Buf *> calloc(n + 1, sizeof(Buf))
+    cdef Buf *lst = <Buf *> calloc(n + 1, sizeof(Buf))
     cdef long long *head = <long long *> malloc((n + 1) * sizeof(long long))
     cdef long long *nxt = <long long *> malloc((n + 1) * sizeof(long long))
     cdef long long *prv = <long long *> malloc((n + 1) * sizeof(long long))
@@ -71,7 +54,7 @@ def minimum_degree(const long long[:] indptr, const long long[:] indices, long l
     cdef long long *wmark = <long long *> calloc(n + 1, sizeof(long long))
     cdef long long *w = <long long *> malloc((n + 1) * sizeof(long long))
     cdef unsigned char *state = <unsigned char *> calloc(n + 1, sizeof(unsigned char))
-    cdef Vec lp
+    cdef Buf lp
     cdef Py_ssize_t i, j, q, k, m
     cdef long long v, e, pv, d, stamp = 0, mindeg = 0, bad = 0
     lp.d = NULL
@@ -89,7 +72,7 @@ def minimum_degree(const long long[:] indptr, const long long[:] indices, long l
             for i in range(n - 1, -1, -1):  # (so that the first node heads its list)
                 for q in range(indptr[i], indptr[i + 1]):
                     v = indices[q]
-                    if v != i and _push(&var[i], v) < 0:
+                    if v != i and push(&var[i], v) < 0:
                         bad = -1
                 _link(i, var[i].n, head, nxt, prv, deg)
         k = 0
@@ -107,7 +90,7 @@ def minimum_degree(const long long[:] indptr, const long long[:] indices, long l
                 v = var[pv].d[q]
                 if state[v] == 0 and mark[v] != stamp:
                     mark[v] = stamp
-                    if _push(&lp, v) < 0:
+                    if push(&lp, v) < 0:
                         bad = -1
             for q in range(elem[pv].n):
                 e = elem[pv].d[q]
@@ -117,7 +100,7 @@ def minimum_degree(const long long[:] indptr, const long long[:] indices, long l
                     v = lst[e].d[j]
                     if state[v] == 0 and mark[v] != stamp:
                         mark[v] = stamp
-                        if _push(&lp, v) < 0:
+                        if push(&lp, v) < 0:
                             bad = -1
                 state[e] = 2
                 free(lst[e].d)
@@ -131,7 +114,7 @@ def minimum_degree(const long long[:] indptr, const long long[:] indices, long l
             var[pv].n = 0
             elem[pv].n = 0
             for q in range(lp.n):
-                if _push(&lst[pv], lp.d[q]) < 0:
+                if push(&lst[pv], lp.d[q]) < 0:
                     bad = -1
             # each variable of the new element: its elements (the absorbed gone, the
             # new one added) and its variable neighbours (those now in it gone)
@@ -144,7 +127,7 @@ def minimum_degree(const long long[:] indptr, const long long[:] indices, long l
                         elem[i].d[m] = e
                         m += 1
                 elem[i].n = m
-                if _push(&elem[i], pv) < 0:
+                if push(&elem[i], pv) < 0:
                     bad = -1
                 m = 0
                 for j in range(var[i].n):

@@ -11,41 +11,13 @@ the size of its cavity.
 """
 
 from libc.math cimport atan2, fabs
-from libc.stdlib cimport free, malloc, qsort, realloc
+from libc.stdlib cimport free, malloc, qsort
+
+from ._buffers cimport Buf, push, reserve, resize
 
 import numpy as np
 
 ctypedef long long i64
-
-
-cdef struct Buf:
-    i64 *d
-    i64 n
-    i64 cap
-
-
-cdef int push(Buf *b, i64 v) noexcept nogil:
-    cdef i64 *nd
-    if b.n == b.cap:
-        nd = <i64 *> realloc(b.d, (2 * b.cap + 16) * sizeof(i64))
-        if nd == NULL:
-            return -1
-        b.d = nd
-        b.cap = 2 * b.cap + 16
-    b.d[b.n] = v
-    b.n += 1
-    return 0
-
-
-cdef int reserve(Buf *b, i64 size) noexcept nogil:
-    cdef i64 *nd
-    if size > b.cap:
-        nd = <i64 *> realloc(b.d, size * sizeof(i64))
-        if nd == NULL:
-            return -1
-        b.d = nd
-        b.cap = size
-    return 0
 
 
 cdef int compare_i64(const void *a, const void *b) noexcept nogil:
@@ -343,30 +315,17 @@ cdef struct Work:
 cdef int grow(Work *w, i64 need) noexcept nogil:
     """Room for ``need`` triangles."""
     cdef i64 cap
-    cdef void *p
     if need <= w.cap:
         return 0
     cap = max(need, 2 * w.cap)
-    p = realloc(w.tri, 3 * cap * sizeof(i64))
-    if p == NULL:
+    if (
+        resize(<void **> &w.tri, 3 * cap * sizeof(i64)) < 0
+        or resize(<void **> &w.cnext, 3 * cap * sizeof(i64)) < 0
+        or resize(<void **> &w.cprev, 3 * cap * sizeof(i64)) < 0
+        or resize(<void **> &w.tmark, cap * sizeof(i64)) < 0
+        or resize(<void **> &w.alive, cap * sizeof(unsigned char)) < 0
+    ):
         return -1
-    w.tri = <i64 *> p
-    p = realloc(w.cnext, 3 * cap * sizeof(i64))
-    if p == NULL:
-        return -1
-    w.cnext = <i64 *> p
-    p = realloc(w.cprev, 3 * cap * sizeof(i64))
-    if p == NULL:
-        return -1
-    w.cprev = <i64 *> p
-    p = realloc(w.tmark, cap * sizeof(i64))
-    if p == NULL:
-        return -1
-    w.tmark = <i64 *> p
-    p = realloc(w.alive, cap * sizeof(unsigned char))
-    if p == NULL:
-        return -1
-    w.alive = <unsigned char *> p
     w.cap = cap
     return 0
 
@@ -477,18 +436,14 @@ cdef int remesh(Work *w) noexcept nogil:
     """The triangles ``w.cav`` replaced by the triangulation of the polygon ``w.poly``.
     Returns 0, 1 if the polygon has none (nothing changed), -1 out of memory."""
     cdef i64 k = w.poly.n, i, t, res
-    cdef void *p
     if k < 3:
         return 1
     if k > w.pcap:
-        p = realloc(w.px, k * sizeof(double))
-        if p == NULL:
+        if (
+            resize(<void **> &w.px, k * sizeof(double)) < 0
+            or resize(<void **> &w.py, k * sizeof(double)) < 0
+        ):
             return -1
-        w.px = <double *> p
-        p = realloc(w.py, k * sizeof(double))
-        if p == NULL:
-            return -1
-        w.py = <double *> p
         w.pcap = k
     for i in range(k):
         w.px[i] = w.x[w.poly.d[i]]
