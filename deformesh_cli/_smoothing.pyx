@@ -83,8 +83,7 @@ def apex_quality(
     cdef Py_ssize_t n = px.shape[0]
     cdef Py_ssize_t c = px.shape[1]
     cdef Py_ssize_t nt = ax.shape[0]
-    cdef Py_ssize_t i, j, t, end
-    cdef double x, y, e1x, e1y, e2x, e2y, cross, s1, s2, shortest, den, v, m
+    cdef Py_ssize_t i, j, end
     with nogil:
         for i in range(n):
             end = first[i + 1] if i + 1 < n else nt

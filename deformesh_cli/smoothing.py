@@ -186,7 +186,7 @@ def _move(pts, tri, nodes, inc, slot) -> int:
     # each node's triangles one after the other, without the padding (a node of high
     # valence pads every other node's row to its width)
     first = np.concatenate([[0], np.cumsum(valid.sum(axis=1))[:-1]])
-    quality = _apex_quality(first, *(v[valid][:, None] for v in (ax, ay, bx, by)))
+    quality = _ApexQuality(first, *(v[valid][:, None] for v in (ax, ay, bx, by)))
 
     px, py = pts[nodes, 0].copy(), pts[nodes, 1].copy()
     best = quality(px[:, None], py[:, None])[:, 0]
@@ -208,7 +208,7 @@ def _move(pts, tri, nodes, inc, slot) -> int:
     return int(moved.sum())
 
 
-def _apex_quality(first, ax, ay, bx, by):
+class _ApexQuality:
     """``quality(px, py)``: for (n, c) candidate positions of n nodes, the tangent of
     the smallest angle of each node's worst triangle ``(p, a, b)`` (``first``: each
     node's first triangle, its triangles in a run; ``a``, ``b``: (t, 1)).
@@ -216,37 +216,40 @@ def _apex_quality(first, ax, ay, bx, by):
     :func:`tan_min_angle`'s arithmetic operation for operation, so the same bits,
     but with the side ``a -> b``, which no candidate moves, squared once, in a
     compiled loop (:mod:`._smoothing`): the quality stage spends most of its time
-    here.  ``quality.search(px, py, best, step)`` runs :func:`_move`'s pattern search
-    for the (n,) positions on the same triangles, compiled too."""
-    from ._smoothing import apex_quality
+    here.  :meth:`search` runs :func:`_move`'s pattern search on the same triangles,
+    compiled too."""
 
-    flat = [np.ascontiguousarray(v, dtype=np.float64).ravel() for v in (ax, ay, bx, by)]
-    s0 = bx - ax
-    s0 *= s0
-    e0y = by - ay
-    e0y *= e0y
-    s0 += e0y
-    s0 = np.ascontiguousarray(s0).ravel()
-    first = np.ascontiguousarray(first, dtype=np.int64)
+    def __init__(self, first, ax, ay, bx, by):
+        self._flat = [np.ascontiguousarray(v, dtype=np.float64).ravel() for v in (ax, ay, bx, by)]
+        s0 = bx - ax
+        s0 *= s0
+        e0y = by - ay
+        e0y *= e0y
+        s0 += e0y
+        self._s0 = np.ascontiguousarray(s0).ravel()
+        self._first = np.ascontiguousarray(first, dtype=np.int64)
 
-    def search(px, py, best, step):
-        """:data:`SEARCH_STEPS` rounds from ``(px, py)`` (each node's worst tangent
-        ``best``): along :data:`_DIRS` at ``step``, the best taken where it beats the
-        raised ``best``, else the step halved; all four updated in place."""
-        from ._smoothing import search as run
+    def __call__(self, px, py):
+        from ._smoothing import apex_quality
 
-        run(first, *flat, s0, _DIRS, SEARCH_STEPS, _GAIN_TAN, _RIGHT, px, py, best, step)
-
-    def quality(px, py):
         shape = np.broadcast_shapes(np.shape(px), np.shape(py))
         px = np.ascontiguousarray(np.broadcast_to(px, shape), dtype=np.float64)
         py = np.ascontiguousarray(np.broadcast_to(py, shape), dtype=np.float64)
         out = np.empty(shape)
-        apex_quality(first, *flat, s0, px, py, out)
+        apex_quality(self._first, *self._flat, self._s0, px, py, out)
         return out
 
-    quality.search = search
-    return quality
+    def search(self, px, py, best, step):
+        """:data:`SEARCH_STEPS` rounds from the (n,) positions ``(px, py)`` (each node's
+        worst tangent ``best``): along :data:`_DIRS` at ``step``, the best taken where
+        it beats the raised ``best``, else the step halved; all four updated in
+        place."""
+        from ._smoothing import search
+
+        search(
+            self._first, *self._flat, self._s0, _DIRS, SEARCH_STEPS, _GAIN_TAN, _RIGHT,
+            px, py, best, step,
+        )  # fmt: skip
 
 
 #: The tangent of :data:`GAIN` degrees (``math.tan(math.radians(GAIN))``, written out:

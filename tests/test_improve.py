@@ -343,7 +343,7 @@ def test_the_quality_stage_does_not_read_the_clock():
 
 
 def test_the_smoothing_measure_is_tan_min_angle_bit_for_bit():
-    from deformesh_cli.smoothing import _apex_quality, tan_min_angle
+    from deformesh_cli.smoothing import _ApexQuality, tan_min_angle
 
     rng = np.random.default_rng(7)
     counts = rng.integers(1, 9, size=40)  # triangles per node
@@ -353,7 +353,7 @@ def test_the_smoothing_measure_is_tan_min_angle_bit_for_bit():
     b[::7] = a[::7]  # a side of length 0
     px, py = rng.normal(size=(2, len(counts), 8)) * 2  # some make clockwise triangles
     px[::5, 0], py[::5, 0] = a[first[::5], 0], a[first[::5], 1]  # on a corner: flat
-    got = _apex_quality(first, a[:, :1], a[:, 1:], b[:, :1], b[:, 1:])(px, py)
+    got = _ApexQuality(first, a[:, :1], a[:, 1:], b[:, :1], b[:, 1:])(px, py)
     with np.errstate(divide="ignore", invalid="ignore"):
         each = tan_min_angle(px[row], py[row], a[:, :1], a[:, 1:], b[:, :1], b[:, 1:])
     want = np.minimum.reduceat(each, first, axis=0)

@@ -554,7 +554,7 @@ def test_apex_quality_is_the_numpy_expression():
     """Random stars and candidate positions (some turning triangles clockwise, one
     corner NaN): each node's worst tangent as the numpy expression gives it, bit for
     bit, -inf included."""
-    from deformesh_cli.smoothing import _apex_quality
+    from deformesh_cli.smoothing import _ApexQuality
 
     rng = np.random.default_rng(7)
     n, c = 60, 8
@@ -565,7 +565,7 @@ def test_apex_quality_is_the_numpy_expression():
     ax, ay, bx, by = (rng.normal(size=(t, 1)) for _ in range(4))
     ax[5] = np.nan
     px, py = rng.normal(size=(n, c)), rng.normal(size=(n, c))
-    got = _apex_quality(first, ax, ay, bx, by)(px, py)
+    got = _ApexQuality(first, ax, ay, bx, by)(px, py)
     x, y = px[row], py[row]
     e1x, e1y, e2x, e2y = x - bx, y - by, ax - x, ay - y
     cross = e1x * e2y - e1y * e2x
@@ -577,7 +577,7 @@ def test_apex_quality_is_the_numpy_expression():
     want = np.minimum.reduceat(q, first, axis=0)
     assert np.array_equal(got, want, equal_nan=True)
     assert np.isinf(got).any() and np.isfinite(got).any()
-    one = _apex_quality(first, ax, ay, bx, by)(px[:, :1], py[:, :1])
+    one = _ApexQuality(first, ax, ay, bx, by)(px[:, :1], py[:, :1])
     assert np.array_equal(one, want[:, :1], equal_nan=True)
 
 
@@ -662,7 +662,7 @@ def test_pattern_search_is_the_numpy_loop(seed):
     """The compiled pattern search takes the same steps as the numpy loop it replaced
     (every node at once: the best of the eight directions where it beats the raised
     best, else the step halved): the same positions, tangents and steps, bit for bit."""
-    from deformesh_cli.smoothing import _DIRS, SEARCH_STEPS, _apex_quality, _raised
+    from deformesh_cli.smoothing import _DIRS, SEARCH_STEPS, _ApexQuality, _raised
 
     rng = np.random.default_rng(seed)
     n, d = 300, 7
@@ -673,7 +673,7 @@ def test_pattern_search_is_the_numpy_loop(seed):
     ring_x, ring_y = r * np.cos(ang), r * np.sin(ang)
     ax, ay = ring_x[:, :-1].reshape(-1, 1), ring_y[:, :-1].reshape(-1, 1)
     bx, by = ring_x[:, 1:].reshape(-1, 1), ring_y[:, 1:].reshape(-1, 1)
-    quality = _apex_quality(first, ax, ay, bx, by)
+    quality = _ApexQuality(first, ax, ay, bx, by)
     px, py = rng.uniform(-0.3, 0.3, n), rng.uniform(-0.3, 0.3, n)
     best = quality(px[:, None], py[:, None])[:, 0]
     step = rng.uniform(0.05, 0.3, n)
