@@ -4,8 +4,9 @@ A cavity grown by whole stars (:func:`grow`), the nodes it holds inside
 (:func:`inner_nodes`), its outline (:func:`outline`, :func:`loop`), the
 triangulation of an outline with the largest smallest angle
 (:func:`best_triangulation` over every chord, cubic in the outline's length;
-:func:`delaunay_polygon`, the same angle in O(k^2) at most, compiled), and a mesh renumbered
-without the nodes a re-meshing took out (:func:`renumber`).  Nothing here
+boundary recovery's compiled constrained Delaunay triangulation gives the same
+angle faster, :mod:`.recover`), and a mesh renumbered without the nodes a
+re-meshing took out (:func:`renumber`).  Nothing here
 prints or exits.
 """
 
@@ -177,20 +178,3 @@ def loop(cavity: np.ndarray, inner: set[int]) -> list[int] | None:
     loop through every node of them but the ``inner`` ones; else None."""
     found = outline(cavity.tolist())
     return found[0] if found is not None and found[1] == inner else None
-
-
-def delaunay_polygon(p: np.ndarray) -> np.ndarray | None:
-    """The constrained Delaunay triangulation of the simple counter-clockwise polygon
-    ``p`` (k, 2), its own vertices only, as (k - 2, 3) local indices, every triangle
-    counter-clockwise (of positive :func:`.geometry.signed_areas`), each row from its
-    least index, rows ascending; None if the polygon has none in floating point
-    (vertices collinear to round-off).
-
-    Among all triangulations of a polygon's vertices, the constrained Delaunay one
-    has the largest smallest angle (Lee and Lin 1986), so this is
-    :func:`best_triangulation`'s answer up to ties.  Compiled (``_recover.pyx``):
-    ear clipping, then flips of the inner diagonals while a flip raises the pair's
-    angles, ascending, lexicographically (which ends, and ends Delaunay)."""
-    from ._recover import polygon_cdt
-
-    return polygon_cdt(np.ascontiguousarray(p, dtype=np.float64))

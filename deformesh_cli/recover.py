@@ -8,7 +8,7 @@ every inner node it reaches in the diametral disk of ``a b`` (such a node sees
 leave a sliver each).  When the cavity's outline is one simple loop (through
 every node of it but the ones it surrounds), the polygon without ``c1 .. ck``
 is simple and has the side ``a b``: its constrained Delaunay triangulation
-(:func:`.cavity.delaunay_polygon`, the largest smallest angle of any
+(compiled, ``_recover.polygon_cdt``'s loop: the largest smallest angle of any
 triangulation of its vertices) replaces the cavity, the boundary edges
 ``a c1 .. ck b`` become ``a b``, and the nodes it surrounds go with it.
 
@@ -41,8 +41,7 @@ def recover(mesh: Mesh, only: set[tuple[int, int]] | None = None) -> tuple[Mesh,
     A run of one node whose polygon has no counter-clockwise triangulation in
     floating point (its neighbours collinear to round-off) stays, and the
     contract check counts it.  The loop over the runs is compiled
-    (``_recover.pyx``); its cavities are triangulated by
-    :func:`.cavity.delaunay_polygon`'s kernel.
+    (``_recover.pyx``).
     """
     m, e = mesh.n_contour, mesh.n_extra
     if e == 0:

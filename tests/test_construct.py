@@ -161,7 +161,8 @@ def test_delaunay_polygon_has_the_largest_smallest_angle(seed):
     """The constrained Delaunay triangulation of a polygon's vertices has the largest
     smallest angle of all its triangulations: it matches the dynamic programme over
     every chord, on random star-shaped polygons."""
-    from deformesh_cli.cavity import best_triangulation, delaunay_polygon
+    from deformesh_cli._recover import polygon_cdt as delaunay_polygon
+    from deformesh_cli.cavity import best_triangulation
     from deformesh_cli.quality import measures
 
     rng = np.random.default_rng(seed)

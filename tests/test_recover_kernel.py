@@ -9,7 +9,8 @@ import pytest
 import shapely
 
 from deformesh_cli import pipeline
-from deformesh_cli.cavity import delaunay_polygon, outline, renumber
+from deformesh_cli._recover import polygon_cdt as delaunay_polygon
+from deformesh_cli.cavity import outline, renumber
 from deformesh_cli.contour import make_contour
 from deformesh_cli.geometry import signed_areas
 from deformesh_cli.mesh import Mesh
