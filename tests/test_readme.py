@@ -350,3 +350,46 @@ def test_shell_completion_is_documented_and_works(sh, shell):
             "COMP_WORDS='deformesh mo' COMP_CWORD=1 _DEFORMESH_COMPLETE=bash_complete deformesh"
         ).stdout.decode()
         assert "move" in got
+
+
+def test_limits_peer_numbers_are_the_benchmark_file():
+    """docs/limits.md's comparison with Triangle (the million-triangle rows: seconds,
+    time and memory ratios, triangles per second; the smaller rows' ranges) and the
+    coastlines' process ratios are the rows ``make bench`` last wrote."""
+    results = (ROOT / "benchmarks" / "RESULTS.md").read_text()
+    text = " ".join(DOCS["limits.md"].split())
+    peers = results.split("<!-- section:peers-triangle -->")[1].split("<!-- end:")[0]
+    rows = [
+        [c.strip() for c in row.strip("|").split("|")]
+        for row in peers.splitlines()
+        if row.startswith("| ") and len(row.strip("|").split("|")) == 12
+    ]
+    rows = [r for r in rows if r[3] in ("deformesh", "triangle")]
+    big = {(r[0], r[3]): r for r in rows if int(r[4]) > 900_000}
+    ours = {s: big[(s, "deformesh")] for s in ("circle", "bean", "naca0012")}
+    assert (
+        f"deformesh takes {ours['circle'][5]} s on the circle and {ours['bean'][5]} s on the "
+        f"bean, {ours['circle'][10]} and {ours['bean'][10]} times Triangle's time in the same "
+        f"run (NACA 0012: {ours['naca0012'][10]}), with peak RSS "
+        f"{min(float(r[11]) for r in ours.values()):.1f} to "
+        f"{max(float(r[11]) for r in ours.values()):.1f} times Triangle's"
+    ) in text
+
+    def rate(tool):
+        v = [float(r[6].replace(",", "")) / 1e6 for (_, t), r in big.items() if t == tool]
+        return f"{min(v):.2f}e6 to {max(v):.2f}e6"
+
+    assert f"({rate('triangle')} against {rate('deformesh')} triangles per second)" in text
+    small = [r for r in rows if r[3] == "deformesh" and int(r[4]) < 900_000]
+    seconds = [float(r[5]) for r in small]
+    ratios = [float(r[10]) for r in small]
+    assert (
+        f"Up to 1e5 triangles deformesh takes {min(seconds):.2f} to {max(seconds):.2f} s, "
+        f"{min(ratios):.2f} to {max(ratios):.2f} times Triangle's"
+    ) in text
+    procs = results.split("<!-- section:corpus-processes -->")[1].split("<!-- end:")[0]
+    coast = [
+        float(r) for r in re.findall(r"\| coast_\w+\.csv \| [\d.]+ \| [\d.]+ \| ([\d.]+) \|", procs)
+    ]
+    top = sorted(coast, reverse=True)[:4]
+    assert f"the four largest coastlines {top[-1]:.1f} to {top[0]:.1f} times" in text
