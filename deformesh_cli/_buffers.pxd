@@ -3,7 +3,7 @@
 (:mod:`._recover`'s cavities, :mod:`._ldl`'s quotient graph): each grows by doubling
 and reports running out of memory by returning -1, leaving what it held intact."""
 
-from libc.stdlib cimport realloc
+from libc.stdlib cimport free, realloc
 
 
 cdef struct Buf:
@@ -37,3 +37,11 @@ cdef inline int push(Buf *b, long long v) noexcept nogil:
     b.d[b.n] = v
     b.n += 1
     return 0
+
+
+cdef inline void release(Buf *b) noexcept nogil:
+    """Its memory freed; empty again."""
+    free(b.d)
+    b.d = NULL
+    b.n = 0
+    b.cap = 0

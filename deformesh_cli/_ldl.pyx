@@ -9,7 +9,7 @@ bits on every processor."""
 
 from libc.stdlib cimport calloc, free, malloc
 
-from ._buffers cimport Buf, push
+from ._buffers cimport Buf, push, release
 
 
 cdef inline void _unlink(long long i, long long *head, long long *nxt, long long *prv,
@@ -30,6 +30,20 @@ cdef inline void _link(long long i, long long d, long long *head, long long *nxt
     if head[d] >= 0:
         prv[head[d]] = i
     head[d] = i
+
+
+cdef int _gather(const Buf *src, Buf *lp, long long *mark, const unsigned char *state,
+                 long long stamp) noexcept nogil:
+    """The variables of ``src`` not yet marked ``stamp`` appended to ``lp`` and marked;
+    -1 out of memory."""
+    cdef long long q, v
+    for q in range(src.n):
+        v = src.d[q]
+        if state[v] == 0 and mark[v] != stamp:
+            mark[v] = stamp
+            if push(lp, v) < 0:
+                return -1
+    return 0
 
 
 def minimum_degree(const long long[:] indptr, const long long[:] indices, long long[:] perm):
@@ -86,33 +100,18 @@ def minimum_degree(const long long[:] indptr, const long long[:] indices, long l
             state[pv] = 1
             stamp += 1
             lp.n = 0
-            for q in range(var[pv].n):
-                v = var[pv].d[q]
-                if state[v] == 0 and mark[v] != stamp:
-                    mark[v] = stamp
-                    if push(&lp, v) < 0:
-                        bad = -1
+            if _gather(&var[pv], &lp, mark, state, stamp) < 0:
+                bad = -1
             for q in range(elem[pv].n):
                 e = elem[pv].d[q]
                 if state[e] != 1:
                     continue
-                for j in range(lst[e].n):
-                    v = lst[e].d[j]
-                    if state[v] == 0 and mark[v] != stamp:
-                        mark[v] = stamp
-                        if push(&lp, v) < 0:
-                            bad = -1
+                if _gather(&lst[e], &lp, mark, state, stamp) < 0:
+                    bad = -1
                 state[e] = 2
-                free(lst[e].d)
-                lst[e].d = NULL
-                lst[e].n = 0
-                lst[e].cap = 0
-            free(var[pv].d)
-            free(elem[pv].d)
-            var[pv].d = NULL
-            elem[pv].d = NULL
-            var[pv].n = 0
-            elem[pv].n = 0
+                release(&lst[e])
+            release(&var[pv])
+            release(&elem[pv])
             for q in range(lp.n):
                 if push(&lst[pv], lp.d[q]) < 0:
                     bad = -1
@@ -156,10 +155,7 @@ def minimum_degree(const long long[:] indptr, const long long[:] indices, long l
                         continue
                     if w[e] == 0:  # (held wholly in the new element: absorbed)
                         state[e] = 2
-                        free(lst[e].d)
-                        lst[e].d = NULL
-                        lst[e].n = 0
-                        lst[e].cap = 0
+                        release(&lst[e])
                         continue
                     d += w[e]
                 if d > n - k - 1:
