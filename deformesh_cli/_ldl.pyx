@@ -4,8 +4,8 @@ sparse symmetric matrix's graph, the elimination tree and its postorder, and the
 numeric factorisation and solves
 of ``A = L D L^T`` (the up-looking method of QDLDL: Stellato, Banjac, Goulart, Bemporad
 and Boyd, "OSQP: an operator splitting solver for quadratic programs", 2020), written
-here from the method's description.  Compiled without fused multiply-adds: the same
-bits on every processor."""
+here from the method's description; the dot product and symmetric product of conjugate
+gradients.  Compiled without fused multiply-adds: the same bits on every processor."""
 
 from libc.stdlib cimport calloc, free, malloc
 
@@ -395,3 +395,39 @@ def permute_upper(
                 Ai[t] = vr
                 src[t] = vs
     return m
+
+
+def dot(const double[::1] x, const double[::1] y):
+    """``x . y`` summed in index order (no BLAS: the same bits on every processor)."""
+    cdef Py_ssize_t i
+    cdef double s = 0.0
+    with nogil:
+        for i in range(x.shape[0]):
+            s = s + x[i] * y[i]
+    return s
+
+
+def upper_matvec(
+    const long long[::1] Ap, const long long[::1] Ai, const double[::1] Ax,
+    const double[::1] x, double[::1] out,
+):
+    """``out = A x`` for the symmetric ``A`` given by its upper triangle by columns
+    (``Ap``, ``Ai``, ``Ax``), each entry added in storage order."""
+    cdef Py_ssize_t n = Ap.shape[0] - 1
+    cdef Py_ssize_t j, p
+    cdef long long i
+    cdef double xj, s
+    with nogil:
+        for j in range(n):
+            out[j] = 0.0
+        for j in range(n):
+            xj = x[j]
+            s = 0.0
+            for p in range(Ap[j], Ap[j + 1]):
+                i = Ai[p]
+                if i == j:
+                    s = s + Ax[p] * xj
+                else:
+                    out[i] = out[i] + Ax[p] * xj
+                    s = s + Ax[p] * x[i]
+            out[j] = out[j] + s

@@ -38,12 +38,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .cholesky import Cholesky
 from .divcurl import gradients
 from .errors import FoldError, InputError, MonitorError, OptionError
 from .geometry import boundary_edges, signed_areas, unique_inverse
 from .quality import measures
 from .size import positive_values
+from .splitsolve import SplitSolver
 
 #: Solves of the velocity at least, each on the mesh as it then is: the time between
 #: two solves is at most ``1 / ADAPT_STEPS`` (where the velocity is steep,
@@ -227,12 +227,14 @@ class VelocitySystem:
     Unknowns: ``(vx, vy)`` at a free inner node, ``w`` at a sliding node (velocity
     ``w t`` along its tangent ``t``), none at a fixed node, numbered node by node.  Each
     cell's two rows (six entries over its nodes' unknowns) give a 6 x 6 block of the
-    normal equations, summed into a pattern fixed by the triangles, so the
-    factorisation (:class:`.cholesky.Cholesky`: QDLDL) is analysed once and then only
-    refactorised.
+    normal equations, summed into a pattern fixed by the triangles.  The normal
+    equations are solved by :class:`.splitsolve.SplitSolver`, its two groups the
+    unknowns that move a node mostly along x and those mostly along y (at ``g = 1`` the
+    two couple only through sliding nodes off the axes: the cross term of ``div^2 +
+    curl^2`` is a null Lagrangian), its order from the nodes' places in ``points``.
     """
 
-    def __init__(self, tri: np.ndarray, fixed: np.ndarray, tangent: np.ndarray):
+    def __init__(self, points: np.ndarray, tri: np.ndarray, fixed: np.ndarray, tangent: np.ndarray):
         n = len(fixed)
         self.n, self.tri = n, tri
         slide = tangent.any(axis=1) & ~fixed
@@ -263,7 +265,14 @@ class VelocitySystem:
         self._indices = (ukeys % size).astype(np.int32)
         self._indptr = np.searchsorted(ukeys // size, np.arange(size + 1))
         self._dof = np.where(dof >= 0, dof, size).T.ravel()  # slot by slot (size: dropped)
-        self.cholesky = Cholesky()
+        node = np.empty(size, dtype=np.int64)  # each unknown's node and direction
+        direction = np.empty((size, 2))
+        for s in range(2):
+            has = self.slot[:, s] >= 0
+            node[self.slot[has, s]] = np.flatnonzero(has)
+            direction[self.slot[has, s]] = self.dirs[has, s]
+        along_y = np.abs(direction[:, 1]) > np.abs(direction[:, 0])
+        self.solver = SplitSolver(self._indptr, self._indices, along_y, points[node])
 
     def rows(self, gx, gy, g, grad, t):
         """(6, T) each: every cell's rate and curl rows on its six slots."""
@@ -286,8 +295,6 @@ class VelocitySystem:
         """``V`` (N, 2) at pseudo-time ``t``: ``g`` the path's density at the nodes,
         ``grad`` the gradient of ``g1`` (its end) there, ``geometry``
         :func:`.divcurl.gradients` of the mesh where the nodes are."""
-        import scipy.sparse as sp
-
         V = np.zeros((self.n, 2))
         if not self.size:
             return V
@@ -300,12 +307,10 @@ class VelocitySystem:
             block[k] += c[p] * c[q]
         block *= half
         values = np.bincount(self._entry, weights=block.ravel())[: len(self._indices)]
-        self.cholesky.factorise(
-            sp.csc_matrix((values, self._indices, self._indptr), shape=(self.size, self.size))
-        )
+        self.solver.factorise(values)
         load = (half * (1.0 - g1[self.tri].mean(axis=1))) * d
         rhs = np.bincount(self._dof, weights=load.ravel(), minlength=self.size + 1)
-        x = np.concatenate([self.cholesky.solve(rhs[:-1]), [0.0]])  # (slot -1: no unknown)
+        x = np.concatenate([self.solver.solve(rhs[:-1]), [0.0]])  # (slot -1: no unknown)
         w = x[self.slot]  # (N, 2 slots)
         return w[:, 0, None] * self.dirs[:, 0] + w[:, 1, None] * self.dirs[:, 1]
 
@@ -386,7 +391,7 @@ def adapt(
     m0 = monitor(points)
     fixed, tangent = boundary_motion(points, tri, held, slide)
     before = equidistribution(points, tri, m0, area)
-    system = VelocitySystem(tri, fixed, tangent)
+    system = VelocitySystem(points, tri, fixed, tangent)
     step = GRADIENT_STEP * float(np.ptp(points, axis=0).max())
 
     neighbours = triangle_neighbours(tri)

@@ -2,7 +2,8 @@
 systems, with no BLAS and no scipy: the same bits on every machine.
 
 The unknowns are ordered by approximate minimum degree (the quotient-graph method of
-Amestoy, Davis and Duff, written here), then by a postorder of the elimination tree,
+Amestoy, Davis and Duff, written here), or by nested dissection where they sit at
+points of the plane (:func:`dissection_order`), then by a postorder of the elimination tree,
 so the factor stays sparse and is read in runs; the ordering and the symbolic
 factorisation (elimination tree, column counts) are made once per pattern, and
 :meth:`LDL.update` refactors new numbers on the same pattern.  The loops are compiled
@@ -16,18 +17,85 @@ import numpy as np
 from ._ldl import etree, factor, minimum_degree, permute_upper, postorder, solve
 from .errors import OUT_OF_MEMORY, LimitError, SolverError
 
+#: Parts of a nested dissection that are not split further: at most this many unknowns
+#: (on the 300 x 300 grid's Laplacian 16 gives 3.7M factor entries, 64 4.1M, 256 5.5M;
+#: approximate minimum degree 4.7M, with twice the flops: ``benchmarks/MEASURED.md``).
+DISSECTION_LEAF = 16
+
+
+def dissection_order(
+    points: np.ndarray, indptr: np.ndarray, indices: np.ndarray, leaf: int = DISSECTION_LEAF
+) -> np.ndarray:
+    """A nested-dissection order of a symmetric pattern (CSR ``indptr``, ``indices``)
+    whose unknowns sit at ``points`` (n, 2) of the plane, as a mesh's nodes do.
+
+    Each part of more than ``leaf`` unknowns is split at its median along the longer
+    side of its bounding box (ties by index); the unknowns of the smaller half that
+    are coupled to the other half form its separator, ordered after both halves, which
+    are split in turn.  A planar mesh's median line crosses about the square root of its
+    nodes, so the factor keeps ``O(n log n)`` entries.  All parts of a level are split
+    at once (a sort per level); each unknown's place is a base-3 key of its path (0
+    first half, 1 second, 2 separator), so the order is the dissection tree's postorder
+    with the unknowns of a part by index.
+    """
+    n = len(points)
+    indptr = np.asarray(indptr, dtype=np.int64)
+    row = np.repeat(np.arange(n), np.diff(indptr))
+    col = np.asarray(indices, dtype=np.int64)[: indptr[-1]]
+    off = row != col
+    row, col = row[off], col[off]
+    key = np.zeros(n, dtype=np.int64)  # the path so far (a part: the active with one key)
+    active = np.ones(n, dtype=bool)
+    side = np.zeros(n, dtype=np.int64)
+    while active.any():  # (a level halves every part: 3**levels stays < 2**63)
+        k = np.flatnonzero(active)
+        k = k[np.argsort(key[k], kind="stable")]  # part by part, each by index
+        starts = np.flatnonzero(np.r_[True, key[k[1:]] != key[k[:-1]]])
+        size = np.diff(np.r_[starts, len(k)])
+        pid = np.repeat(np.arange(len(starts)), size)
+        x, y = points[k, 0], points[k, 1]
+        wide = (np.maximum.reduceat(x, starts) - np.minimum.reduceat(x, starts)) >= (
+            np.maximum.reduceat(y, starts) - np.minimum.reduceat(y, starts)
+        )
+        k = k[np.lexsort((k, np.where(wide[pid], x, y), pid))]  # (pid is already sorted)
+        big = size > leaf
+        side[k] = np.where(np.arange(len(k)) - starts[pid] >= size[pid] // 2, 1, 0)
+        side[k[~big[pid]]] = 0
+        active[k[~big[pid]]] = False  # (parts small enough: their order is by index)
+        part = np.full(n, -1)
+        part[k] = pid
+        live = active[row] & active[col]
+        row, col = row[live], col[live]
+        cut = np.flatnonzero((side[row] == 0) & (side[col] == 1) & (part[row] == part[col]))
+        # each part's coupled unknowns on either side (an unknown once), the fewer kept
+        first = np.zeros(n, dtype=bool)
+        second = np.zeros(n, dtype=bool)
+        first[row[cut]] = True
+        second[col[cut]] = True
+        fewer = np.bincount(part[first], minlength=len(starts)) <= np.bincount(
+            part[second], minlength=len(starts)
+        )
+        sep = np.where(fewer[part], first, second) & (part >= 0)
+        key = 3 * key + np.where(active, np.where(sep, 2, side), 0)
+        active &= ~sep
+    return np.argsort(key, kind="stable")
+
 
 class LDL:
     """``K = L D L^T`` of a symmetric matrix given by its whole pattern in CSR
-    (``indptr``, ``indices``, ``data``; :class:`~.divcurl.SymmetricCSR` or alike)."""
+    (``indptr``, ``indices``, ``data``; :class:`~.divcurl.SymmetricCSR` or alike),
+    in approximate minimum degree order or in the ``order`` given."""
 
-    def __init__(self, K):
+    def __init__(self, K, order: np.ndarray | None = None):
         n = K.shape[0]
         indptr = np.ascontiguousarray(K.indptr, dtype=np.int64)
         indices = np.ascontiguousarray(K.indices, dtype=np.int64)
-        perm = np.empty(n, dtype=np.int64)
-        if minimum_degree(indptr, indices, perm) < 0:
-            raise LimitError(OUT_OF_MEMORY)
+        if order is None:
+            perm = np.empty(n, dtype=np.int64)
+            if minimum_degree(indptr, indices, perm) < 0:
+                raise LimitError(OUT_OF_MEMORY)
+        else:
+            perm = np.asarray(order, dtype=np.int64)
         parent = np.empty(n, dtype=np.int64)
         lnz = np.empty(n, dtype=np.int64)
         work = np.empty(n, dtype=np.int64)

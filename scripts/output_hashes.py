@@ -5,7 +5,8 @@
 
 Each sample (samples/*.csv, samples/*.svg and the first contour of each moving
 sample) is meshed by ``deformesh all`` once per output format, and put through
-``deformesh select`` and ``deformesh deform`` (the state files).  The files'
+``deformesh select`` and ``deformesh deform`` (the state files); each sample's
+``.vtu`` mesh is put through ``deformesh adapt`` with a ring monitor.  The files'
 sha256 are compared with the record; ``--check`` exits 1 and names each file
 that differs.  The HDF5 sidecar of ``.xdmf`` holds creation times, so for it
 the datasets' bytes are hashed instead of the file.
@@ -43,6 +44,9 @@ OUTPUTS = [
 UNIFORM = ("uniform.vtk", ["--grid", "uniform"])
 #: Samples the uniform grid refuses (their spacing varies too much for one step).
 NOT_UNIFORM = {"naca0012_cosine"}
+
+#: ``adapt``'s monitor: a ring around each sample's centre of mass (in its own units).
+RING = "1 + 10 * (1 - tanh(30 * ((x - {x:.3f})**2 + (y - {y:.3f})**2 - {r:.4f}))**2)"
 
 
 def samples() -> list[Path]:
@@ -87,14 +91,26 @@ def jobs(out: Path) -> list[tuple[str, list[str]]]:
         sel, dfm = out / f"{stem}.selected", out / f"{stem}.deformed"
         todo.append((sel.name, ["select", str(src), "-o", str(sel), "-q"]))
         todo.append((dfm.name, ["deform", str(sel), "-o", str(dfm), "-q"]))
+        todo.append((f"{stem}.adapted.vtu", ["adapt", str(out / f"{stem}.vtu")]))
     return todo
+
+
+def ring(mesh: Path) -> str:
+    """A ring monitor through the middle of ``mesh``'s extent."""
+    import meshio
+
+    p = meshio.read(mesh).points[:, :2]
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    x, y = (lo + hi) / 2
+    return RING.format(x=x, y=y, r=(float((hi - lo).min()) / 4) ** 2)
 
 
 def run_all(out: Path) -> dict[str, str]:
     todo = jobs(out)
     # the state files in order (deform reads select's); the meshes two at a time
     meshes = [j for j in todo if j[1][0] == "all"]
-    states = [j for j in todo if j[1][0] != "all"]
+    states = [j for j in todo if j[1][0] in ("select", "deform")]
+    adapts = [j for j in todo if j[1][0] == "adapt"]
 
     def run(job):
         name, args = job
@@ -108,6 +124,8 @@ def run_all(out: Path) -> dict[str, str]:
         list(pool.map(run, meshes))
     for job in states:
         run(job)
+    for name, args in adapts:  # (the sample's mesh, written above)
+        run((name, [*args, "-o", str(out / name), "-q", "--monitor", ring(Path(args[1]))]))
     return {p.name: digest(p) for p in sorted(out.iterdir())}
 
 

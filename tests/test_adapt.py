@@ -168,7 +168,7 @@ def test_the_velocity_system_is_the_least_squares_solution_of_its_rows(degrees):
               for v in np.flatnonzero(slide)]  # fmt: skip
     P = np.concatenate(basis).T
     want = P @ np.linalg.lstsq(np.array(rows) @ P, np.array(rhs), rcond=None)[0]
-    got = VelocitySystem(tri, fixed, tangent).velocity(gradients(p, tri), g, grad, g1, t)
+    got = VelocitySystem(p, tri, fixed, tangent).velocity(gradients(p, tri), g, grad, g1, t)
     assert np.abs(np.concatenate([got[:, 0], got[:, 1]]) - want).max() < 1e-10
 
 
@@ -313,7 +313,7 @@ def test_the_stretch_rule_keeps_a_real_velocitys_euler_map_within_its_bound():
     area = signed_areas(p, tri)
     c = float(np.sum(area * ring(p)[tri].mean(axis=1)) / area.sum())
     grad = monitor_gradient(ring, p, 2.0**-20, "test") / c
-    v = VelocitySystem(tri, fixed, tangent).velocity(
+    v = VelocitySystem(p, tri, fixed, tangent).velocity(
         geometry, np.ones(len(p)), grad, ring(p) / c, 0.0
     )
     span = STRETCH / stretch(tri, geometry, v).max()
