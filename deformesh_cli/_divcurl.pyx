@@ -13,18 +13,20 @@ def assemble(
     const double[:, :] points,
     const long long[:, :] tri,
     const long long[:] slot,
-    const long long[:] fd_row,
+    const long long[:] fidx,
     const double[:, :] ud,
     double[:] data,
     double[:, :] rhs,
 ):
     """Per triangle, its P1 Laplace element matrix ``ke[i, j] = (gx_i gx_j + gy_i gy_j)
     |T|``; entry ``e = 9 t + 3 i + j`` is added to ``data[slot[e]]`` where ``slot[e] >=
-    0`` (free row and column), and ``ke * ud[col]`` to ``rhs[fd_row[e]]`` where
-    ``fd_row[e] >= 0`` (free row, Dirichlet column).  ``data`` and ``rhs`` start at 0;
+    0`` (free row and column), and ``ke * ud[col]`` to ``rhs[fidx[row]]`` where the row's
+    node is free and the column's not (``fidx``: a node's free index, -1 for a Dirichlet
+    node).  ``data`` and ``rhs`` start at 0;
     the sums run in the order of ``e``."""
     cdef Py_ssize_t nt = tri.shape[0]
     cdef Py_ssize_t t, i, j, e, col
+    cdef long long fr
     cdef double x0, x1, x2, y0, y1, y2, a2, area, v
     cdef double gx[3]
     cdef double gy[3]
@@ -50,10 +52,12 @@ def assemble(
                     v = (gx[i] * gx[j] + gy[i] * gy[j]) * area
                     if slot[e] >= 0:
                         data[slot[e]] += v
-                    elif fd_row[e] >= 0:
+                    else:
+                        fr = fidx[tri[t, i]]
                         col = tri[t, j]
-                        rhs[fd_row[e], 0] += v * ud[col, 0]
-                        rhs[fd_row[e], 1] += v * ud[col, 1]
+                        if fr >= 0 and fidx[col] < 0:
+                            rhs[fr, 0] += v * ud[col, 0]
+                            rhs[fr, 1] += v * ud[col, 1]
 
 
 def areas(

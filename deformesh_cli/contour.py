@@ -302,9 +302,11 @@ def _check_resolution(p: np.ndarray, big: float, source: str, name: str, offset:
 
 def _check_ring(p: np.ndarray, ln: np.ndarray, source: str, name: str, offset: int) -> float:
     """Validate one ring (global indices start at ``offset``); return its signed area."""
-    if len(np.unique(p, axis=0)) < 3:
+    other = (p != p[0]).any(axis=1)  # (distinct points: one, a second, a third?)
+    third = other & (p != p[int(np.argmax(other))]).any(axis=1)
+    if not third.any():
         raise InputError(
-            f"{source}: {name}fewer than 3 distinct points ({len(np.unique(p, axis=0))}); "
+            f"{source}: {name}fewer than 3 distinct points ({1 + int(other.any())}); "
             "a contour needs at least 3"
         )
     c = Contour(p, ln, source, ring_labels=(name.removesuffix(": "),) if name else ())

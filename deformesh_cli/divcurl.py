@@ -21,9 +21,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-_LOCAL_R = np.repeat(np.arange(3), 3)
-_LOCAL_C = np.tile(np.arange(3), 3)
-
 
 def gradients(points: np.ndarray, tri: np.ndarray):
     """Barycentric gradients ``gx, gy`` (t, 3) and twice the signed areas (t,)."""
@@ -116,10 +113,6 @@ class Assembler:
         self._indices = indices[:nnz].astype(np.int32)
         self._indptr = indptr.astype(np.int32)
         self._nnz = nnz
-        # ... else its right-hand side's row (free row, Dirichlet column), else -1
-        fr = fidx[t[:, _LOCAL_R].ravel()]
-        fc = fidx[t[:, _LOCAL_C].ravel()]
-        self._entry_rhs = np.where((fr >= 0) & (fc < 0), fr, -1)
 
     def load(self, points: np.ndarray, r: np.ndarray) -> np.ndarray:
         """The divergence load ``sum_T |T| r_T (gx, gy)`` on the free dofs, (n_free, 2)."""
@@ -143,11 +136,12 @@ class Assembler:
         """
         from ._divcurl import assemble
 
+        fidx = self._fidx
         data = np.zeros(self._nnz)
         acc = np.zeros((self.n_free, 2))
         pts = np.ascontiguousarray(points, dtype=np.float64)
         ud = np.ascontiguousarray(u_dirichlet, dtype=np.float64)
-        assemble(pts, self._tri, self._entry_slot, self._entry_rhs, ud, data, acc)
+        assemble(pts, self._tri, self._entry_slot, fidx, ud, data, acc)
         K = SymmetricCSR(
             data,
             self._indices,

@@ -23,7 +23,17 @@ def _fields(n: int) -> str:
 def _split(line: str, delim: str | None) -> list[str]:
     if delim is None:
         return line.split()
-    return [f.strip() for f in line.split(delim)]
+    fields = line.split(delim)
+    return fields if all(f == f.strip() for f in fields) else [f.strip() for f in fields]
+
+
+def _whole(text: str) -> int | None:
+    """The integer ``text`` writes, if it is a whole number up to 2**53, else None."""
+    try:
+        v = float(text)
+    except ValueError:
+        return None
+    return int(v) if math.isfinite(v) and v == int(v) and abs(v) <= 2**53 else None
 
 
 def read_csv(data: bytes, name: str, decimal: str = ".") -> Contour:
@@ -93,40 +103,39 @@ def parse_csv(text: str, source: str = "<contour>", decimal: str = ".") -> Conto
         if ncols >= 3:
             ring_col = 2
 
-    xy = np.empty((len(rows), 2))
-    lines = np.empty(len(rows), dtype=np.int64)
+    fields = [f for _, f in rows]
+    lines = np.array([lineno for lineno, _ in rows], dtype=np.int64)
+    if any(len(f) != ncols for f in fields):  # a stray field (a thousands separator?)
+        r = next(r for r, f in enumerate(fields) if len(f) != ncols)  # is never dropped
+        raise InputError(
+            f"{source}: line {lines[r]}: {_fields(len(fields[r]))}, but line {first_line} has "
+            f"{ncols}; every row must have the same number of fields"
+        )
+    columns = [[f[cols[key]] for f in fields] for key in ("x", "y")]
+    if not all(all(map(_NUMBER.match, column)) for column in columns):
+        r, key, f = min(
+            (r, key, f)
+            for key, column in zip("xy", columns)
+            for r, f in enumerate(column)
+            if not _NUMBER.match(f)
+        )  # (the first row with one, x before y)
+        hint = ""  # (a number written with a decimal comma: say how to read it)
+        if decimal == "." and _NUMBER.match(f.replace(",", ".", 1)):
+            hint = " (for decimal commas give --decimal ,)"
+        raise InputError(f"{source}: line {lines[r]}: {key} value {f!r} is not a number{hint}")
+    xy = np.array([[float(v) for v in column] for column in columns]).T.reshape(-1, 2)
     rings = np.zeros(len(rows), dtype=np.int64)
-    for r, (lineno, fields) in enumerate(rows):
-        if len(fields) != ncols:  # a stray field (a thousands separator?) is never dropped
-            raise InputError(
-                f"{source}: line {lineno}: {_fields(len(fields))}, but line {first_line} has "
-                f"{ncols}; every row must have the same number of fields"
-            )
-        for c, key in enumerate(("x", "y")):
-            f = fields[cols[key]]
-            if not _NUMBER.match(f):
-                hint = ""  # (a number written with a decimal comma: say how to read it)
-                if decimal == "." and _NUMBER.match(f.replace(",", ".", 1)):
-                    hint = " (for decimal commas give --decimal ,)"
-                raise InputError(
-                    f"{source}: line {lineno}: {key} value {f!r} is not a number{hint}"
-                )
-            xy[r, c] = float(f)
-        if ring_col is not None:
-            f = fields[ring_col]
-            try:
-                v = float(f)
-            except ValueError:
-                v = math.nan
+    if ring_col is not None:
+        for r, f in enumerate(fields):
+            v = _whole(f[ring_col])
             # a whole number that a double holds exactly (1.5, 1e19, inf are refused:
             # read as an integer they would silently name another ring)
-            if not (math.isfinite(v) and v == int(v) and abs(v) <= 2**53):
+            if v is None:
                 raise InputError(
-                    f"{source}: line {lineno}: ring value {f!r} is not an integer "
+                    f"{source}: line {lines[r]}: ring value {f[ring_col]!r} is not an integer "
                     "(ring ids are whole numbers up to 2**53)"
                 )
-            rings[r] = int(v)
-        lines[r] = lineno
+            rings[r] = v
     bad = ~np.isfinite(xy).all(axis=1)
     if bad.any():
         r = int(np.argmax(bad))

@@ -43,7 +43,7 @@ import shapely
 from .._predicates import boxes_meet_segments, segments_meet_triangles
 from ..contour import Contour, far_field_box, grown_box
 from ..errors import LimitError, OptionError, SelectionError
-from ..geometry import boundary_edges, edge_uses, next_on_ring, prev_on_ring, signed_areas
+from ..geometry import boundary_edges, next_on_ring, prev_on_ring, signed_areas, touching
 from . import graded
 from ._monotone import between_costs, programme
 from .boxtree import box_tree
@@ -197,14 +197,11 @@ class GradedSelection:
     def band_nodes(self) -> np.ndarray | None:
         """Nodes within :data:`BAND_HOPS` edges of the path, or None if half the grid."""
         n = self.grid.n_nodes
-        lo, hi, _, _ = edge_uses(self.triangles(), n)
+        tri = self.triangles()
         on = np.zeros(n, dtype=bool)
         on[self.path_nodes] = True
-        for _ in range(BAND_HOPS):  # (one edge further each time)
-            step = on.copy()
-            step[hi[on[lo]]] = True
-            step[lo[on[hi]]] = True
-            on = step
+        for _ in range(BAND_HOPS):  # (one edge further each time: a triangle's corners
+            on[tri[touching(on, tri)]] = True  # are its edges' ends)
         return on if on.sum() < 0.5 * n else None
 
 
