@@ -149,3 +149,47 @@ def search(
                     bar = raised(qk, c, cap)
                 else:
                     step[i] = 0.5 * step[i]
+
+
+def tan_min(const double[:, :] points, const long long[:, ::1] tri, double[::1] out):
+    """Per triangle ``abc`` the tangent of its smallest angle, ``2 cross / (s0 + s1 + s2 -
+    2 shortest)`` (``s`` the squared sides opposite ``a``, ``b``, ``c``), ``-inf`` where
+    ``cross`` is not positive: the numpy expression's operations in order (NaN spreads
+    through the least as ``np.minimum`` spreads it)."""
+    cdef Py_ssize_t t
+    cdef double ax, ay, bx, by, cx, cy, e0x, e0y, e1x, e1y, e2x, e2y
+    cdef double cross, s0, s1, s2, shortest
+    with nogil:
+        for t in range(tri.shape[0]):
+            ax = points[tri[t, 0], 0]
+            ay = points[tri[t, 0], 1]
+            bx = points[tri[t, 1], 0]
+            by = points[tri[t, 1], 1]
+            cx = points[tri[t, 2], 0]
+            cy = points[tri[t, 2], 1]
+            e0x = cx - bx
+            e0y = cy - by
+            e1x = ax - cx
+            e1y = ay - cy
+            e2x = bx - ax
+            e2y = by - ay
+            cross = e1x * e2y
+            cross = cross - e1y * e2x
+            s0 = e0x * e0x
+            s0 = s0 + e0y * e0y
+            s1 = e1x * e1x
+            s1 = s1 + e1y * e1y
+            s2 = e2x * e2x
+            s2 = s2 + e2y * e2y
+            if isnan(s0) or isnan(s1):
+                shortest = s0 + s1
+            else:
+                shortest = s0 if s0 < s1 else s1
+            if isnan(s2):
+                shortest = s2
+            elif not isnan(shortest) and s2 < shortest:
+                shortest = s2
+            if cross > 0.0:
+                out[t] = (2.0 * cross) / (((s0 + s1) + s2) - 2.0 * shortest)
+            else:
+                out[t] = -INFINITY

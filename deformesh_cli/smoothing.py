@@ -11,15 +11,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._smoothing import tan_min
+
 _SQRT3_2 = np.sqrt(3.0) / 2.0
 #: Pattern-search steps per smoothing sweep (the step halves when nothing improves).
 SEARCH_STEPS = 8
 
 #: A change counts only if it raises the smallest angle by more than this (degrees).
 GAIN = 0.01
-
-#: Triangles measured at a time (bounds the temporaries on big meshes).
-CHUNK = 1 << 17
 
 _DIRS = np.array([(np.cos(a), np.sin(a)) for a in np.arange(8) * np.pi / 4])
 
@@ -43,19 +42,18 @@ def tan_min_angle(ax, ay, bx, by, cx, cy):
 
 
 def _tan_all(pts, tri):
-    """:func:`_tan_min` of every triangle, :data:`CHUNK` at a time."""
-    return np.concatenate([_tan_min(pts, tri[k : k + CHUNK]) for k in range(0, len(tri), CHUNK)])
+    """:func:`_tan_min` of every triangle."""
+    return _tan_min(pts, tri)
 
 
 def _tan_min(pts, tri):
-    return tan_min_angle(
-        pts[tri[:, 0], 0],
-        pts[tri[:, 0], 1],
-        pts[tri[:, 1], 0],
-        pts[tri[:, 1], 1],
-        pts[tri[:, 2], 0],
-        pts[tri[:, 2], 1],
-    )
+    """:func:`tan_min_angle` of each triangle of ``tri`` (a compiled loop, the same
+    bits: tested)."""
+    t = np.ascontiguousarray(tri, dtype=np.int64).reshape(-1, 3)
+    out = np.empty(len(t))
+    if len(t):
+        tan_min(np.asarray(pts, dtype=np.float64), t, out)
+    return out
 
 
 def _flip_all(pts: np.ndarray, tri: np.ndarray, target: float, max_passes: int = 50) -> int:

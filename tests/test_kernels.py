@@ -767,3 +767,31 @@ def test_edge_pairs_are_the_numpy_ones(seed):
     assert len(got[0]) > len(tri) // 2
     for g, w in zip(got, want):
         assert np.array_equal(g, w)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_compiled_smallest_angles_and_areas_are_numpys(seed):
+    """The compiled smallest-angle tangent and signed area of each triangle against the
+    numpy expressions, bit for bit, with flat, repeated-corner and non-finite ones."""
+    from deformesh_cli.geometry import signed_areas
+    from deformesh_cli.smoothing import _tan_min, tan_min_angle
+
+    rng = np.random.default_rng(seed)
+    p = rng.normal(size=(3000, 2)) * 10.0 ** rng.integers(-3, 4)
+    p[5], p[7, 0], p[9] = np.nan, np.inf, p[8] * 2  # (8, 9 and the origin: collinear)
+    tri = rng.integers(0, len(p), size=(20000, 3))
+    tri[:6] = [[1, 1, 2], [3, 4, 3], [5, 6, 7], [7, 8, 9], [0, 0, 0], [8, 9, 10]]
+    with np.errstate(invalid="ignore"):
+        want = tan_min_angle(*(p[tri[:, k], d] for k in range(3) for d in range(2)))
+    assert np.array_equal(_tan_min(p, tri), want, equal_nan=True)
+    x, y = p[tri, 0], p[tri, 1]
+    with np.errstate(invalid="ignore"):
+        area = 0.5 * (
+            (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
+        )
+    assert np.array_equal(signed_areas(p, tri), area, equal_nan=True)
+    assert np.array_equal(signed_areas(p, tri.astype(np.int32)), area, equal_nan=True)
+    from deformesh_cli.errors import InputError
+
+    with pytest.raises(InputError, match="outside"):
+        signed_areas(p, np.array([[0, 1, len(p)]]))

@@ -27,12 +27,11 @@ def write(mesh: Mesh, path: str, version: str | None = None) -> None:
     nt, nl = len(tri), len(lines)
     pts = np.zeros((n, 3), dtype=">f8")
     pts[:, :2] = mesh.points
-    cells = np.concatenate(
-        [
-            np.column_stack([np.full(nt, 3), tri]).ravel(),
-            np.column_stack([np.full(nl, 2), lines]).ravel(),
-        ]
-    ).astype(">i4")
+    cells = np.empty(4 * nt + 3 * nl, dtype=">i4")  # (count, corners) per cell
+    by_tri = cells[: 4 * nt].reshape(nt, 4)
+    by_tri[:, 0], by_tri[:, 1:] = 3, tri
+    by_line = cells[4 * nt :].reshape(nl, 3)
+    by_line[:, 0], by_line[:, 1:] = 2, lines
     types = np.repeat(np.array([5, 3], dtype=">i4"), [nt, nl])  # VTK_TRIANGLE, VTK_LINE
     cp = contour_point(mesh).astype(">i4")
     fields = [(f"contour_point 1 {n} int\n".encode(), cp)]
@@ -58,7 +57,7 @@ def write(mesh: Mesh, path: str, version: str | None = None) -> None:
             ),
         ):
             f.write(head)
-            f.write(data.tobytes())
+            f.write(np.ascontiguousarray(data).data)  # (the array's bytes, not a copy)
             f.write(b"\n")
 
 
