@@ -55,48 +55,74 @@ cdef inline bint _forward(const long long[:, :] tri, long long e) noexcept nogil
 
 
 def edge_table(
-    const long long[:, :] tri,
+    const long long[:, ::1] tri,
     long long n,
-    long long reverse,
-    long long[:] row,
-    long long[:] ent,
-    long long[:] hi,
-    long long[:] out_lo,
-    long long[:] out_hi,
-    long long[:] out_fwd,
-    long long[:] out_rev,
+    long long[::1] row,
+    long long[::1] buf,
+    long long[::1] out_lo,
+    long long[::1] out_fwd,
+    long long[::1] out_rev,
 ):
     """The edges ``lo < hi`` in order (by ``lo``, then ``hi``) with the count of
-    triangles walking each ``lo -> hi`` (``out_fwd``) and ``hi -> lo`` (``out_rev``);
-    returns how many, or -1 if a triangle names a node outside ``0 .. n - 1``.
-    ``row`` (n + 1), ``ent``, ``hi`` (3 per triangle): scratch."""
+    triangles walking each ``lo -> hi`` (``out_fwd``) and ``hi -> lo`` (``out_rev``),
+    each ``hi`` left in ``buf``; returns how many, or -1 if a triangle names a node
+    outside ``0 .. n - 1``.  Every side goes into its lower node's row (a counting
+    sort) as ``2 hi + 1`` walked forwards, ``2 hi`` backwards; each row (a node's few
+    neighbours) is sorted, and its runs of one ``hi`` counted.  ``row`` (n + 1),
+    ``buf`` and the outputs (3 per triangle; only the first ones are written)."""
     cdef Py_ssize_t nt = tri.shape[0]
-    cdef Py_ssize_t t, s, j, r, m = 0, start = 0, end
-    cdef long long h, w, e
+    cdef Py_ssize_t t, j, q, r, m = 0, start = 0, end
+    cdef long long a, b, lo, v, h, f, c
     cdef bint bad = False
     with nogil:
         for t in range(nt):
-            for s in range(3):
-                if tri[t, s] < 0 or tri[t, s] >= n:
+            for j in range(3):
+                if tri[t, j] < 0 or tri[t, j] >= n:
                     bad = True
     if bad:
         return -1
     with nogil:
-        _sort_sides(tri, n, row, ent, hi)
+        for r in range(n + 1):
+            row[r] = 0
+        for t in range(nt):
+            for j in range(3):
+                a = tri[t, j]
+                b = tri[t, 0 if j == 2 else j + 1]
+                row[(a if a < b else b) + 1] += 1
         for r in range(n):
+            row[r + 1] += row[r]
+        for t in range(nt):  # (row[lo] is where lo's next side goes)
+            for j in range(3):
+                a = tri[t, j]
+                b = tri[t, 0 if j == 2 else j + 1]
+                if a < b:
+                    buf[row[a]] = 2 * b + 1
+                    row[a] += 1
+                else:
+                    buf[row[b]] = 2 * a
+                    row[b] += 1
+        for r in range(n):  # (row[r] is now where row r ends)
             end = row[r]
+            for j in range(start + 1, end):  # insertion sort: a row is a few sides
+                v = buf[j]
+                q = j
+                while q > start and buf[q - 1] > v:
+                    buf[q] = buf[q - 1]
+                    q -= 1
+                buf[q] = v
             j = start
             while j < end:
-                h = hi[j]
-                w = 0
-                while j < end and hi[j] == h:
-                    e = ent[j]
-                    w += 1 if _forward(tri, e) else reverse
+                h = buf[j] >> 1
+                f = 0
+                c = 0
+                while j < end and (buf[j] >> 1) == h:
+                    f += buf[j] & 1
+                    c += 1
                     j += 1
-                out_lo[m] = r
-                out_hi[m] = h
-                out_fwd[m] = w % reverse
-                out_rev[m] = w // reverse
+                out_lo[m] = r  # (m is at most the run's start: read already)
+                buf[m] = h
+                out_fwd[m] = f
+                out_rev[m] = c - f
                 m += 1
             start = end
     return m

@@ -57,12 +57,6 @@ def signed_areas(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
     return out
 
 
-#: One use of an edge from its higher node to its lower counts this much in
-#: :func:`edge_uses`' sums (a use the other way counts 1); int32 sums hold up to
-#: 2047 uses of an edge.
-_REVERSE = 1 << 20
-
-
 def edge_uses(tri: np.ndarray, n: int) -> EdgeTable:
     """Each undirected edge once: ``(lo, hi, fwd, rev)``, nodes ``lo < hi`` and how many
     triangles walk it ``lo -> hi`` and ``hi -> lo``.
@@ -76,12 +70,12 @@ def edge_uses(tri: np.ndarray, n: int) -> EdgeTable:
 
     t = np.ascontiguousarray(tri, dtype=np.int64).reshape(-1, 3)
     k = 3 * len(t)
-    scratch = (np.empty(n + 1, np.int64), np.empty(k, np.int64), np.empty(k, np.int64))
-    out = tuple(np.empty(k, np.int64) for _ in range(4))
-    m = edge_table(t, n, _REVERSE, *scratch, *out)
+    # (np.empty's pages are mapped when first written: only the table's are)
+    row, hi, lo, fwd, rev = np.empty(n + 1, np.int64), *(np.empty(k, np.int64) for _ in range(4))
+    m = edge_table(t, n, row, hi, lo, fwd, rev)
     if m < 0:
         raise InputError(f"a triangle names a node outside 0 .. {n - 1}")
-    return tuple(a[:m].copy() for a in out)
+    return lo[:m], hi[:m].copy(), fwd[:m], rev[:m]  # (hi: every side was written there)
 
 
 def patch_edge_uses(edges: EdgeTable, n: int, removed: np.ndarray, added: np.ndarray) -> EdgeTable:
@@ -89,7 +83,7 @@ def patch_edge_uses(edges: EdgeTable, n: int, removed: np.ndarray, added: np.nda
     table ``edges`` of the mesh before: the same table a recount would give (tested),
     at the cost of the changed triangles only."""
     lo, hi, fwd, rev = edges
-    key = lo * n + hi  # sorted: scipy's CSR rows, then sorted columns
+    key = lo * n + hi  # sorted: by lo, then hi
     r_lo, r_hi, r_f, r_r = edge_uses(removed, n)
     a_lo, a_hi, a_f, a_r = edge_uses(added, n)
     dkey = np.concatenate([r_lo * n + r_hi, a_lo * n + a_hi])
@@ -101,15 +95,21 @@ def patch_edge_uses(edges: EdgeTable, n: int, removed: np.ndarray, added: np.nda
     pos = np.searchsorted(key, ukey)
     found = (pos < len(key)) & (key[np.minimum(pos, len(key) - 1)] == ukey)
     fwd, rev = fwd.astype(np.int64), rev.astype(np.int64)  # copies
-    fwd[pos[found]] += df[found]
-    rev[pos[found]] += dr[found]
-    new = ~found
-    key = np.insert(key, pos[new], ukey[new])
-    fwd = np.insert(fwd, pos[new], df[new])
-    rev = np.insert(rev, pos[new], dr[new])
-    keep = (fwd != 0) | (rev != 0)
-    key, fwd, rev = key[keep], fwd[keep], rev[keep]
-    return key // n, key % n, fwd, rev
+    p = pos[found]
+    fwd[p] += df[found]
+    rev[p] += dr[found]
+    empty = p[(fwd[p] == 0) & (rev[p] == 0)]  # (edges no triangle uses any more)
+    if len(empty):
+        keep = np.ones(len(lo), dtype=bool)
+        keep[empty] = False
+        lo, hi, fwd, rev = lo[keep], hi[keep], fwd[keep], rev[keep]
+    new = ~found  # (edges of added triangles only: used)
+    if new.any():
+        at = pos[new] - np.searchsorted(empty, pos[new])  # (where, once the empty went)
+        k = ukey[new]
+        lo, hi = np.insert(lo, at, k // n), np.insert(hi, at, k % n)
+        fwd, rev = np.insert(fwd, at, df[new]), np.insert(rev, at, dr[new])
+    return lo, hi, fwd, rev
 
 
 def directed_boundary(
