@@ -176,3 +176,30 @@ def pattern(
                             hi = mid
                     entry_slot[9 * t + 3 * a + b] = lo
     return out
+
+
+def normal_equations(
+    const double[:, ::1] d,
+    const double[:, ::1] c,
+    const double[::1] half,
+    const long long[::1] first,
+    const long long[::1] second,
+    const long long[::1] entry,
+    double[::1] out,
+):
+    """adapt's normal equations: for each pair ``k`` of slots (``first[k]``,
+    ``second[k]``) and each cell ``t``, ``(d[p, t] d[q, t] + c[p, t] c[q, t]) half[t]``
+    added to ``out[entry[k T + t]]`` (``out`` starts at 0), pair by pair and cell by
+    cell: the order, and so the bits, of ``np.bincount`` over the pairs' rows."""
+    cdef Py_ssize_t nt = half.shape[0]
+    cdef Py_ssize_t k, t, p, q
+    cdef double v
+    with nogil:
+        for k in range(first.shape[0]):
+            p = first[k]
+            q = second[k]
+            for t in range(nt):
+                v = d[p, t] * d[q, t]
+                v = v + c[p, t] * c[q, t]
+                v = v * half[t]
+                out[entry[k * nt + t]] += v

@@ -38,6 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._divcurl import normal_equations
 from .divcurl import gradients
 from .errors import FoldError, InputError, MonitorError, OptionError
 from .geometry import boundary_edges, signed_areas, unique_inverse
@@ -207,7 +208,7 @@ def boundary_motion(
 
 #: The 21 pairs of a cell's 6 unknown slots (node j's first and second slot at 2j
 #: and 2j + 1) whose products make the upper triangle of its normal-equation block.
-_PAIRS = np.array([(a, b) for a in range(6) for b in range(a, 6)]).T
+_PAIRS = np.array([(a, b) for a in range(6) for b in range(a, 6)], dtype=np.int64).T.copy()
 
 
 class VelocitySystem:
@@ -301,13 +302,9 @@ class VelocitySystem:
         gx, gy, a2 = geometry
         d, c = self.rows(gx, gy, g, grad, t)
         half = 0.5 * a2
-        block = np.empty((len(_PAIRS[0]), len(half)))
-        for k, (p, q) in enumerate(_PAIRS.T):
-            np.multiply(d[p], d[q], out=block[k])
-            block[k] += c[p] * c[q]
-        block *= half
-        values = np.bincount(self._entry, weights=block.ravel())[: len(self._indices)]
-        self.solver.factorise(values)
+        values = np.zeros(len(self._indices) + 1)  # (the last: pairs without an unknown)
+        normal_equations(d, c, half, _PAIRS[0], _PAIRS[1], self._entry, values)
+        self.solver.factorise(values[:-1])
         load = (half * (1.0 - g1[self.tri].mean(axis=1))) * d
         rhs = np.bincount(self._dof, weights=load.ravel(), minlength=self.size + 1)
         x = np.concatenate([self.solver.solve(rhs[:-1]), [0.0]])  # (slot -1: no unknown)
