@@ -87,6 +87,24 @@ class LDL:
     in approximate minimum degree order or in the ``order`` given."""
 
     def __init__(self, K, order: np.ndarray | None = None):
+        n = self._analyse(K, order)
+        total = int(self._count.sum())
+        self._Lp = np.concatenate([[0], np.cumsum(self._count)]).astype(np.int64)
+        self._Li = np.empty(max(total, 1), dtype=np.int64)
+        self._Lx = np.empty(max(total, 1))
+        self._D = np.empty(n)
+        self._Dinv = np.empty(n)
+        self._scratch = (
+            np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64),
+            np.empty(n, dtype=np.int64), np.empty(n, dtype=np.uint8), np.empty(n),
+        )  # fmt: skip
+        self.update(K)
+
+    def _analyse(self, K, order) -> int:
+        """The order (``perm``: approximate minimum degree, or ``order``, then the
+        elimination tree's postorder), the permuted upper triangle (:meth:`_permute`),
+        the elimination tree (``_parent``) and each column's count below the diagonal
+        (``_count``); returns the size."""
         n = K.shape[0]
         indptr = np.ascontiguousarray(K.indptr, dtype=np.int64)
         indices = np.ascontiguousarray(K.indices, dtype=np.int64)
@@ -105,21 +123,13 @@ class LDL:
         postorder(parent, post)
         perm = perm[post]  # (the same fill, each subtree's columns together)
         self._permute(perm, indptr, indices)
-        total = etree(self._Ap, self._Ai, parent, lnz, work)
+        etree(self._Ap, self._Ai, parent, lnz, work)
         self.perm = perm
         self._pattern = K.indices
         self.n = n
         self._parent = parent
-        self._Lp = np.concatenate([[0], np.cumsum(lnz)]).astype(np.int64)
-        self._Li = np.empty(max(total, 1), dtype=np.int64)
-        self._Lx = np.empty(max(total, 1))
-        self._D = np.empty(n)
-        self._Dinv = np.empty(n)
-        self._scratch = (
-            np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64),
-            np.empty(n, dtype=np.int64), np.empty(n, dtype=np.uint8), np.empty(n),
-        )  # fmt: skip
-        self.update(K)
+        self._count = lnz
+        return n
 
     def _permute(self, perm, indptr, indices) -> None:
         """The permuted matrix's upper triangle by columns (``_Ap``, ``_Ai``) and where
@@ -157,5 +167,68 @@ class LDL:
         for k in range(cols.shape[1]):
             x = np.ascontiguousarray(cols[self.perm, k])
             solve(self._Lp, self._Li, self._Lx, self._Dinv, x)
+            out[self.perm, k] = x
+        return out.reshape(b.shape)
+
+
+class SupernodalLDL(LDL):
+    """:class:`LDL` with the columns that share one row pattern (a supernode) held and
+    updated as one dense block (:mod:`._supernodal`): the same factor up to the order
+    of its sums, faster where supernodes are wide (a nested-dissection order of a
+    mesh's nodes, whose separators are dense).  The same bits on every processor."""
+
+    def __init__(self, K, order: np.ndarray | None = None):
+        from ._supernodal import structure, supernodes
+
+        n = self._analyse(K, order)
+        # A's upper triangle by rows (row i: its columns j >= i), each entry's place in K
+        col = np.repeat(np.arange(n, dtype=np.int64), np.diff(self._Ap))
+        by_row = np.argsort(self._Ai, kind="stable")
+        self._Rj = np.ascontiguousarray(col[by_row])
+        self._Rsrc = self._src[by_row]
+        self._Rp = np.searchsorted(self._Ai[by_row], np.arange(n + 1)).astype(np.int64)
+        first = np.empty(n + 1, dtype=np.int64)
+        ns = supernodes(self._parent, self._count, first)
+        self._first = first[: ns + 1].copy()
+        width = np.diff(self._first)
+        height = width + self._count[self._first[1:] - 1]  # (a block's rows: the last's)
+        self._rp = np.concatenate([[0], np.cumsum(height)]).astype(np.int64)
+        self._rows = np.empty(int(self._rp[-1]), dtype=np.int64)
+        self._owner = np.empty(n, dtype=np.int64)
+        rp = np.empty(ns + 1, dtype=np.int64)
+        if structure(
+            self._first, ns, self._parent, self._Rp, self._Rj, rp, self._rows, self._owner
+        ) != self._rp[-1] or not np.array_equal(rp, self._rp):
+            raise SolverError("the factor's row structure does not match its column counts")
+        self._xp = np.concatenate([[0], np.cumsum(height * width)]).astype(np.int64)
+        self._Lx = np.empty(max(int(self._xp[-1]), 1))
+        self._D = np.empty(n)
+        self.update(K)
+
+    def update(self, K) -> None:
+        """Factor new numbers on the same pattern."""
+        from ._supernodal import factor
+
+        rx = np.ascontiguousarray(np.asarray(K.data, dtype=np.float64)[self._Rsrc])
+        bad = factor(
+            self._first, self._rp, self._rows, self._owner, self._xp, self._Rp, self._Rj,
+            rx, self._Lx, self._D,
+        )  # fmt: skip
+        if bad >= 0:
+            raise SolverError(
+                "the matrix is not positive definite (a pivot of its L D L^T is not "
+                "positive): a triangle is flat or folded"
+            )
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """``K^-1 b`` for ``b`` (n,) or (n, k)."""
+        from ._supernodal import solve
+
+        b = np.asarray(b, dtype=np.float64)
+        cols = b.reshape(self.n, -1)
+        out = np.empty_like(cols)
+        for k in range(cols.shape[1]):
+            x = np.ascontiguousarray(cols[self.perm, k])
+            solve(self._first, self._rp, self._rows, self._xp, self._Lx, self._D, x)
             out[self.perm, k] = x
         return out.reshape(b.shape)

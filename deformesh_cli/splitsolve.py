@@ -3,15 +3,15 @@ exact factorisations of two diagonal blocks, one per direction of motion.
 
 The unknowns are split into two groups (for adapt: those that move a node mostly
 along x and those that move it mostly along y), and the preconditioner is ``K``
-without the coupling between the groups, its two blocks factorised by :class:`.ldl.LDL`
-in a nested-dissection order of the unknowns' positions (:func:`.ldl.dissection_order`,
-made once: the pattern is fixed).  Where the groups do not couple, one iteration
-solves the system; on the div-curl systems they couple only through the density's
-variation, and the iterations stop at a residual of :data:`RTOL` of the load after
-6-8 (``benchmarks/MEASURED.md``).  The two blocks are factorised and solved in two
-threads; every product and sum runs in a fixed order in compiled loops with no BLAS,
-so the same system gives the same bits on every processor, with any number of cores
-or threads.
+without the coupling between the groups, its two blocks factorised supernode by
+supernode (:class:`.ldl.SupernodalLDL`) in a nested-dissection order of the unknowns'
+positions (:func:`.ldl.dissection_order`, made once: the pattern is fixed).  Where
+the groups do not couple, one iteration solves the system; on the div-curl systems
+they couple only through the density's variation, and the iterations stop at a
+residual of :data:`RTOL` of the load after 6-8 (``benchmarks/MEASURED.md``).  The
+two blocks are factorised and solved in two threads; every product and sum runs in a
+fixed order in compiled loops with no BLAS, so the same system gives the same bits on
+every processor, with any number of cores or threads.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ import numpy as np
 from ._ldl import dot, upper_matvec
 from .divcurl import SymmetricCSR
 from .errors import SolverError
-from .ldl import LDL, dissection_order
+from .ldl import SupernodalLDL, dissection_order
 
 #: Conjugate gradients stop when the residual is at most this fraction of the load
 #: (the factorised solve it replaces left about 1e-13).
@@ -78,7 +78,9 @@ class SplitSolver:
             for src, indices, indptr, _ in self._blocks
         ]
         if self._factors is None:
-            work = [lambda m=m, b=b: LDL(m, order=b[3]) for m, b in zip(mats, self._blocks)]
+            work = [
+                lambda m=m, b=b: SupernodalLDL(m, order=b[3]) for m, b in zip(mats, self._blocks)
+            ]
         else:
             work = [lambda m=m, f=f: f.update(m) for m, f in zip(mats, self._factors)]
         made = self._both(*work)

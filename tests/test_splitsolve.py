@@ -209,3 +209,40 @@ def test_two_threads_give_the_bits_of_one(monkeypatch):
         got.append(s.solve(b))
     assert s._pool is not None
     assert np.array_equal(got[0], got[1])
+
+
+@pytest.mark.parametrize("seed, n", [(0, 3), (1, 40), (2, 700), (3, 4000)])
+def test_the_supernodal_factor_solves_as_the_column_one_does(seed, n):
+    """In minimum-degree and nested-dissection order: the supernodal L D L^T's
+    solution is the column-by-column one's to round-off, the residual is round-off,
+    a refactorisation with new numbers solves the new system, and the same numbers
+    give the same bits."""
+    from deformesh_cli.ldl import SupernodalLDL
+
+    p, tri = mesh(n, seed)
+    A = laplacian_csr(p, tri)
+    b = np.random.default_rng(seed).normal(size=n)
+    for order in (None, dissection_order(p, A.indptr, A.indices)):
+        s = SupernodalLDL(A, order=order)
+        x = s.solve(b)
+        assert np.abs(x - LDL(A, order=order).solve(b)).max() <= 1e-12 * np.abs(x).max()
+        assert np.abs(A @ x - b).max() <= 1e-12 * np.abs(b).max() * n
+        A2 = sp.csr_matrix((A.data * np.linspace(1, 2, len(A.data)), A.indices, A.indptr))
+        A2 = (A2 + A2.T) * 0.5 + sp.eye(n)
+        A2 = sp.csr_matrix((np.asarray(A2[A.nonzero()]).ravel(), A.nonzero()), shape=A.shape)
+        A2.sort_indices()
+        assert np.array_equal(A2.indices, A.indices)
+        s.update(A2)
+        y = s.solve(b)
+        assert np.abs(A2 @ y - b).max() <= 1e-10 * np.abs(b).max()
+        assert np.array_equal(SupernodalLDL(A2, order=order).solve(b), y)
+
+
+def test_the_supernodal_factor_refuses_a_matrix_that_is_not_positive_definite():
+    from deformesh_cli.ldl import SupernodalLDL
+
+    p, tri = mesh(200, 4)
+    A = laplacian_csr(p, tri)
+    neg = sp.csr_matrix((-A.data, A.indices, A.indptr), shape=A.shape)
+    with pytest.raises(SolverError, match="not positive definite"):
+        SupernodalLDL(neg)
