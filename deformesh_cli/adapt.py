@@ -621,24 +621,15 @@ class Walk:
         self._locator = None
 
     def find(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Each point's triangle (N,) and barycentric weights there (N, 3)."""
+        """Each point's triangle (N,) and barycentric weights there (N, 3) (the walks
+        compiled: :mod:`._walk`)."""
+        from ._walk import walk
+
         t = self.hint
-        w = weights(self.frame, t, q)  # (most points are still in their last triangle)
-        least = np.minimum(np.minimum(w[:, 0], w[:, 1]), w[:, 2])  # (not min(axis=1): slow)
-        todo = np.flatnonzero(least < -WEIGHT_ROUND_OFF)
-        for _ in range(WALK_LIMIT):
-            if not len(todo):
-                break
-            ww = w[todo]
-            j = np.argmin(ww, axis=1)  # (the first least weight)
-            nxt = self.neighbours[t[todo], j]
-            out = nxt < 0  # (stops at the boundary: the Locator's, below)
-            todo = todo[~out]
-            t[todo] = nxt[~out]
-            w[todo] = weights(self.frame, t[todo], q[todo])
-            ww = w[todo]
-            least[todo] = np.minimum(np.minimum(ww[:, 0], ww[:, 1]), ww[:, 2])
-            todo = todo[least[todo] < -WEIGHT_ROUND_OFF]
+        q = np.ascontiguousarray(q, dtype=np.float64)
+        w = np.empty((len(q), 3))
+        walk(*self.frame, self.neighbours, q, WALK_LIMIT, WEIGHT_ROUND_OFF, t, w)
+        least = np.minimum(np.minimum(w[:, 0], w[:, 1]), w[:, 2])
         lost = np.flatnonzero(least < -WEIGHT_ROUND_OFF)  # (the walk's last todo among them)
         if len(lost):
             if self._locator is None:
@@ -672,12 +663,15 @@ class FrozenField:
 def p1_values(values: np.ndarray, tri: np.ndarray, t: np.ndarray, w: np.ndarray) -> np.ndarray:
     """``values`` (one row per node) interpolated linearly at points in the triangles
     ``t`` with barycentric weights ``w`` (k, 3)."""
-    corners = tri[t]
     if values.ndim == 1:
-        return (w * values[corners]).sum(axis=1)
-    out = w[:, 0, None] * values[corners[:, 0]]
-    out += w[:, 1, None] * values[corners[:, 1]]
-    out += w[:, 2, None] * values[corners[:, 2]]
+        return (w * values[tri[t]]).sum(axis=1)
+    from ._walk import p1
+
+    out = np.empty((len(t), values.shape[1]))
+    p1(
+        np.ascontiguousarray(values, dtype=np.float64), np.ascontiguousarray(tri, dtype=np.int64),
+        np.ascontiguousarray(t, dtype=np.int64), np.ascontiguousarray(w, dtype=np.float64), out,
+    )  # fmt: skip
     return out
 
 

@@ -794,3 +794,63 @@ def test_the_compiled_smallest_angles_and_areas_are_numpys(seed):
 
     with pytest.raises(InputError, match="outside"):
         signed_areas(p, np.array([[0, 1, len(p)]]))
+
+
+def _walk_reference(frame, neighbours, hint, q, limit, round_off):
+    """(numpy) Every point's walk, a step for all at a time."""
+    from deformesh_cli.adapt import weights
+
+    t = hint.copy()
+    w = weights(frame, t, q)
+    least = np.minimum(np.minimum(w[:, 0], w[:, 1]), w[:, 2])
+    todo = np.flatnonzero(least < -round_off)
+    for _ in range(limit):
+        if not len(todo):
+            break
+        j = np.argmin(w[todo], axis=1)
+        nxt = neighbours[t[todo], j]
+        out = nxt < 0
+        todo = todo[~out]
+        t[todo] = nxt[~out]
+        w[todo] = weights(frame, t[todo], q[todo])
+        ww = w[todo]
+        least[todo] = np.minimum(np.minimum(ww[:, 0], ww[:, 1]), ww[:, 2])
+        todo = todo[least[todo] < -round_off]
+    return t, w
+
+
+@pytest.mark.parametrize("seed, limit", [(0, 256), (1, 3)])
+def test_the_compiled_walk_and_p1_field_are_the_numpy_ones(seed, limit):
+    """Points moved off their nodes (some far, some out of the mesh): the compiled walk
+    stops in the same triangles with the same weights as the numpy loop, bit for bit
+    (also when the steps run out), and the P1 field read there is the numpy sum's."""
+    from scipy.spatial import Delaunay
+
+    from deformesh_cli._walk import p1, walk
+    from deformesh_cli.adapt import frames, p1_values, start_triangles, triangle_neighbours
+
+    rng = np.random.default_rng(seed)
+    p = rng.random((400, 2))
+    tri = Delaunay(p).simplices.astype(np.int64)
+    a2 = (p[tri[:, 1]] - p[tri[:, 0]])[:, 0] * (p[tri[:, 2]] - p[tri[:, 0]])[:, 1] - (
+        p[tri[:, 2]] - p[tri[:, 0]]
+    )[:, 0] * (p[tri[:, 1]] - p[tri[:, 0]])[:, 1]
+    tri[a2 < 0] = tri[a2 < 0][:, ::-1]
+    frame = frames(p, tri)
+    nb = triangle_neighbours(tri)
+    hint = start_triangles(tri, len(p))
+    q = p + rng.normal(size=p.shape) * rng.choice([0.001, 0.05, 0.5], size=(len(p), 1))
+    want_t, want_w = _walk_reference(frame, nb, hint, q, limit, 1e-12)
+    t, w = hint.copy(), np.empty((len(q), 3))
+    lost = walk(*frame, nb, np.ascontiguousarray(q), limit, 1e-12, t, w)
+    assert np.array_equal(t, want_t) and np.array_equal(w, want_w)
+    assert lost == int((np.minimum(np.minimum(w[:, 0], w[:, 1]), w[:, 2]) < -1e-12).sum())
+    assert lost > 0  # (some left the mesh)
+    values = rng.normal(size=(len(p), 2))
+    c = tri[t]
+    ref = w[:, 0, None] * values[c[:, 0]]
+    ref += w[:, 1, None] * values[c[:, 1]]
+    ref += w[:, 2, None] * values[c[:, 2]]
+    out = np.empty_like(ref)
+    p1(values, tri, t, w, out)
+    assert np.array_equal(out, ref) and np.array_equal(p1_values(values, tri, t, w), ref)
