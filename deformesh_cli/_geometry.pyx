@@ -163,3 +163,22 @@ def edge_pairs(
                     m += 1
             start = end
     return m
+
+
+def touching(const unsigned char[::1] mask, const long long[:, ::1] tri, unsigned char[::1] out):
+    """``out[t]``: 1 where a corner of triangle ``t`` is set in ``mask``, else 0; returns
+    the first triangle naming a node outside ``mask``, or -1."""
+    cdef Py_ssize_t t
+    cdef unsigned long long n = mask.shape[0]
+    cdef long long a, b, c
+    cdef long long bad = -1
+    with nogil:
+        for t in range(tri.shape[0]):
+            a = tri[t, 0]
+            b = tri[t, 1]
+            c = tri[t, 2]
+            if <unsigned long long> a >= n or <unsigned long long> b >= n or <unsigned long long> c >= n:
+                bad = t
+                break
+            out[t] = mask[a] | mask[b] | mask[c]
+    return bad

@@ -854,3 +854,20 @@ def test_the_compiled_walk_and_p1_field_are_the_numpy_ones(seed, limit):
     out = np.empty_like(ref)
     p1(values, tri, t, w, out)
     assert np.array_equal(out, ref) and np.array_equal(p1_values(values, tri, t, w), ref)
+
+
+def test_touching_is_the_numpy_mask_and_refuses_a_node_outside_it():
+    from deformesh_cli.errors import InputError
+    from deformesh_cli.geometry import touching
+
+    rng = np.random.default_rng(3)
+    tri = rng.integers(0, 5000, size=(20000, 3))
+    mask = rng.random(5000) < 0.02
+    want = mask[tri[:, 0]] | mask[tri[:, 1]] | mask[tri[:, 2]]
+    assert np.array_equal(touching(mask, tri), want)
+    assert np.array_equal(touching(mask, tri.astype(np.int32)[::2]), want[::2])
+    assert touching(mask, np.empty((0, 3), dtype=np.int64)).shape == (0,)
+    with pytest.raises(InputError, match="outside"):
+        touching(mask[:100], tri)
+    with pytest.raises(InputError, match="outside"):
+        touching(mask, np.array([[0, -1, 2]]))
