@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._ldl import etree, factor, minimum_degree, permute_upper, postorder, solve
+from ._ldl import etree, factor, minimum_degree, permute_upper, postorder, solve, solve2
 from .errors import OUT_OF_MEMORY, LimitError, SolverError
 
 #: Parts of a nested dissection that are not split further: at most this many unknowns
@@ -160,10 +160,15 @@ class LDL:
             )
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        """``K^-1 b`` for ``b`` (n,) or (n, k)."""
+        """``K^-1 b`` for ``b`` (n,) or (n, k); two columns in one pass over the factor."""
         b = np.asarray(b, dtype=np.float64)
         cols = b.reshape(self.n, -1)
         out = np.empty_like(cols)
+        if cols.shape[1] == 2:
+            x = np.ascontiguousarray(cols[self.perm])
+            solve2(self._Lp, self._Li, self._Lx, self._Dinv, x)
+            out[self.perm] = x
+            return out.reshape(b.shape)
         for k in range(cols.shape[1]):
             x = np.ascontiguousarray(cols[self.perm, k])
             solve(self._Lp, self._Li, self._Lx, self._Dinv, x)

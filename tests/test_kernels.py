@@ -871,3 +871,18 @@ def test_touching_is_the_numpy_mask_and_refuses_a_node_outside_it():
         touching(mask[:100], tri)
     with pytest.raises(InputError, match="outside"):
         touching(mask, np.array([[0, -1, 2]]))
+
+
+def test_two_columns_solved_in_one_pass_are_each_columns_solve():
+    from deformesh_cli._ldl import solve
+    from deformesh_cli.ldl import LDL
+
+    _, (K, rhs) = _laplacian(7, 2000)
+    f = LDL(K)
+    both = f.solve(rhs)
+    for k in range(2):
+        x = np.ascontiguousarray(rhs[f.perm, k])
+        solve(f._Lp, f._Li, f._Lx, f._Dinv, x)
+        one = np.empty_like(x)
+        one[f.perm] = x
+        assert np.array_equal(both[:, k], one)
