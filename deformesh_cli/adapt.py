@@ -33,6 +33,7 @@ Nothing here prints or exits.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -247,8 +248,12 @@ class VelocitySystem:
         self.slot = np.column_stack(
             [np.where(count > 0, first, -1), np.where(count == 2, first + 1, -1)]
         )
+        # a free node's two unknowns: its velocity along the frame's axes, the frame
+        # turned so that the sliding nodes' sides lie along its axes as nearly as may be
+        # (:func:`frame`): the two groups of the solver then barely couple through them
+        self.axes = axes = frame(tangent[slide])
         self.dirs = np.zeros((n, 2, 2))  # (node, slot, component)
-        self.dirs[inner] = np.eye(2)
+        self.dirs[inner] = axes
         self.dirs[slide, 0] = tangent[slide]
         dof = self.slot[tri].reshape(-1, 6)  # (cell, 2 j + slot of its node j)
         # a cell's rows on its six slots are its rows' x, y parts, but at a sliding node
@@ -272,8 +277,9 @@ class VelocitySystem:
             has = self.slot[:, s] >= 0
             node[self.slot[has, s]] = np.flatnonzero(has)
             direction[self.slot[has, s]] = self.dirs[has, s]
-        along_y = np.abs(direction[:, 1]) > np.abs(direction[:, 0])
-        self.solver = SplitSolver(self._indptr, self._indices, along_y, points[node])
+        along = [np.abs(direction[:, 0] * a + direction[:, 1] * b) for a, b in axes]
+        along_second = along[1] > along[0]
+        self.solver = SplitSolver(self._indptr, self._indices, along_second, points[node])
 
     def rows(self, gx, gy, g, grad, t):
         """(6, T) each: every cell's rate and curl rows on its six slots."""
@@ -286,7 +292,11 @@ class VelocitySystem:
             (-gy * gt, gx * gt),
         ):
             r = np.empty((6, len(tri)))
-            r[0::2], r[1::2] = x.T, y.T
+            if self.axes is _AXES:
+                r[0::2], r[1::2] = x.T, y.T
+            else:
+                (ax, ay), (bx, by) = self.axes
+                r[0::2], r[1::2] = (x * ax + y * ay).T, (x * bx + y * by).T
             c, j = self._cell, self._corner
             r[2 * j, c] = x[c, j] * self._tangent[:, 0] + y[c, j] * self._tangent[:, 1]
             out.append(r)
@@ -310,6 +320,40 @@ class VelocitySystem:
         x = np.concatenate([self.solver.solve(rhs[:-1]), [0.0]])  # (slot -1: no unknown)
         w = x[self.slot]  # (N, 2 slots)
         return w[:, 0, None] * self.dirs[:, 0] + w[:, 1, None] * self.dirs[:, 1]
+
+
+#: The x and y axes: the frame of a free node's two unknowns unless sliding nodes turn it.
+_AXES = np.eye(2)
+_AXES.flags.writeable = False
+
+
+def frame(tangents: np.ndarray) -> np.ndarray:
+    """The axes (2, 2: rows) along which the sides with these unit ``tangents`` lie as
+    nearly as may be: turned by a quarter of the argument of ``z = sum (t_x + i
+    t_y)^4`` (the fourth power maps both axes of a frame, either way, to one
+    direction; ``z`` is the tangents' summed such direction), or :data:`_AXES` where
+    ``z`` points along the positive real axis (every side along x or y, exactly, or
+    none).  Plain arithmetic, square roots and correctly rounded sums only (no
+    ``atan2``, ``cos``, ``sin``, whose last bits differ between libraries): the same
+    axes on every machine."""
+    tx, ty = tangents[:, 0], tangents[:, 1]
+    x2, y2 = tx * tx - ty * ty, 2.0 * tx * ty
+    zx, zy = math.fsum(x2 * x2 - y2 * y2), math.fsum(2.0 * x2 * y2)
+    if zy == 0.0 and zx >= 0.0:
+        return _AXES
+    size = math.sqrt(zx * zx + zy * zy)
+    c, s = _half(*_half(zx / size, zy / size))
+    return np.array([[c, s], [-s, c]])
+
+
+def _half(c: float, s: float) -> tuple[float, float]:
+    """The unit vector at half the angle (in (-pi, pi]) of the unit vector ``(c, s)``."""
+    if c >= 0.0:
+        ch = math.sqrt((1.0 + c) / 2.0)
+        return ch, s / (2.0 * ch)
+    sh = math.sqrt((1.0 - c) / 2.0)
+    sh = sh if s >= 0.0 else -sh
+    return s / (2.0 * sh), sh
 
 
 def normaliser(tri: np.ndarray, area2: np.ndarray, m: np.ndarray) -> float:

@@ -718,3 +718,54 @@ def test_data_names_an_output_cannot_hold_are_refused_the_others_read_back(
         r = run("adapt", src, "-o", out, "--monitor", "1", "-q")
         assert r.exit_code == 0, (suffix, r.stderr)
         assert name in meshio.read(out).point_data
+
+
+@pytest.mark.parametrize("degrees", [0.0, 10.0, 30.0, 45.0, -20.0])
+def test_the_frame_lies_along_the_sliding_sides(degrees):
+    """A square's four tangents turned by any angle (either way round, any side first)
+    give axes along its sides; sides along x and y give the x and y axes themselves,
+    and so does no sliding node."""
+    from deformesh_cli.adapt import _AXES, frame
+
+    a = np.radians(degrees)
+    e = np.array([np.cos(a), np.sin(a)])
+    t = np.array([e, [-e[1], e[0]], -e, [e[1], -e[0]], e])
+    axes = frame(t)
+    assert np.allclose(axes @ axes.T, np.eye(2), atol=1e-15)
+    along = np.abs(axes @ e)
+    assert np.isclose(along.max(), 1.0, atol=1e-12)  # (e along one axis)
+    assert frame(t[::-1]).tolist() == axes.tolist()
+    if degrees == 0.0:
+        assert axes is _AXES
+    assert frame(np.array([[1.0, 0.0], [0.0, -1.0]])) is _AXES
+    assert frame(np.zeros((0, 2))) is _AXES
+
+
+def test_a_turned_grid_solves_in_as_few_iterations_as_an_upright_one(monkeypatch):
+    """The ring's first velocity (``g = 1``) on a 30 x 30 grid turned by 30 degrees, its
+    sides sliding: in the frame along its sides the two groups do not couple and one
+    iteration solves it, as on the upright grid; in the x and y axes, many more."""
+    import deformesh_cli.adapt as A
+
+    def iterations(p, tri):
+        fixed, tangent = boundary_motion(p, tri)
+        geometry = gradients(p, tri)
+        area = signed_areas(p, tri)
+        back = p @ rot  # (the ring where it is on the upright grid)
+        c = float(np.sum(area * ring(back)[tri].mean(axis=1)) / area.sum())
+        grad = monitor_gradient(lambda q: ring(q @ rot), p, 2.0**-20, "test") / c
+        g1 = ring(back) / c
+        system = VelocitySystem(p, tri, fixed, tangent)
+        system.velocity(geometry, np.ones(len(p)), grad, g1, 0.0)
+        return system.solver.iterations
+
+    p, tri = square_grid(30)
+    a = np.radians(30.0)
+    turn = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    rot = np.eye(2)
+    upright = iterations(p, tri)
+    rot = turn  # (q @ turn turns the turned points back)
+    turned = iterations(p @ turn.T, tri)
+    monkeypatch.setattr(A, "frame", lambda t: A._AXES)
+    in_xy = iterations(p @ turn.T, tri)
+    assert upright == 1 and turned <= 2 and in_xy > 10
