@@ -226,14 +226,16 @@ class VelocitySystem:
     the paper's on ``U``: ``sum_i g(x_i) (dphi_i/dx V_iy - dphi_i/dy V_ix) = 0``.  The
     velocity minimises ``sum_K |K| (rate_K^2 + curl_K^2)``.
 
-    Unknowns: ``(vx, vy)`` at a free inner node, ``w`` at a sliding node (velocity
-    ``w t`` along its tangent ``t``), none at a fixed node, numbered node by node.  Each
-    cell's two rows (six entries over its nodes' unknowns) give a 6 x 6 block of the
-    normal equations, summed into a pattern fixed by the triangles.  The normal
-    equations are solved by :class:`.splitsolve.SplitSolver`, its two groups the
-    unknowns that move a node mostly along x and those mostly along y (at ``g = 1`` the
-    two couple only through sliding nodes off the axes: the cross term of ``div^2 +
-    curl^2`` is a null Lagrangian), its order from the nodes' places in ``points``.
+    Unknowns: a free inner node's velocity along the two axes of :func:`frame` (x and
+    y unless sliding sides turn it), ``w`` at a sliding node (velocity ``w t`` along its
+    tangent ``t``), none at a fixed node, numbered node by node.  Each cell's two rows
+    (six entries over its nodes' unknowns) give a 6 x 6 block of the normal equations,
+    summed into a pattern fixed by the triangles.  The normal equations are solved by
+    :class:`.splitsolve.SplitSolver`, its two groups the unknowns that move a node
+    mostly along one axis and those mostly along the other (at ``g = 1`` the two couple
+    only through sliding nodes off the axes: the cross term of ``div^2 + curl^2`` is a
+    null Lagrangian, whatever the frame), its order from the nodes' places in
+    ``points``.
     """
 
     def __init__(self, points: np.ndarray, tri: np.ndarray, fixed: np.ndarray, tangent: np.ndarray):

@@ -2,7 +2,7 @@
 exact factorisations of two diagonal blocks, one per direction of motion.
 
 The unknowns are split into two groups (for adapt: those that move a node mostly
-along x and those that move it mostly along y), and the preconditioner is ``K``
+along one axis of its frame and those mostly along the other), and the preconditioner is ``K``
 without the coupling between the groups, its two blocks factorised supernode by
 supernode (:class:`.ldl.SupernodalLDL`) in a nested-dissection order of the unknowns'
 positions (:func:`.ldl.dissection_order`, made once: the pattern is fixed).  Where
