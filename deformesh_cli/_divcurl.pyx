@@ -203,3 +203,17 @@ def normal_equations(
                 v = v + c[p, t] * c[q, t]
                 v = v * half[t]
                 out[entry[k * nt + t]] += v
+
+
+def load_vector(
+    const double[:, ::1] d, const double[::1] coef, const long long[::1] dof, double[::1] out
+):
+    """adapt's load: ``coef[t] d[k, t]`` added to ``out[dof[k T + t]]`` (``out`` starts at
+    0), slot by slot and cell by cell: the order, and so the bits, of ``np.bincount``
+    over ``(coef * d).ravel()``."""
+    cdef Py_ssize_t nt = coef.shape[0]
+    cdef Py_ssize_t k, t
+    with nogil:
+        for k in range(d.shape[0]):
+            for t in range(nt):
+                out[dof[k * nt + t]] += coef[t] * d[k, t]

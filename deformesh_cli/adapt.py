@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._divcurl import normal_equations
+from ._divcurl import load_vector, normal_equations
 from .divcurl import gradients
 from .errors import FoldError, InputError, MonitorError, OptionError
 from .geometry import boundary_edges, signed_areas, unique_inverse
@@ -317,8 +317,8 @@ class VelocitySystem:
         values = np.zeros(len(self._indices) + 1)  # (the last: pairs without an unknown)
         normal_equations(d, c, half, _PAIRS[0], _PAIRS[1], self._entry, values)
         self.solver.factorise(values[:-1])
-        load = (half * (1.0 - g1[self.tri].mean(axis=1))) * d
-        rhs = np.bincount(self._dof, weights=load.ravel(), minlength=self.size + 1)
+        rhs = np.zeros(self.size + 1)  # (the last: slots without an unknown)
+        load_vector(d, half * (1.0 - g1[self.tri].mean(axis=1)), self._dof, rhs)
         x = np.concatenate([self.solver.solve(rhs[:-1]), [0.0]])  # (slot -1: no unknown)
         w = x[self.slot]  # (N, 2 slots)
         return w[:, 0, None] * self.dirs[:, 0] + w[:, 1, None] * self.dirs[:, 1]

@@ -886,3 +886,28 @@ def test_two_columns_solved_in_one_pass_are_each_columns_solve():
         one = np.empty_like(x)
         one[f.perm] = x
         assert np.array_equal(both[:, k], one)
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_adapts_sums_are_bincounts(seed):
+    """adapt's normal equations and load, summed by the compiled loops, are
+    ``np.bincount`` over the same products in the same order, bit for bit."""
+    from deformesh_cli._divcurl import load_vector, normal_equations
+
+    rng = np.random.default_rng(seed)
+    T, size = 500, 300
+    d, c = rng.normal(size=(6, T)), rng.normal(size=(6, T))
+    half = rng.random(T)
+    pairs = np.array([(a, b) for a in range(6) for b in range(a, 6)], dtype=np.int64).T.copy()
+    entry = rng.integers(0, size + 1, size=len(pairs[0]) * T)
+    block = np.stack([d[p] * d[q] + c[p] * c[q] for p, q in pairs.T]) * half
+    want = np.bincount(entry, weights=block.ravel(), minlength=size + 1)
+    got = np.zeros(size + 1)
+    normal_equations(d, c, half, pairs[0], pairs[1], entry, got)
+    assert np.array_equal(got, want)
+    dof = rng.integers(0, size + 1, size=6 * T)
+    coef = rng.normal(size=T)
+    want = np.bincount(dof, weights=(coef * d).ravel(), minlength=size + 1)
+    got = np.zeros(size + 1)
+    load_vector(d, coef, dof, got)
+    assert np.array_equal(got, want)
