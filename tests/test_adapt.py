@@ -769,3 +769,19 @@ def test_a_turned_grid_solves_in_as_few_iterations_as_an_upright_one(monkeypatch
     monkeypatch.setattr(A, "frame", lambda t: A._AXES)
     in_xy = iterations(p @ turn.T, tri)
     assert upright == 1 and turned <= 2 and in_xy > 10
+
+
+def test_a_strip_whose_free_nodes_all_slide_one_way_adapts():
+    """A strip one triangle tall: every node is on the boundary, the long sides' nodes
+    slide along x (all unknowns in one of the solver's two groups, the other empty);
+    its cells shrink where the monitor is large, the nodes keep their order and y."""
+    n = 8
+    x = np.arange(n + 1.0)
+    p = np.r_[np.c_[x, 0 * x], np.c_[x, 0 * x + 1]]
+    k = np.arange(n)
+    tri = np.r_[np.c_[k, k + 1, k + n + 2], np.c_[k, k + n + 2, k + n + 1]]
+    got = adapt(p, tri, lambda q: 1 + q[:, 0])
+    assert got.report["boundary_nodes_sliding"] == 2 * (n - 1)
+    bottom = got.points[: n + 1]
+    assert np.array_equal(bottom[:, 1], p[: n + 1, 1]) and (np.diff(bottom[:, 0]) > 0).all()
+    assert np.diff(bottom[:, 0])[-1] < np.diff(bottom[:, 0])[0]

@@ -246,3 +246,16 @@ def test_the_supernodal_factor_refuses_a_matrix_that_is_not_positive_definite():
     neg = sp.csr_matrix((-A.data, A.indices, A.indptr), shape=A.shape)
     with pytest.raises(SolverError, match="not positive definite"):
         SupernodalLDL(neg)
+
+
+@pytest.mark.parametrize("group", [[0, 0, 0], [1, 1, 1], [0, 1, 1]])
+def test_a_group_with_no_unknown_is_skipped(group):
+    """All unknowns in one group (a mesh whose free nodes all slide one way): the
+    other block is empty and the solve is the direct one's."""
+    K = np.array([[4.0, 1.0, 0.5], [1.0, 3.0, 1.0], [0.5, 1.0, 2.0]])
+    upper = sp.csc_matrix(np.triu(K))
+    s = SplitSolver(upper.indptr, upper.indices, np.array(group), np.zeros((3, 2)))
+    for scale in (1.0, 2.0):
+        s.factorise(upper.data * scale)
+        b = np.array([1.0, -2.0, 0.5])
+        assert np.allclose(s.solve(b), np.linalg.solve(K * scale, b), rtol=1e-12, atol=0)
