@@ -177,3 +177,21 @@ def test_resample_on_a_curve_stays_on_the_polyline():
     rad = np.hypot(*r.points.T)
     assert rad.max() <= 1 + 1e-12 and rad.min() > 1 - 1e-3
     assert abs(r.n - 2 * np.pi / 0.1) <= 1
+
+
+@pytest.mark.parametrize(
+    "text, says",
+    [
+        ("x,y\n0,0\n1,zz\n1,0,3\n1,1\n", "line 3: y value 'zz'"),
+        ("x,y\n0,0\n1,0,3\n1,zz\n1,1\n", "line 3: 3 fields"),
+        ("x,y,ring\n0,0,0\n1,0,x\n1,1,0,9\n", "line 3: ring value 'x'"),
+        ("x,y,ring\n0,0,0\n1,0,1.5\n1,qq,0\n", "line 3: ring value '1.5'"),
+        ("x,y,ring\n0,0,0\n1,qq,1.5\n1,1,0\n", "line 3: y value 'qq'"),
+        ("x,y\nzz,yy\n1,0\n1,1\n", "line 2: x value 'zz'"),
+    ],
+)
+def test_a_csv_with_several_problems_names_the_first_in_the_files_order(text, says):
+    """A row's fields are counted, then its x, y and ring read, row by row: the
+    message names the first problem met that way."""
+    with pytest.raises(InputError, match=says):
+        parse_csv(text, "c.csv")

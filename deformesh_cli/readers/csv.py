@@ -105,37 +105,41 @@ def parse_csv(text: str, source: str = "<contour>", decimal: str = ".") -> Conto
 
     fields = [f for _, f in rows]
     lines = np.array([lineno for lineno, _ in rows], dtype=np.int64)
-    if any(len(f) != ncols for f in fields):  # a stray field (a thousands separator?)
-        r = next(r for r, f in enumerate(fields) if len(f) != ncols)  # is never dropped
-        raise InputError(
-            f"{source}: line {lines[r]}: {_fields(len(fields[r]))}, but line {first_line} has "
-            f"{ncols}; every row must have the same number of fields"
-        )
-    columns = [[f[cols[key]] for f in fields] for key in ("x", "y")]
+    # the first problem in the file's order (a row's fields counted, then its x, y, ring)
+    rc = next((r for r, f in enumerate(fields) if len(f) != ncols), len(fields))
+    head = fields[:rc]  # (rows whose fields can be read)
+    columns = [[f[cols[key]] for f in head] for key in ("x", "y")]
+    rn = None
     if not all(all(map(_NUMBER.match, column)) for column in columns):
-        r, key, f = min(
+        rn, key, bad_value = min(
             (r, key, f)
             for key, column in zip("xy", columns)
             for r, f in enumerate(column)
             if not _NUMBER.match(f)
         )  # (the first row with one, x before y)
+    whole = [_whole(f[ring_col]) for f in head] if ring_col is not None else []
+    rr = next((r for r, v in enumerate(whole) if v is None), None)
+    if rn is not None and (rr is None or rn <= rr):
         hint = ""  # (a number written with a decimal comma: say how to read it)
-        if decimal == "." and _NUMBER.match(f.replace(",", ".", 1)):
+        if decimal == "." and _NUMBER.match(bad_value.replace(",", ".", 1)):
             hint = " (for decimal commas give --decimal ,)"
-        raise InputError(f"{source}: line {lines[r]}: {key} value {f!r} is not a number{hint}")
+        raise InputError(
+            f"{source}: line {lines[rn]}: {key} value {bad_value!r} is not a number{hint}"
+        )
+    if rr is not None:
+        # a whole number that a double holds exactly (1.5, 1e19, inf are refused: read
+        # as an integer they would silently name another ring)
+        raise InputError(
+            f"{source}: line {lines[rr]}: ring value {head[rr][ring_col]!r} is not an "
+            "integer (ring ids are whole numbers up to 2**53)"
+        )
+    if rc < len(fields):  # a stray field (a thousands separator?) is never dropped
+        raise InputError(
+            f"{source}: line {lines[rc]}: {_fields(len(fields[rc]))}, but line {first_line} "
+            f"has {ncols}; every row must have the same number of fields"
+        )
     xy = np.array([[float(v) for v in column] for column in columns]).T.reshape(-1, 2)
-    rings = np.zeros(len(rows), dtype=np.int64)
-    if ring_col is not None:
-        for r, f in enumerate(fields):
-            v = _whole(f[ring_col])
-            # a whole number that a double holds exactly (1.5, 1e19, inf are refused:
-            # read as an integer they would silently name another ring)
-            if v is None:
-                raise InputError(
-                    f"{source}: line {lines[r]}: ring value {f[ring_col]!r} is not an integer "
-                    "(ring ids are whole numbers up to 2**53)"
-                )
-            rings[r] = v
+    rings = np.array(whole, dtype=np.int64) if whole else np.zeros(len(rows), dtype=np.int64)
     bad = ~np.isfinite(xy).all(axis=1)
     if bad.any():
         r = int(np.argmax(bad))
