@@ -7,6 +7,8 @@ multiply-adds: the same bits on every processor."""
 
 from libc.math cimport INFINITY, isnan
 
+from ._nanmin cimport nan_min
+
 
 cdef inline double worst(
     Py_ssize_t lo, Py_ssize_t end,
@@ -181,14 +183,7 @@ def tan_min(const double[:, :] points, const long long[:, ::1] tri, double[::1] 
             s1 = s1 + e1y * e1y
             s2 = e2x * e2x
             s2 = s2 + e2y * e2y
-            if isnan(s0) or isnan(s1):
-                shortest = s0 + s1
-            else:
-                shortest = s0 if s0 < s1 else s1
-            if isnan(s2):
-                shortest = s2
-            elif not isnan(shortest) and s2 < shortest:
-                shortest = s2
+            shortest = nan_min(nan_min(s0, s1), s2)
             if cross > 0.0:
                 out[t] = (2.0 * cross) / (((s0 + s1) + s2) - 2.0 * shortest)
             else:

@@ -10,9 +10,6 @@ update of every earlier supernode with a row among its columns (linked lists kee
 them), then factorises its block.  Every sum runs in a fixed order and the module is
 compiled without fused multiply-adds: the same bits on every processor."""
 
-from libc.stdlib cimport free, malloc
-
-
 def supernodes(const long long[::1] parent, const long long[::1] count, long long[::1] first):
     """The columns ``0 .. n - 1`` (in elimination order: a parent after its children) in
     runs where column ``j + 1`` is ``j``'s parent and has one row fewer below the
@@ -31,33 +28,27 @@ def supernodes(const long long[::1] parent, const long long[::1] count, long lon
 
 def structure(
     const long long[::1] first,
-    long long ns,
     const long long[::1] parent,
     const long long[::1] Rp,
     const long long[::1] Rj,
-    long long[::1] rp,
+    const long long[::1] rp,
     long long[::1] rows,
     long long[::1] owner,
+    long long[::1] mark,
+    long long[::1] head,
+    long long[::1] nxt,
 ):
     """Each supernode's rows: its own columns, then, ascending, the rows below them of
     its columns in ``A`` (``Rp``, ``Rj``: ``A``'s upper triangle by rows) and of its
-    children's blocks.  ``rp`` (ns + 1): where each supernode's rows start in ``rows``
-    (sized by the caller from the column counts); ``owner`` (n): each column's
-    supernode.  Returns the rows written, or -1 where they would not fit in ``rows``
-    (the counts were not this pattern's)."""
+    children's blocks, into ``rows[rp[s]:rp[s + 1]]`` (``rp`` from the column counts);
+    ``owner`` (n): each column's supernode.  ``mark`` (n), ``head``, ``nxt`` (one per
+    supernode): scratch.  Returns the first supernode whose rows are not as many as
+    ``rp`` says (the counts are not this pattern's), or -1."""
+    cdef Py_ssize_t ns = first.shape[0] - 1
     cdef Py_ssize_t n = parent.shape[0]
-    cdef Py_ssize_t cap = rows.shape[0]
-    cdef Py_ssize_t s, k, p, q, c, t, m, below
+    cdef Py_ssize_t s, k, p, q, c, t, m, below, end
     cdef long long f, l, i, v, sp
-    cdef long long *mark = <long long *> malloc(max(n, 1) * sizeof(long long))
-    cdef long long *head = <long long *> malloc(max(ns, 1) * sizeof(long long))
-    cdef long long *nxt = <long long *> malloc(max(ns, 1) * sizeof(long long))
-    cdef long long bad = 0
-    if mark == NULL or head == NULL or nxt == NULL:
-        free(mark)
-        free(head)
-        free(nxt)
-        raise MemoryError()
+    cdef long long bad = -1
     with nogil:
         for k in range(n):
             mark[k] = -1
@@ -65,14 +56,11 @@ def structure(
             head[s] = -1
             for k in range(first[s], first[s + 1]):
                 owner[k] = s
-        m = 0
         for s in range(ns):
             f = first[s]
             l = first[s + 1] - 1
-            rp[s] = m
-            if m + (l - f + 1) > cap:
-                bad = 1
-                break
+            m = rp[s]
+            end = rp[s + 1]
             for k in range(f, l + 1):
                 rows[m] = k
                 mark[k] = s
@@ -80,23 +68,28 @@ def structure(
             for k in range(f, l + 1):  # A's rows below the block
                 for p in range(Rp[k], Rp[k + 1]):
                     i = Rj[p]
-                    if i > l and mark[i] != s and m < cap:
+                    if i > l and mark[i] != s:
+                        if m == end:
+                            bad = s
+                            break
                         mark[i] = s
                         rows[m] = i
                         m += 1
-                    elif i > l and mark[i] != s:
-                        bad = 1
             c = head[s]  # the children's rows below the block
-            while c != -1:
+            while c != -1 and bad < 0:
                 for p in range(rp[c], rp[c + 1]):
                     i = rows[p]
-                    if i > l and mark[i] != s and m < cap:
+                    if i > l and mark[i] != s:
+                        if m == end:
+                            bad = s
+                            break
                         mark[i] = s
                         rows[m] = i
                         m += 1
-                    elif i > l and mark[i] != s:
-                        bad = 1
                 c = nxt[c]
+            if bad >= 0 or m != end:
+                bad = s
+                break
             below = rp[s] + (l - f + 1)
             for q in range(below + 1, m):  # insertion sort (a block's rows are few)
                 v = rows[q]
@@ -109,11 +102,7 @@ def structure(
                 sp = owner[parent[l]]
                 nxt[s] = head[sp]
                 head[sp] = s
-        rp[ns] = m
-    free(mark)
-    free(head)
-    free(nxt)
-    return -1 if bad else m
+    return bad
 
 
 def factor(
@@ -127,32 +116,26 @@ def factor(
     const double[::1] Rx,
     double[::1] Lx,
     double[::1] D,
+    long long[::1] rel,
+    long long[::1] link,
+    long long[::1] nxt,
+    long long[::1] at,
+    double[::1] t,
 ):
     """The numeric factorisation: supernode ``s``'s block is ``Lx[xp[s]:]``, its rows
     (``rows[rp[s]:rp[s + 1]]``) by its columns, row by row, the unit diagonal's place
     holding the block's ``L``; ``D`` the pivots.  ``Rp``, ``Rj``, ``Rx``: ``A``'s upper
-    triangle by rows.  Returns the first column whose pivot is not positive, or -1."""
+    triangle by rows.  ``rel``, ``t`` (n), ``link``, ``nxt``, ``at`` (one per
+    supernode): scratch.  Returns the first column whose pivot is not positive, or
+    -1."""
     cdef Py_ssize_t ns = first.shape[0] - 1
-    cdef Py_ssize_t n = owner.shape[0]
     cdef Py_ssize_t s, k, p, c, r, q, jj, ii, p1, p2, w, m, wk, mk
     cdef long long f, l, col, fk
     cdef double d, acc
     cdef double *F
-    cdef double *LK
-    cdef long long *rel = <long long *> malloc(max(n, 1) * sizeof(long long))
-    cdef long long *link = <long long *> malloc(max(ns, 1) * sizeof(long long))
-    cdef long long *nxt = <long long *> malloc(max(ns, 1) * sizeof(long long))
-    cdef long long *at = <long long *> malloc(max(ns, 1) * sizeof(long long))
-    cdef double *t = <double *> malloc(max(n, 1) * sizeof(double))
+    cdef const double *LK
     cdef long long bad = -1
     cdef long long K, nextK
-    if rel == NULL or link == NULL or nxt == NULL or at == NULL or t == NULL:
-        free(rel)
-        free(link)
-        free(nxt)
-        free(at)
-        free(t)
-        raise MemoryError()
     with nogil:
         for s in range(ns):
             link[s] = -1
@@ -218,11 +201,6 @@ def factor(
                 q = owner[rows[rp[s] + w]]
                 nxt[s] = link[q]
                 link[q] = s
-    free(rel)
-    free(link)
-    free(nxt)
-    free(at)
-    free(t)
     return bad
 
 

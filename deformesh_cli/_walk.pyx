@@ -4,19 +4,7 @@ each point walks from its last triangle across the side of its most negative
 barycentric weight, and a P1 field is read with the weights found, the numpy
 versions' operations in order (the same bits; compiled without fused multiply-adds)."""
 
-from libc.math cimport isnan
-
-
-cdef inline double _least(double a, double b, double c) noexcept nogil:
-    """``np.minimum(np.minimum(a, b), c)``: NaN where any is NaN."""
-    cdef double m
-    if isnan(a) or isnan(b):
-        m = a + b
-    else:
-        m = a if a < b else b
-    if isnan(m) or isnan(c):
-        return m + c
-    return m if m < c else c
+from ._nanmin cimport nan_min
 
 
 def walk(
@@ -38,14 +26,16 @@ def walk(
     with nogil:
         for i in range(k):
             ti = t[i]
-            dx = q[i, 0] - ax[ti]
-            dy = q[i, 1] - ay[ti]
-            w1 = bx[ti] * dx + by[ti] * dy
-            w2 = cx[ti] * dx + cy[ti] * dy
-            w0 = 1.0 - w1 - w2
-            least = _least(w0, w1, w2)
             steps = 0
-            while least < -round_off and steps < limit:
+            while True:  # (the weights in triangle ti, then a step while they ask for one)
+                dx = q[i, 0] - ax[ti]
+                dy = q[i, 1] - ay[ti]
+                w1 = bx[ti] * dx + by[ti] * dy
+                w2 = cx[ti] * dx + cy[ti] * dy
+                w0 = 1.0 - w1 - w2
+                least = nan_min(nan_min(w0, w1), w2)  # (np.minimum's, twice)
+                if not (least < -round_off and steps < limit):
+                    break
                 j = 0
                 if w1 < w0:
                     j = 1
@@ -55,12 +45,6 @@ def walk(
                 if nx < 0:
                     break
                 ti = nx
-                dx = q[i, 0] - ax[ti]
-                dy = q[i, 1] - ay[ti]
-                w1 = bx[ti] * dx + by[ti] * dy
-                w2 = cx[ti] * dx + cy[ti] * dy
-                w0 = 1.0 - w1 - w2
-                least = _least(w0, w1, w2)
                 steps += 1
             t[i] = ti
             w[i, 0] = w0

@@ -23,6 +23,7 @@ import numpy as np
 
 from .divcurl import Assembler
 from .errors import BandError, FoldError, OptionError, SolverError
+from .geometry import signed_areas
 from .ldl import LDL
 
 #: Default number of pseudo-time steps (the paper's example uses 10).
@@ -60,13 +61,7 @@ def flat_margin(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
 def areas_with_margin(points: np.ndarray, tri: np.ndarray, sign: float) -> np.ndarray:
     """:func:`.geometry.signed_areas` plus ``sign`` times :func:`flat_margin` (``sign``
     0: the signed areas), in one compiled loop (:mod:`._divcurl`), the same bits."""
-    from ._divcurl import areas
-
-    out = np.empty(len(tri))
-    pts = np.ascontiguousarray(points, dtype=np.float64)
-    t = np.ascontiguousarray(tri, dtype=np.int64)
-    areas(pts, t, float(sign), FLAT, ROUND_OFF, out)
-    return out
+    return signed_areas(points, tri, sign, FLAT, ROUND_OFF)
 
 
 #: Four times the double's epsilon: an area computed from differences of coordinates of

@@ -41,8 +41,13 @@ def signed_area(p: np.ndarray) -> float:
     return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
 
 
-def signed_areas(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    """Signed area of every triangle: positive when its corners run counter-clockwise.
+def signed_areas(
+    points: np.ndarray, tri: np.ndarray, sign: float = 0.0, flat: float = 0.0, round_off=0.0
+) -> np.ndarray:
+    """Signed area of every triangle: positive when its corners run counter-clockwise;
+    plus ``sign`` times a flat margin where ``sign`` is not 0 (``flat`` times its longest
+    side squared plus ``round_off`` times that side times its corners' largest
+    coordinate: :func:`.deform.areas_with_margin`).
 
     ``0.5 ((x1 - x0) (y2 - y0) - (x2 - x0) (y1 - y0))`` in one compiled loop
     (:mod:`._divcurl`, without fused multiply-adds: numpy's bits, tested)."""
@@ -53,7 +58,7 @@ def signed_areas(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
     if len(t):
         if len(points) == 0 or t.min() < 0 or t.max() >= len(points):
             raise InputError(f"a triangle names a node outside 0 .. {len(points) - 1}")
-        areas(np.asarray(points, dtype=np.float64), t, 0.0, 0.0, 0.0, out)
+        areas(np.asarray(points, dtype=np.float64), t, float(sign), flat, round_off, out)
     return out
 
 

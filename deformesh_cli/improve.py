@@ -43,7 +43,6 @@ from .smoothing import (  # noqa: F401 (tan_min_angle, GAIN: the quality stage's
     _move,
     _raised,
     _smooth,
-    _tan_all,
     _tan_min,
     tan_min_angle,
 )
@@ -72,7 +71,7 @@ class ImproveStats:
 def improve(mesh: Mesh, rounds: int = ROUNDS) -> tuple[Mesh, ImproveStats]:
     """A copy of ``mesh`` with better triangles where they were under :data:`TARGET`,
     and what was done."""
-    tan = _tan_all(mesh.points, mesh.triangles)
+    tan = _tan_min(mesh.points, mesh.triangles)
     stats = ImproveStats(min_angle_before=_degrees(tan.min()))
     pts = np.array(mesh.points, dtype=np.float64, copy=True)
     tri = np.array(mesh.triangles, copy=True)

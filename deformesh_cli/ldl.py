@@ -149,31 +149,50 @@ class LDL:
     def update(self, K) -> None:
         """Factor new numbers on the same pattern."""
         ax = np.ascontiguousarray(np.asarray(K.data, dtype=np.float64)[self._src])
-        bad = factor(
-            self._Ap, self._Ai, ax, self._parent, self._Lp, self._Li, self._Lx,
-            self._D, self._Dinv, *self._scratch,
-        )  # fmt: skip
-        if bad >= 0:
-            raise SolverError(
-                "the matrix is not positive definite (a pivot of its L D L^T is not "
-                "positive): a triangle is flat or folded"
-            )
+        _refuse_pivot(
+            factor(
+                self._Ap,
+                self._Ai,
+                ax,
+                self._parent,
+                self._Lp,
+                self._Li,
+                self._Lx,
+                self._D,
+                self._Dinv,
+                *self._scratch,
+            )  # fmt: skip
+        )
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        """``K^-1 b`` for ``b`` (n,) or (n, k); two columns in one pass over the factor."""
+        """``K^-1 b`` for ``b`` (n,) or (n, k)."""
         b = np.asarray(b, dtype=np.float64)
-        cols = b.reshape(self.n, -1)
-        out = np.empty_like(cols)
-        if cols.shape[1] == 2:
-            x = np.ascontiguousarray(cols[self.perm])
-            solve2(self._Lp, self._Li, self._Lx, self._Dinv, x)
-            out[self.perm] = x
-            return out.reshape(b.shape)
-        for k in range(cols.shape[1]):
-            x = np.ascontiguousarray(cols[self.perm, k])
-            solve(self._Lp, self._Li, self._Lx, self._Dinv, x)
-            out[self.perm, k] = x
+        cols = b.reshape(len(b), int(np.prod(b.shape[1:])))  # (n, k); k = 1 for (n,)
+        x = np.ascontiguousarray(cols[self.perm])  # (in the factor's order)
+        self._solve_in_order(x)
+        out = np.empty_like(x)
+        out[self.perm] = x
         return out.reshape(b.shape)
+
+    def _solve_in_order(self, x: np.ndarray) -> None:
+        """``x`` (n, k), in the factor's order, overwritten by the solutions; two columns
+        in one pass over the factor."""
+        if x.shape[1] == 2:
+            solve2(self._Lp, self._Li, self._Lx, self._Dinv, x)
+            return
+        for k in range(x.shape[1]):
+            col = np.ascontiguousarray(x[:, k])
+            solve(self._Lp, self._Li, self._Lx, self._Dinv, col)
+            x[:, k] = col
+
+
+def _refuse_pivot(bad: int) -> None:
+    """A factor's first pivot that is not positive (``bad >= 0``) as a SolverError."""
+    if bad >= 0:
+        raise SolverError(
+            "the matrix is not positive definite (a pivot of its L D L^T is not "
+            "positive): a triangle is flat or folded"
+        )
 
 
 class SupernodalLDL(LDL):
@@ -200,14 +219,17 @@ class SupernodalLDL(LDL):
         self._rp = np.concatenate([[0], np.cumsum(height)]).astype(np.int64)
         self._rows = np.empty(int(self._rp[-1]), dtype=np.int64)
         self._owner = np.empty(n, dtype=np.int64)
-        rp = np.empty(ns + 1, dtype=np.int64)
+        per_node = np.empty(n, dtype=np.int64)
+        per_block = [np.empty(ns, dtype=np.int64) for _ in range(3)]
         if structure(
-            self._first, ns, self._parent, self._Rp, self._Rj, rp, self._rows, self._owner
-        ) != self._rp[-1] or not np.array_equal(rp, self._rp):
+            self._first, self._parent, self._Rp, self._Rj, self._rp, self._rows,
+            self._owner, per_node, *per_block[:2],
+        ) >= 0:  # fmt: skip
             raise SolverError("the factor's row structure does not match its column counts")
         self._xp = np.concatenate([[0], np.cumsum(height * width)]).astype(np.int64)
         self._Lx = np.empty(max(int(self._xp[-1]), 1))
         self._D = np.empty(n)
+        self._scratch = (per_node, *per_block, np.empty(n))  # (factor's: rel, link, nxt, at, t)
         self.update(K)
 
     def update(self, K) -> None:
@@ -215,25 +237,26 @@ class SupernodalLDL(LDL):
         from ._supernodal import factor
 
         rx = np.ascontiguousarray(np.asarray(K.data, dtype=np.float64)[self._Rsrc])
-        bad = factor(
-            self._first, self._rp, self._rows, self._owner, self._xp, self._Rp, self._Rj,
-            rx, self._Lx, self._D,
-        )  # fmt: skip
-        if bad >= 0:
-            raise SolverError(
-                "the matrix is not positive definite (a pivot of its L D L^T is not "
-                "positive): a triangle is flat or folded"
-            )
+        _refuse_pivot(
+            factor(
+                self._first,
+                self._rp,
+                self._rows,
+                self._owner,
+                self._xp,
+                self._Rp,
+                self._Rj,
+                rx,
+                self._Lx,
+                self._D,
+                *self._scratch,
+            )  # fmt: skip
+        )
 
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        """``K^-1 b`` for ``b`` (n,) or (n, k)."""
+    def _solve_in_order(self, x: np.ndarray) -> None:
         from ._supernodal import solve
 
-        b = np.asarray(b, dtype=np.float64)
-        cols = b.reshape(self.n, -1)
-        out = np.empty_like(cols)
-        for k in range(cols.shape[1]):
-            x = np.ascontiguousarray(cols[self.perm, k])
-            solve(self._first, self._rp, self._rows, self._xp, self._Lx, self._D, x)
-            out[self.perm, k] = x
-        return out.reshape(b.shape)
+        for k in range(x.shape[1]):
+            col = np.ascontiguousarray(x[:, k])
+            solve(self._first, self._rp, self._rows, self._xp, self._Lx, self._D, col)
+            x[:, k] = col

@@ -41,11 +41,6 @@ def tan_min_angle(ax, ay, bx, by, cx, cy):
     return np.where(cross > 0, t, -np.inf)
 
 
-def _tan_all(pts, tri):
-    """:func:`_tan_min` of every triangle."""
-    return _tan_min(pts, tri)
-
-
 def _tan_min(pts, tri):
     """:func:`tan_min_angle` of each triangle of ``tri`` (a compiled loop, the same
     bits: tested)."""

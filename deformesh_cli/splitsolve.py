@@ -77,13 +77,12 @@ class SplitSolver:
             SymmetricCSR(self._values[src], indices, indptr, (len(indptr) - 1,) * 2)
             for src, indices, indptr, _ in self._blocks
         ]
-        if self._factors is None:  # (a group with no unknown has no factor)
+        if self._factors is None:
             work = [
-                lambda m=m, b=b: SupernodalLDL(m, order=b[3]) if m.shape[0] else None
-                for m, b in zip(mats, self._blocks)
+                lambda m=m, b=b: SupernodalLDL(m, order=b[3]) for m, b in zip(mats, self._blocks)
             ]
         else:
-            work = [lambda m=m, f=f: f and f.update(m) for m, f in zip(mats, self._factors)]
+            work = [lambda m=m, f=f: f.update(m) for m, f in zip(mats, self._factors)]
         made = self._both(*work)
         if self._factors is None:
             self._factors = made
@@ -111,8 +110,7 @@ class SplitSolver:
 
         def part(g):
             m = self._members[g]
-            if len(m):
-                z[m] = self._factors[g].solve(r[m])
+            z[m] = self._factors[g].solve(r[m])
 
         self._both(lambda: part(0), lambda: part(1))
         return z
