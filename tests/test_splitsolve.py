@@ -259,3 +259,18 @@ def test_a_group_with_no_unknown_is_skipped(group):
         s.factorise(upper.data * scale)
         b = np.array([1.0, -2.0, 0.5])
         assert np.allclose(s.solve(b), np.linalg.solve(K * scale, b), rtol=1e-12, atol=0)
+
+
+def test_both_factors_take_an_empty_system():
+    """A system with no unknown (a group of the split solver left empty): factorised,
+    refactorised and solved, one right-hand side or two."""
+    from deformesh_cli.divcurl import SymmetricCSR
+    from deformesh_cli.ldl import SupernodalLDL
+
+    empty = SymmetricCSR(np.zeros(0), np.zeros(0, np.int64), np.zeros(1, np.int64), (0, 0))
+    for cls in (LDL, SupernodalLDL):
+        for order in (None, np.zeros(0, dtype=np.int64)):
+            f = cls(empty, order=order)
+            f.update(empty)
+            assert f.solve(np.zeros(0)).shape == (0,)
+            assert f.solve(np.zeros((0, 2))).shape == (0, 2)
