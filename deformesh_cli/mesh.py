@@ -19,7 +19,8 @@ class Mesh:
     order; ``line_group[e]`` indexes ``groups``, the boundary names
     (``contour``, ``hole_1``, ..., and ``bottom``, ``right``, ``top``,
     ``left`` for the box of an exterior mesh).  The triangles form the 2D
-    group ``domain``.
+    group ``domain``, with the ``quads`` (counter-clockwise, convex) where
+    boundary layers put them.
     """
 
     points: np.ndarray  # (n, 2) float64
@@ -33,10 +34,22 @@ class Mesh:
     #: extra per-node arrays to write with the mesh where the format has point data
     #: (.vtk, .vtu, .xdmf): name -> (n,) or (n, k) array (``move``: ``velocity``)
     point_data: dict = field(default_factory=dict)
+    #: (q, 4) int64: quadrilateral cells, counter-clockwise (boundary layers'); none
+    #: on a triangle mesh
+    quads: np.ndarray = field(default_factory=lambda: np.zeros((0, 4), dtype=np.int64))
 
     def __post_init__(self):
         if self.line_group is None:
             self.line_group = np.zeros(len(self.lines), dtype=np.int64)
+
+    @property
+    def split(self) -> np.ndarray:
+        """The triangles with each quad as two (corners 0 1 2 and 0 2 3): the mesh as
+        the triangle-only checks and measures read it."""
+        if not len(self.quads):
+            return self.triangles
+        q = self.quads
+        return np.concatenate([self.triangles, q[:, [0, 1, 2]], q[:, [0, 2, 3]]])
 
     @property
     def n_nodes(self) -> int:

@@ -20,6 +20,8 @@ from typing import Any
 
 from .deform import DEFAULT_STEPS, MAX_STEPS, SOLVERS, SOLVES
 from .formats import FORMATS, MSH_VERSIONS
+from .layers import DEFAULT_GROWTH as DEFAULT_LAYER_GROWTH
+from .layers import LAYER_CELLS, MAX_LAYERS
 from .select import DEFAULT_MAX_NODES, GRIDS, MAX_NODES_CEILING
 from .select.graded import DEFAULT_GROWTH
 
@@ -64,7 +66,9 @@ class MeshOptions:
     ``stroke``, ``resample``.  Stage 1 (select): ``h``, ``box``, ``margin``, ``strict``,
     ``max_nodes``, ``exterior``, ``grid``.  Stage 2 (deform): ``steps``,
     ``solver``, ``solve``, ``size``, ``size_field``.  Stage 3 (triangulate):
-    ``improve``, ``merge_extra``.  Writing: ``fmt``, ``msh_version``.
+    ``improve``, ``merge_extra``.  Boundary layers (``deformesh all``): ``layers``,
+    ``first_height``, ``layer_growth``, ``layers_on``, ``layer_cells``.  Writing:
+    ``fmt``, ``msh_version``.
     """
 
     # reading the contour
@@ -198,6 +202,41 @@ class MeshOptions:
         "choice",
         choices=MERGE_EXTRA,
     )
+    # boundary layers
+    layers: int = _opt(
+        0,
+        "Boundary layers: stack this many layers of cells along the walls (--layers-on), "
+        "each layer node on the wall normal of a contour point. Needs --first-height. "
+        "Default: none.",
+        "count",
+        min=0,
+        max=MAX_LAYERS,
+        metavar="N",
+    )
+    first_height: float | None = _opt(
+        None,
+        "Boundary layers: the first layer's height, in contour units.",
+        "positive",
+        metavar="H",
+    )
+    layer_growth: float = _opt(
+        DEFAULT_LAYER_GROWTH,
+        "Boundary layers: each layer this many times the one below (at least 1).",
+        "positive",
+        metavar="R",
+    )
+    layers_on: str | None = _opt(
+        None,
+        "Boundary layers: the boundary groups that are walls, comma-separated "
+        "(contour, contour_2, hole_1, ...). Default: every ring; never the box's sides.",
+        metavar="GROUPS",
+    )
+    layer_cells: str = _opt(
+        "quad",
+        "Boundary layers: cells between layers as quads, or each quad as two triangles.",
+        "choice",
+        choices=LAYER_CELLS,
+    )
     # writing
     fmt: str | None = _opt(
         None,
@@ -239,6 +278,7 @@ STAGES: dict[str, tuple[str, ...]] = {
     ),  # fmt: skip
     "deform": ("steps", "solver", "solve", "size", "size_field"),
     "triangulate": ("improve", "merge_extra"),
+    "layers": ("layers", "first_height", "layer_growth", "layers_on", "layer_cells"),
     "write": ("fmt", "msh_version"),
 }
 

@@ -17,6 +17,7 @@ from . import coarsen as _coarsen
 from . import deadline, forced, geometry, quality, triangulate, untangle
 from . import deform as _deform
 from . import improve as _improve
+from . import layers as _layers
 from . import recover as _recover
 from . import size as _size
 from .contour import Contour, count_words, far_field_box, split_edges
@@ -449,6 +450,10 @@ def mesh_contour(
     contract or this raises.
     """
     o = _options(options, changes)
+    if o.layers:
+        return mesh_with_layers(
+            contour, o, callback=callback, size_function=size_function, seconds=seconds
+        )
     seconds = {} if seconds is None else seconds
     size = size_function
     if size is None:
@@ -478,6 +483,62 @@ def mesh_contour(
     if d.stats is not None:
         report["moved_nodes"] = int(d.stats.moved_nodes)  # the band's nodes, or every node
     return MeshResult(mesh, sel, d.stats, report)
+
+
+def layer_spec(contour: Contour, o: MeshOptions) -> _layers.LayerSpec:
+    """The boundary layers ``o`` asks for on ``contour``: ``--layers-on`` names the
+    rings by their boundary groups (``contour``, ``contour_2``, ``hole_1``, ...)."""
+    if o.first_height is None:
+        raise OptionError("--layers needs --first-height (the first layer's height)")
+    if o.max_h is not None:
+        raise OptionError(
+            "--max-h would split the walls' edges under the layers; give --layers without it"
+        )
+    rings = None
+    if o.layers_on is not None:
+        names = {contour.ring_name(r): r for r in range(contour.n_rings)}
+        wanted = [w.strip() for w in o.layers_on.split(",") if w.strip()]
+        unknown = [w for w in wanted if w not in names]
+        if unknown or not wanted:
+            raise OptionError(
+                f"{contour.source}: --layers-on names {', '.join(unknown) or 'no group'}; "
+                f"its rings are {', '.join(names)} (the box's sides never have layers)"
+            )
+        rings = tuple(sorted({names[w] for w in wanted}))
+    return _layers.LayerSpec(o.layers, o.first_height, o.layer_growth, rings)
+
+
+@names_its_file
+def mesh_with_layers(
+    contour: Contour,
+    o: MeshOptions,
+    *,
+    callback: Callback | None = None,
+    size_function: SizeFunction | None = None,
+    seconds: dict | None = None,
+) -> MeshResult:
+    """:func:`mesh_contour` with boundary layers (:mod:`.layers`): the stacks grown
+    from the walls' points, the rest of the domain meshed as a contour of their top
+    nodes (with the options' other fields), the two joined and checked."""
+    spec = layer_spec(contour, o)
+    box = None
+    if o.exterior:  # (the far field of the body without its layers, a lesser one)
+        box = o.box if o.box is not None else far_field_box(contour, o.margin)
+    stacks = _layers.build(contour, spec, o.exterior, box)
+    core = mesh_contour(
+        stacks.top,
+        o.replace(layers=0),
+        callback=callback,
+        size_function=size_function,
+        seconds=seconds,
+    )
+    mesh = _layers.combine(contour, stacks, core.mesh, o.exterior)
+    if o.layer_cells == "tri":
+        mesh = _layers.split_quads(mesh)
+    quality.check_contract(mesh, contour, core.selection.grid.box if o.exterior else None)
+    report = {**core.report, **quality.stats(mesh), "contract": "ok"}
+    report["layers"] = _layers.summary(stacks, contour)
+    return MeshResult(mesh, core.selection, core.deform_stats, report)
 
 
 #: A mesh whose smallest angle is under this (degrees) gets a note: what its boundary

@@ -5,7 +5,8 @@ The contract (README, "The contract") is checked on every mesh written:
 1. node ``k`` is contour point ``k``, at exactly its input coordinates;
 2. the mesh boundary is the contour: every contour edge is a mesh boundary
    edge, or a chain of boundary edges through extra nodes lying on it;
-3. every triangle has signed area > 0 (counter-clockwise, no fold);
+3. every triangle has signed area > 0 (counter-clockwise, no fold), and every
+   quad (boundary layers) is convex and counter-clockwise;
 4. the mesh area equals the polygon area to round-off.
 
 (Byte-identical output on reruns is checked by the test suite.)
@@ -79,13 +80,17 @@ SUMMARY_KEYS = (
 def stats(mesh: Mesh) -> dict:
     """Summary numbers of a mesh (JSON-ready): counts, then :data:`SUMMARY_KEYS`."""
     r = report(mesh.points, mesh.triangles)
-    return {
-        "nodes": r["nodes"],
+    out = {
+        "nodes": int(mesh.n_nodes),
         "triangles": r["triangles"],
         "boundary_nodes": int(len(mesh.lines)),
         "extra_boundary_nodes": int(mesh.n_extra),
         **{k: r[k] for k in SUMMARY_KEYS},
     }
+    if len(mesh.quads):  # (the angles are the triangles'; the area is every cell's)
+        out["quads"] = int(len(mesh.quads))
+        out["area"] = float(signed_areas(mesh.points, mesh.split).sum())
+    return out
 
 
 def check_contract(
@@ -101,7 +106,9 @@ def check_contract(
     """
     src = contour.source
     m = contour.n
-    pts, tri = mesh.points, mesh.triangles
+    pts, tri = mesh.points, mesh.split
+    if len(mesh.quads):
+        edges = None  # (counted on the triangles alone)
     if mesh.n_contour != m or len(pts) < m:
         raise ContractError(f"{src}: mesh has {mesh.n_contour} contour nodes, contour has {m}")
     # 1. contour points are nodes 0..m-1, bit for bit
@@ -122,6 +129,13 @@ def check_contract(
         raise ContractError(
             f"{src}: triangle {t} near ({c[0]:.6g}, {c[1]:.6g}) has signed area {area[t]:.3g}"
         )
+    if len(mesh.quads):  # (convex: the other diagonal's triangles turn the same way)
+        q = mesh.quads
+        other = np.minimum(signed_areas(pts, q[:, [1, 2, 3]]), signed_areas(pts, q[:, [1, 3, 0]]))
+        if not (other > 0).all():
+            k = int(np.argmin(other))
+            c = pts[q[k]].mean(axis=0)
+            raise ContractError(f"{src}: quad {k} near ({c[0]:.6g}, {c[1]:.6g}) is not convex")
     used = np.bincount(tri.ravel(), minlength=len(pts))
     if not used.all():  # (a node of no triangle leaves a solver's matrix singular)
         k = int(np.argmin(used))
@@ -161,7 +175,7 @@ def area_tolerance(contour: Contour, area: float, box: Box | None = None) -> flo
 def _check_boundary(mesh: Mesh, contour: Contour, box, edges=None) -> None:
     src = contour.source
     n = len(mesh.points)
-    lo, hi, fwd, rev = edge_uses(mesh.triangles, n) if edges is None else edges
+    lo, hi, fwd, rev = edge_uses(mesh.split, n) if edges is None else edges
     if (fwd + rev > 2).any():
         raise ContractError(f"{src}: an edge is shared by more than two triangles")
     if ((fwd > 1) | (rev > 1)).any():

@@ -61,7 +61,7 @@ from .report import check_mesh_output, check_outputs, finish
     help="Batch: a folder's file that is no contour file (not .csv, .txt, .svg, .svgz, "
     ".geojson or .json) fails the batch instead of being listed as not meshed.",
 )
-@stages("select", "read", "deform", "triangulate", "write")
+@stages("select", "read", "deform", "triangulate", "layers", "write")
 @png_option
 @force_option
 @json_option("Print the summary as JSON on stdout (a batch: one record per contour).")

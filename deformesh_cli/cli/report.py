@@ -83,10 +83,18 @@ def finish(
 
 
 def summary_line(r: dict) -> str:
-    """The one line on stderr that sums up a mesh."""
+    """The one line on stderr that sums up a mesh (the triangles' angles and areas; the
+    quads and layers counted where there are some)."""
+    quads = f"{r['quads']} quads, " if r.get("quads") else ""
+    layers = r.get("layers")
+    if layers:
+        quads += (
+            f"{layers['layers']} layers on {layers['stacks']} stacks "
+            f"({layers['shortened_stacks']} shortened), "
+        )
     return (
         f"{r['input']} -> {r['output']}: {r['nodes']} nodes, {r['triangles']} triangles, "
-        f"angles {r['min_angle']:.1f}-{r['max_angle']:.1f} deg, smallest area "
+        f"{quads}angles {r['min_angle']:.1f}-{r['max_angle']:.1f} deg, smallest area "
         f"{r['smallest_area']:.3g}, {r['extra_boundary_nodes']} extra boundary nodes"
         f", contract {r['contract']} ({r['seconds']:.2f} s)"
     )

@@ -27,13 +27,26 @@ def contour_point(mesh: Mesh) -> np.ndarray:
     return np.where(k < mesh.n_contour, k, -1).astype(np.int32)
 
 
+def cell_blocks(mesh: Mesh) -> list[tuple[str, np.ndarray]]:
+    """The cells by kind, as meshio names them: the triangles, the quads (only where
+    boundary layers made some), then the boundary lines."""
+    out = [("triangle", mesh.triangles.astype(np.int64))]
+    if len(mesh.quads):
+        out.append(("quad", mesh.quads.astype(np.int64)))
+    out.append(("line", mesh.lines.astype(np.int64)))
+    return out
+
+
 def cell_groups(mesh: Mesh) -> list[np.ndarray]:
-    """Per cell block (the triangles, then the boundary lines): each cell's physical
-    group tag as in ``.msh`` (:func:`groups`: ``domain`` for the triangles, each
-    line its boundary group's)."""
+    """Per cell block (:func:`cell_blocks`): each cell's physical group tag as in
+    ``.msh`` (:func:`groups`: ``domain`` for the triangles and quads, each line its
+    boundary group's)."""
+    domain = groups(mesh)["domain"][0]
     return [
-        np.full(len(mesh.triangles), groups(mesh)["domain"][0], dtype=np.int32),
-        (mesh.line_group + 1).astype(np.int32),
+        (mesh.line_group + 1).astype(np.int32)
+        if kind == "line"
+        else np.full(len(cells), domain, dtype=np.int32)
+        for kind, cells in cell_blocks(mesh)
     ]
 
 
@@ -54,7 +67,7 @@ def group_cell_data(mesh: Mesh) -> dict[str, list[np.ndarray]]:
 
 
 def meshio_mesh(mesh: Mesh, dim3: bool = False, cell_data: dict | None = None):
-    """The mesh as a ``meshio.Mesh``: triangles, then the boundary lines; point data
+    """The mesh as a ``meshio.Mesh``: its :func:`cell_blocks`; point data
     ``contour_point`` and the mesh's own; ``dim3`` pads z = 0."""
     import meshio
 
@@ -63,7 +76,7 @@ def meshio_mesh(mesh: Mesh, dim3: bool = False, cell_data: dict | None = None):
         pts = np.column_stack([pts, np.zeros(len(pts))])
     return meshio.Mesh(
         pts,
-        [("triangle", mesh.triangles.astype(np.int64)), ("line", mesh.lines.astype(np.int64))],
+        cell_blocks(mesh),
         point_data={"contour_point": contour_point(mesh), **mesh.point_data},
         cell_data=cell_data or {},
     )

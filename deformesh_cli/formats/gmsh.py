@@ -1,4 +1,4 @@
-"""Gmsh ASCII, version 2.2 (default) or 4.1: triangles in the physical group ``domain``,
+"""Gmsh ASCII, version 2.2 (default) or 4.1: triangles (and quads) in the physical group ``domain``,
 one block of lines per boundary group, the names in ``$PhysicalNames``.
 
 Version 2.2 by :func:`write_22`, byte for byte what meshio writes for the
@@ -11,28 +11,24 @@ from __future__ import annotations
 import numpy as np
 
 from ..mesh import Mesh
-from ._common import groups, rows
+from ._common import cell_blocks, groups, rows
 from .format import Format
 
 #: Gmsh file versions (``--msh-version``, the default first) -> meshio format name.
 MESHIO_NAMES = {"2.2": "gmsh22", "4.1": "gmsh"}
 
-_GMSH_TYPE = {"triangle": 2, "line": 1}
+_GMSH_TYPE = {"triangle": 2, "quad": 3, "line": 1}
 
 
 def blocks(mesh: Mesh) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray]]:
     """Element blocks as ``(meshio type, physical tags, geometrical tags, connectivity)``:
-    the triangles (physical ``domain``, geometrical 1), then one block of lines per
+    the triangles and any quads (physical ``domain``; geometrical 1, and 2 for the
+    quads: a Gmsh 4.1 entity holds one kind of element), then one block of lines per
     boundary group (physical = geometrical = the group's tag)."""
-    nt = len(mesh.triangles)
     line_tag = (mesh.line_group + 1).astype(np.int64)
     out = [
-        (
-            "triangle",
-            np.full(nt, groups(mesh)["domain"][0]),
-            np.ones(nt, np.int64),
-            mesh.triangles.astype(np.int64),
-        )
+        (kind, np.full(len(cells), groups(mesh)["domain"][0]), np.full(len(cells), k), cells)
+        for k, (kind, cells) in enumerate(cell_blocks(mesh)[:-1], start=1)
     ]
     for tag in np.unique(line_tag):
         on = line_tag == tag
@@ -55,9 +51,11 @@ def write_meshio(mesh: Mesh, path: str, version: str) -> None:
     point_data = {}
     if version == "4.1":
         # 4.1 files place every node on a geometric entity: boundary nodes on
-        # their boundary's curve (tag = group tag), the others on surface 1
+        # their boundary's curve (tag = group tag), the quads' other nodes on surface 2,
+        # the rest on surface 1
         line_tag = mesh.line_group + 1
         dim_tags = np.column_stack([np.full(mesh.n_nodes, 2), np.ones(mesh.n_nodes)])
+        dim_tags[mesh.quads.ravel(), 1] = 2  # (the quads' surface)
         dim_tags[mesh.lines[:, 0]] = np.column_stack([np.ones(len(line_tag)), line_tag])
         point_data = {"gmsh:dim_tags": dim_tags.astype(np.int32)}
     m = meshio.Mesh(

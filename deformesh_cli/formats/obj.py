@@ -13,6 +13,8 @@ def write(mesh: Mesh, path: str, version: str | None = None) -> None:
         f.write(f"# deformesh mesh: nodes 1..{mesh.n_contour} are the contour points\n")
         np.savetxt(f, mesh.points, fmt="v %.17g %.17g 0")
         np.savetxt(f, mesh.triangles + 1, fmt="f %d %d %d")
+        if len(mesh.quads):
+            np.savetxt(f, mesh.quads + 1, fmt="f %d %d %d %d")
         np.savetxt(f, mesh.lines + 1, fmt="l %d %d")
 
 

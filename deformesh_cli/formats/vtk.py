@@ -1,4 +1,4 @@
-"""VTK legacy 4.2, binary (big-endian): triangles and boundary lines, point data, and
+"""VTK legacy 4.2, binary (big-endian): triangles (and quads) and boundary lines, point data, and
 each cell's physical group tag as in .msh (cell data ``group``), the groups' names
 in the dataset's field data (per name, its ``(tag, dimension)``).
 
@@ -23,16 +23,20 @@ TITLE = "deformesh mesh: point k < number of contour points is contour point k"
 
 
 def write(mesh: Mesh, path: str, version: str | None = None) -> None:
-    n, tri, lines = mesh.n_nodes, mesh.triangles, mesh.lines
-    nt, nl = len(tri), len(lines)
+    n, tri, quads, lines = mesh.n_nodes, mesh.triangles, mesh.quads, mesh.lines
+    nt, nq, nl = len(tri), len(quads), len(lines)
     pts = np.zeros((n, 3), dtype=">f8")
     pts[:, :2] = mesh.points
-    cells = np.empty(4 * nt + 3 * nl, dtype=">i4")  # (count, corners) per cell
+    cells = np.empty(4 * nt + 5 * nq + 3 * nl, dtype=">i4")  # (count, corners) per cell
     by_tri = cells[: 4 * nt].reshape(nt, 4)
     by_tri[:, 0], by_tri[:, 1:] = 3, tri
-    by_line = cells[4 * nt :].reshape(nl, 3)
+    by_quad = cells[4 * nt : 4 * nt + 5 * nq].reshape(nq, 5)
+    by_quad[:, 0], by_quad[:, 1:] = 4, quads
+    by_line = cells[4 * nt + 5 * nq :].reshape(nl, 3)
     by_line[:, 0], by_line[:, 1:] = 2, lines
-    types = np.repeat(np.array([5, 3], dtype=">i4"), [nt, nl])  # VTK_TRIANGLE, VTK_LINE
+    # VTK_TRIANGLE, VTK_QUAD, VTK_LINE
+    types = np.repeat(np.array([5, 9, 3], dtype=">i4"), [nt, nq, nl])
+    nt += nq  # (the cells of the domain)
     cp = contour_point(mesh).astype(">i4")
     fields = [(f"contour_point 1 {n} int\n".encode(), cp)]
     for name, data in mesh.point_data.items():  # as meshio writes them: floats as double

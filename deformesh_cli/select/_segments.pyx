@@ -39,6 +39,7 @@ def clearance(
     const long long[:] q_ring,
     const long long[:] own0,
     const long long[:] own1,
+    const long long[:] own2,
     const double[:] fwd_x,
     const double[:] fwd_y,
     const double[:] back_x,
@@ -60,7 +61,7 @@ def clearance(
     double[:] out,
 ):
     """``out[q]``: the least distance from query point ``q`` to a point ``y`` of an edge
-    ``e`` (``a[e]`` to ``b[e]``, not ``own0[q]`` or ``own1[q]``) with ``|q - y| <=
+    ``e`` (``a[e]`` to ``b[e]``, not ``own0[q]``, ``own1[q]`` or ``own2[q]``) with ``|q - y| <=
     radius[q]``, ``y`` another part of the contour (on another ring, or farther along
     it than ``turn`` times the distance) and ``y - q`` in the wedge turning
     counter-clockwise from ``fwd`` to ``back``; inf where there is none."""
@@ -91,7 +92,7 @@ def clearance(
                 hi = start[k - leaf0 + 1]
                 for i in range(lo, hi):
                     e = order[i]
-                    if e == own0[q] or e == own1[q]:
+                    if e == own0[q] or e == own1[q] or e == own2[q]:
                         continue
                     ex = bx[e] - ax[e]
                     ey = by[e] - ay[e]

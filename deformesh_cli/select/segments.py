@@ -32,8 +32,8 @@ class Segments:
 
     def clearance(self, x, x_arc, x_ring, own, wedge, radius, turn: float) -> np.ndarray:
         """Per query point ``x[q]`` (at ``x_arc[q]`` along ring ``x_ring[q]``): the
-        distance to the nearest point ``y`` of an edge other than ``own[q]`` ((k, 2)
-        edge numbers) with ``|x - y| <= radius[q]``, where ``y`` is another part of the
+        distance to the nearest point ``y`` of an edge other than ``own[q]`` ((k, 2) or
+        (k, 3) edge numbers) with ``|x - y| <= radius[q]``, where ``y`` is another part of the
         contour (another ring, or more than ``turn`` times ``|x - y|`` away along
         the ring, either way round) and ``y - x`` lies in the wedge turning
         counter-clockwise from ``wedge[0][q]`` to ``wedge[1][q]`` (closed: the
@@ -42,12 +42,13 @@ class Segments:
         i8 = lambda v: np.ascontiguousarray(v, dtype=np.int64)  # noqa: E731
         x = np.asarray(x, dtype=np.float64).reshape(-1, 2)
         k = len(x)
-        own = np.asarray(own, dtype=np.int64).reshape(k, 2)
+        own = np.asarray(own, dtype=np.int64).reshape(k, -1)
+        own = np.column_stack([own, own[:, :1]]) if own.shape[1] == 2 else own
         fwd, back = (np.asarray(w, dtype=np.float64).reshape(k, 2) for w in wedge)
         out = np.empty(k)
         clearance(
             f8(x[:, 0]), f8(x[:, 1]), f8(np.broadcast_to(x_arc, (k,))),
-            i8(np.broadcast_to(x_ring, (k,))), i8(own[:, 0]), i8(own[:, 1]),
+            i8(np.broadcast_to(x_ring, (k,))), i8(own[:, 0]), i8(own[:, 1]), i8(own[:, 2]),
             f8(fwd[:, 0]), f8(fwd[:, 1]), f8(back[:, 0]), f8(back[:, 1]),
             f8(np.broadcast_to(radius, (k,))),
             self.ax, self.ay, self.bx, self.by, self.arc, self.length, self.ring,

@@ -1,0 +1,501 @@
+"""Boundary layers: stacks of cells along the walls, grown from the contour's own points.
+
+Each wall point gets a straight *stack*: a direction into the domain (the bisector
+of its two edges' normals, or at a sharp convex corner a *fan* of directions from
+one edge's normal to the other's) and ``N`` layer nodes along it, layer ``k`` at
+
+    h_k = c (H (R^k - 1) / (R - 1)),
+
+``H`` the first height, ``R`` the growth and ``c`` in (0, 1] the stack's share of
+the full thickness ``T = H (R^N - 1) / (R - 1)``.  Consecutive stacks are joined by
+quads, layer by layer (a fan's first cells, which share their wall point, are
+triangles).  The top nodes of the stacks form the boundary of the rest of the
+domain, which the construction meshes with exactly those nodes (:mod:`.pipeline`).
+
+Where a full stack would not fit, it is made shorter (``c < 1``), by three rules of
+geometry, then smoothly along the wall:
+
+- **converging neighbours**: a stack reaches at most :data:`MEET_SHARE` of the way
+  to the line of the next stack's or the previous stack's direction, where it heads
+  towards it (a concave bend).  Every layer node of two neighbouring stacks then
+  lies on the boundary of the convex region between their rays and their wall
+  edge, in order, so each quad between them is convex;
+- **other parts of the contour**: a stack takes at most :data:`GAP_SHARE` of its
+  clearance across the domain (the distance to another part of the contour on the
+  domain's side, :mod:`.select.segments`), and of its distance to a far-field
+  box's side, so two facing stacks leave the rest of the gap to the core mesh;
+- **smoothly**: the thickness changes by at most :data:`SLOPE` per unit of wall
+  length (the least over the wall of each stack's bound plus the slope times the
+  distance along the ring, taken both ways round).
+
+A stack is never tangled: only shortened.  A gap narrower than ``2 H`` (where
+the first layers of its two sides cannot both fit) is refused in one line naming
+the place and the width there.  Nothing here prints or exits.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .contour import Contour, make_contour
+from .errors import OptionError, SelectionError
+
+#: A wall point whose two edges turn away from the domain by more than this (its
+#: angle on the domain's side over 180 + FAN_TURN degrees) gets a fan: a single
+#: bisector there would meet each edge at more than 90 + FAN_TURN / 2 degrees, so
+#: the layer edges leaving the wall stay within 10 degrees of the wall normal.
+FAN_TURN = 20.0
+
+#: A fan's directions are at most this many degrees apart.
+FAN_STEP = 15.0
+
+#: A stack reaches at most this share of the way to a converging neighbour's line.
+MEET_SHARE = 0.5
+
+#: A stack takes at most this share of its clearance across the domain.
+GAP_SHARE = 0.4
+
+#: The stacks' thickness changes by at most this much per unit of wall length.
+SLOPE = 0.5
+
+#: Default growth of the layer heights.
+DEFAULT_GROWTH = 1.2
+
+#: Most layers a stack may have.
+MAX_LAYERS = 1000
+
+#: ``--layer-cells``: quads between layers, or each quad split in two triangles.
+LAYER_CELLS = ("quad", "tri")
+
+
+@dataclass(frozen=True)
+class LayerSpec:
+    """``layers`` layers of first height ``first`` growing by ``growth`` on the rings
+    ``rings`` (ring indices of the contour; None: every ring)."""
+
+    layers: int
+    first: float
+    growth: float = DEFAULT_GROWTH
+    rings: tuple[int, ...] | None = None
+
+    def __post_init__(self):
+        if self.layers < 1:
+            raise OptionError(f"--layers must be at least 1, got {self.layers}")
+        if not (math.isfinite(self.first) and self.first > 0):
+            raise OptionError(f"--first-height must be a positive number, got {self.first}")
+        if not (math.isfinite(self.growth) and self.growth >= 1.0):
+            raise OptionError(f"--layer-growth must be at least 1, got {self.growth}")
+
+    def heights(self) -> np.ndarray:
+        """The full stack's heights ``h_0 = 0, h_1 = H, ..., h_N`` (N + 1,)."""
+        k = np.arange(self.layers + 1, dtype=np.float64)
+        if self.growth == 1.0:
+            return self.first * k
+        return self.first * (self.growth**k - 1.0) / (self.growth - 1.0)
+
+
+@dataclass
+class Stacks:
+    """The layers of a contour.
+
+    ``wall[s]``: the contour point stack ``s`` stands on; ``direction[s]``: its unit
+    direction; ``share[s]``: its thickness over the full one.  ``nodes`` ((S N, 2)):
+    stack ``s``'s layer ``k`` (1..N) is row ``s N + k - 1``.  ``quads`` and
+    ``triangles``: the cells, counter-clockwise, numbering contour points ``0 ..
+    n-1`` and layer nodes ``n + row``.  ``rings[r]``: the stacks of layered ring
+    ``r`` in the domain's order (the domain on the left), or None for a ring without
+    layers.  ``top``: the contour of the rest of the domain (a layered ring's points
+    are its stacks' top nodes, in the domain's order; other rings as given), and
+    ``top_node[k]`` the final node of its point ``k``."""
+
+    spec: LayerSpec
+    wall: np.ndarray
+    direction: np.ndarray
+    share: np.ndarray
+    nodes: np.ndarray
+    quads: np.ndarray
+    triangles: np.ndarray
+    rings: list
+    top: Contour
+    top_node: np.ndarray
+    exterior: bool = False
+    fans: int = 0
+    shortened: int = 0
+    notes: list[str] = field(default_factory=list)
+
+
+def _domain_order(contour: Contour, r: int, exterior: bool) -> np.ndarray:
+    """Ring ``r``'s points with the domain on the left."""
+    order = contour.ring_order(r)
+    return order[::-1] if contour.is_hole(r) != exterior else order
+
+
+def _directions(p: np.ndarray) -> tuple[list[int], list[np.ndarray], int]:
+    """Per point of a closed ring ``p`` (the domain on the left), its stacks'
+    directions: the bisector of its edges' normals, or a fan from the incoming
+    edge's normal to the outgoing one's where the ring turns away from the domain
+    by more than :data:`FAN_TURN`; returns (point of each stack, directions, fans)."""
+    e = np.roll(p, -1, axis=0) - p
+    t = e / np.hypot(e[:, 0], e[:, 1])[:, None]
+    nu = np.column_stack([-t[:, 1], t[:, 0]])  # (left normals: into the domain)
+    t_in, nu_in = np.roll(t, 1, axis=0), np.roll(nu, 1, axis=0)
+    turn = np.arctan2(t_in[:, 0] * t[:, 1] - t_in[:, 1] * t[:, 0], (t_in * t).sum(axis=1))
+    owner, dirs, fans = [], [], 0
+    for i in range(len(p)):
+        if turn[i] < -math.radians(FAN_TURN):
+            fans += 1
+            m = math.ceil(-turn[i] / math.radians(FAN_STEP))
+            phi = math.atan2(nu_in[i, 1], nu_in[i, 0]) + turn[i] * np.arange(m + 1) / m
+            owner.extend([i] * (m + 1))
+            dirs.extend(np.column_stack([np.cos(phi), np.sin(phi)]))
+        else:
+            b = nu_in[i] + nu[i]
+            owner.append(i)
+            dirs.append(b / math.hypot(b[0], b[1]))
+    return owner, dirs, fans
+
+
+def _meet_bounds(a: np.ndarray, da: np.ndarray, b: np.ndarray, db: np.ndarray) -> np.ndarray:
+    """Per pair of rays ``a + u da`` and ``b + v db``: how far along the first its line
+    meets the second's line, where that is ahead (inf where not, or parallel)."""
+    # a + u da = b + v db  ->  u = cross(b - a, db) / cross(da, db)
+    w = b - a
+    den = da[:, 0] * db[:, 1] - da[:, 1] * db[:, 0]
+    num = w[:, 0] * db[:, 1] - w[:, 1] * db[:, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = num / den
+    return np.where((den != 0) & (u > 0), u, np.inf)
+
+
+def _smooth(bound: np.ndarray, arc: np.ndarray, perimeter: float) -> np.ndarray:
+    """The least over the ring's stacks ``j`` of ``bound[j] + SLOPE d(i, j)``, ``d``
+    along the ring either way round (``arc``: the stacks' places, non-decreasing)."""
+    a2 = np.concatenate([arc, arc + perimeter, arc + 2 * perimeter])
+    b2 = np.tile(bound, 3)
+    fwd = SLOPE * a2 + np.minimum.accumulate(b2 - SLOPE * a2)
+    back = -SLOPE * a2 + np.minimum.accumulate((b2 + SLOPE * a2)[::-1])[::-1]
+    n = len(arc)
+    out = np.minimum(fwd, back)[n : 2 * n]
+    # (a stack's own bound comes back through a sum and its difference: the round-off
+    # is not a shortening)
+    return np.where(out >= bound * (1.0 - 1e-12), bound, out)
+
+
+def _clearances(
+    contour: Contour, exterior: bool, box, walls: np.ndarray, reach: float, first: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """How wide the domain is by the walls: per contour point (inf but at ``walls``),
+    the least clearance across the domain (the distance to another part of the
+    contour on the domain's side, :class:`~.select.segments.Segments`, looked for
+    within ``reach``) at the point and along its two edges, and twice its distance to
+    the box's sides; then the narrowest place found, as ``(width, x, y)``.
+
+    A point does not see its two edges, nor a piece of an edge the edges before and
+    after it: the two sides of a corner converge, which bounds the stacks there (the
+    neighbours' rule), and is no gap.  Along an edge, pieces are bisected while longer
+    than half the clearance at their middle (and than half ``first``); a piece
+    counts its middle's clearance less half its length, at most what any of its
+    points has."""
+    from .geometry import next_on_ring, prev_on_ring
+    from .select.construct import TURN, _domain_walk, _to_box
+    from .select.segments import Segments
+
+    p, m, ring = contour.points, contour.n, contour.ring
+    nxt, prv = next_on_ring(ring), prev_on_ring(ring)
+    length = contour.edge_lengths()
+    starts = np.asarray(contour.starts)
+    run = np.cumsum(length)
+    arc = run - length - np.concatenate([[0.0], run])[starts[:-1]][ring]
+    perimeter = np.add.reduceat(length, starts[:-1])
+    segments = Segments(p, p[nxt], arc, length, ring, perimeter)
+    dom_next, dom_prev = _domain_walk(contour, exterior)
+    is_wall = np.zeros(m, dtype=bool)
+    is_wall[walls] = True
+    # at the points
+    own = np.column_stack([np.arange(m), prv])
+    wedge = (p[dom_next] - p, p[dom_prev] - p)
+    out = segments.clearance(p, arc, ring, own, wedge, np.full(m, reach), TURN)
+    if box is not None:  # (the box's sides have no layers of their own)
+        out = np.minimum(out, 2.0 * _to_box(p, box))
+    out[~is_wall] = np.inf
+    k = int(np.argmin(out))
+    narrowest = (float(out[k]), *p[k].tolist())
+    # along the edges from or to a wall point
+    seg = np.flatnonzero(is_wall | is_wall[nxt])
+    along = np.where((dom_next == nxt)[:, None], p[nxt] - p, p - p[nxt])
+    t0, t1 = np.zeros(len(seg)), np.ones(len(seg))
+    while len(seg):
+        ell = (t1 - t0) * length[seg]
+        tm = (t0 + t1) / 2
+        mid = p[seg] + tm[:, None] * (p[nxt[seg]] - p[seg])
+        own = np.column_stack([seg, prv[seg], nxt[seg]])
+        c = segments.clearance(
+            mid, arc[seg] + tm * length[seg], ring[seg], own, (along[seg], -along[seg]),
+            reach + ell, TURN,
+        )  # fmt: skip
+        if box is not None:
+            c = np.minimum(c, 2.0 * _to_box(mid, box))
+        split = (ell > 0.5 * c) & (ell > 0.5 * first)
+        done = ~split
+        low = np.maximum(c - 0.5 * ell, 0.0)
+        np.minimum.at(out, seg[done], np.where(is_wall[seg[done]], low[done], np.inf))
+        np.minimum.at(out, nxt[seg[done]], np.where(is_wall[nxt[seg[done]]], low[done], np.inf))
+        if done.any() and c[done].min() < narrowest[0]:
+            k = int(np.argmin(np.where(done, c, np.inf)))
+            narrowest = (float(c[k]), *mid[k].tolist())
+        seg, t0, t1, tm = seg[split], t0[split], t1[split], tm[split]
+        seg = np.repeat(seg, 2)
+        t0, t1 = np.column_stack([t0, tm]).ravel(), np.column_stack([tm, t1]).ravel()
+    return out, narrowest
+
+
+def build(
+    contour: Contour,
+    spec: LayerSpec,
+    exterior: bool = False,
+    box: tuple[float, float, float, float] | None = None,
+) -> Stacks:
+    """The layers of ``spec`` on ``contour`` (``box``: an exterior mesh's far-field
+    box, whose sides bound the stacks too)."""
+    rings = range(contour.n_rings) if spec.rings is None else spec.rings
+    for r in rings:
+        if not 0 <= r < contour.n_rings:
+            raise OptionError(f"{contour.source}: no ring {r} to put layers on")
+    heights = spec.heights()
+    full = float(heights[-1])
+    p = contour.points
+    m = contour.n
+    starts = np.asarray(contour.starts)
+    owner_all, dir_all, ring_of, arc_all = [], [], [], []
+    fans = 0
+    per_ring: list = [None] * contour.n_rings
+    for r in rings:
+        order = _domain_order(contour, r, exterior)
+        owner, dirs, f = _directions(p[order])
+        fans += f
+        start = len(owner_all)
+        per_ring[r] = np.arange(start, start + len(owner))
+        owner_all.extend(order[owner].tolist())
+        dir_all.extend(dirs)
+        ring_of.extend([r] * len(owner))
+        q = p[order]
+        seg = np.hypot(*(np.roll(q, -1, axis=0) - q).T)
+        arc_all.append((np.concatenate([[0.0], np.cumsum(seg)[:-1]])[owner], float(seg.sum())))
+    wall = np.asarray(owner_all, dtype=np.int64)
+    d = np.asarray(dir_all, dtype=np.float64).reshape(-1, 2)
+    bound = np.full(len(wall), full)
+    # converging neighbours
+    for r in rings:
+        s = per_ring[r]
+        nxt = np.roll(s, -1)
+        a, b = p[wall[s]], p[wall[nxt]]
+        differ = wall[s] != wall[nxt]
+        u = np.where(differ, _meet_bounds(a, d[s], b, d[nxt]), np.inf)
+        v = np.where(differ, _meet_bounds(b, d[nxt], a, d[s]), np.inf)
+        bound[s] = np.minimum(bound[s], MEET_SHARE * u)
+        bound[nxt] = np.minimum(bound[nxt], MEET_SHARE * v)
+    # other parts of the contour, across the domain, and the box
+    near, (width, x, y) = _clearances(
+        contour, exterior, box, np.unique(wall), full / GAP_SHARE, spec.first
+    )
+    if width < 2.0 * spec.first:
+        raise SelectionError(
+            f"{contour.source}: boundary layers of first height {spec.first:g} do not fit "
+            f"near ({x:.6g}, {y:.6g}): the domain is {width:.3g} wide there, under twice "
+            "the first height; give a smaller --first-height, or leave that ring out "
+            "(--layers-on)"
+        )
+    bound = np.minimum(bound, GAP_SHARE * near[wall])
+    # smoothly along each ring
+    thick = np.empty(len(wall))
+    for r, (arc_r, per) in zip(rings, arc_all):
+        s = per_ring[r]
+        thick[s] = _smooth(bound[s], arc_r, per)
+    share = np.minimum(thick / full, 1.0)
+    # nodes and cells
+    n_layers = spec.layers
+    nodes = p[wall][:, None, :] + (share[:, None] * heights[None, 1:])[:, :, None] * d[:, None, :]
+    nodes = nodes.reshape(-1, 2)
+
+    def node(s: np.ndarray, k: int) -> np.ndarray:
+        return wall[s] if k == 0 else m + s * n_layers + (k - 1)
+
+    quads, tris = [], []
+    top_rings, top_ids = [], []
+    for r in range(contour.n_rings):
+        s = per_ring[r]
+        if s is None:
+            order = np.arange(starts[r], starts[r + 1])
+            top_rings.append(p[order])
+            top_ids.append(order)
+            continue
+        t = np.roll(s, -1)
+        fan = wall[s] == wall[t]
+        for k in range(n_layers):
+            cell = np.column_stack([node(s, k), node(t, k), node(t, k + 1), node(s, k + 1)])
+            if k == 0:
+                tris.append(cell[fan][:, [0, 2, 3]])
+                quads.append(cell[~fan])
+            else:
+                quads.append(cell)
+        top = node(s, n_layers)
+        top_rings.append(nodes[top - m])
+        top_ids.append(top)
+    top_contour = make_contour(
+        np.concatenate(top_rings),
+        source=contour.source,
+        ring_starts=np.cumsum([0] + [len(x) for x in top_rings[:-1]]).tolist(),
+        ring_labels=[contour.ring_labels[r] for r in range(contour.n_rings)],
+    )
+    return Stacks(
+        spec,
+        wall,
+        d,
+        share,
+        nodes,
+        np.concatenate(quads).astype(np.int64) if quads else np.zeros((0, 4), np.int64),
+        np.concatenate(tris).astype(np.int64) if tris else np.zeros((0, 3), np.int64),
+        per_ring,
+        top_contour,
+        np.concatenate(top_ids).astype(np.int64),
+        exterior=exterior,
+        fans=fans,
+        shortened=int((share < 1.0).sum()),
+    )
+
+
+def combine(contour: Contour, stacks: Stacks, core, exterior: bool = False):
+    """The mesh of ``contour``: the layer cells of ``stacks`` and ``core``, the mesh of
+    ``stacks.top`` (its point ``k`` is ``stacks.top_node[k]``).  Nodes: the contour's
+    points, the core's extra boundary nodes on rings without layers, its box nodes, the
+    layer nodes, then the core's other nodes; the boundary is the contour's rings (a
+    layered ring's edges in the domain's order) and the core's box sides."""
+    from .mesh import Mesh
+
+    n, n_top = contour.n, stacks.top.n
+    n_layer = len(stacks.nodes)
+    layered = np.array([s is not None for s in stacks.rings])
+    # the core's extra nodes: on a ring without layers they stay boundary nodes
+    extra = np.arange(n_top, n_top + core.n_extra)
+    on_line = np.full(len(core.points), -1)
+    on_line[core.lines[:, 0]] = core.line_group
+    keep_extra = extra[
+        (on_line[extra] >= 0) & ~layered[np.minimum(on_line[extra], len(layered) - 1)]
+    ]
+    inner_extra = np.setdiff1d(extra, keep_extra)
+    box_nodes = np.arange(n_top + core.n_extra, n_top + core.n_extra + core.n_box)
+    rest = np.arange(n_top + core.n_extra + core.n_box, len(core.points))
+    first_layer = n + len(keep_extra) + len(box_nodes)
+    new = np.empty(len(core.points), dtype=np.int64)
+    top = stacks.top_node
+    new[:n_top] = np.where(top < n, top, top - n + first_layer)
+    new[keep_extra] = n + np.arange(len(keep_extra))
+    new[box_nodes] = n + len(keep_extra) + np.arange(len(box_nodes))
+    after = first_layer + n_layer
+    new[inner_extra] = after + np.arange(len(inner_extra))
+    new[rest] = after + len(inner_extra) + np.arange(len(rest))
+    points = np.empty((after + len(inner_extra) + len(rest), 2))
+    points[:n] = contour.points
+    points[new] = core.points
+    points[first_layer:after] = stacks.nodes
+    points[:n] = contour.points  # (bit for bit: the wall's points as given)
+
+    def layer_ids(cells: np.ndarray) -> np.ndarray:
+        return np.where(cells < n, cells, cells - n + first_layer)
+
+    lines, groups = [], []
+    for r in range(contour.n_rings):
+        if layered[r]:
+            order = _domain_order(contour, r, exterior)
+            lines.append(np.column_stack([order, np.roll(order, -1)]))
+        else:
+            lines.append(new[core.lines[core.line_group == r]])
+        groups.append(np.full(len(lines[-1]), r))
+    side = core.line_group >= contour.n_rings
+    lines.append(new[core.lines[side]])
+    groups.append(core.line_group[side])
+    return Mesh(
+        points,
+        np.concatenate([new[core.triangles], layer_ids(stacks.triangles)]),
+        np.concatenate(lines).astype(np.int64),
+        n_contour=n,
+        n_extra=len(keep_extra),
+        line_group=np.concatenate(groups).astype(np.int64),
+        groups=core.groups,
+        n_box=core.n_box,
+        quads=layer_ids(stacks.quads),
+    )
+
+
+def split_quads(mesh):
+    """``mesh`` with each quad as two triangles, along the diagonal whose two triangles'
+    smallest angle is larger (the first on a tie)."""
+    from dataclasses import replace
+
+    from .quality import measures
+
+    q = mesh.quads
+    if not len(q):
+        return mesh
+    a = np.minimum(
+        measures(mesh.points, q[:, [0, 1, 2]])[0], measures(mesh.points, q[:, [0, 2, 3]])[0]
+    )
+    b = np.minimum(
+        measures(mesh.points, q[:, [1, 2, 3]])[0], measures(mesh.points, q[:, [1, 3, 0]])[0]
+    )
+    other = b > a
+    first = np.where(other[:, None], q[:, [1, 2, 3]], q[:, [0, 1, 2]])
+    second = np.where(other[:, None], q[:, [1, 3, 0]], q[:, [0, 2, 3]])
+    tri = np.concatenate([mesh.triangles, np.column_stack([first, second]).reshape(-1, 3)])
+    return replace(mesh, triangles=tri, quads=np.zeros((0, 4), dtype=np.int64))
+
+
+def summary(stacks: Stacks, contour: Contour) -> dict:
+    """What a meshing summary says of the layers: the counts, the first heights, the
+    wall angles (between the wall edges and each stack's first layer edge, the
+    smallest over the stacks outside fans), the layer cells' largest aspect ratio
+    (the longer over the shorter of a quad's mean widths along and across the wall)
+    and the stacks shortened."""
+    n = contour.n
+    p = contour.points
+    first = stacks.share * stacks.spec.first
+    # wall angle: each stack's direction against the two wall edges at its point
+    nxt = np.arange(n)
+    for r, s in enumerate(stacks.rings):
+        if s is not None:
+            order = _domain_order(contour, r, stacks.exterior)
+            nxt[order] = np.roll(order, -1)
+    prv = np.empty_like(nxt)
+    prv[nxt] = np.arange(n)
+    w, d = stacks.wall, stacks.direction
+    fan = (w == np.roll(w, 1)) | (w == np.roll(w, -1))  # (a ring has 3 points or more)
+
+    def angle(t: np.ndarray) -> np.ndarray:  # (between the lines: 0 to 90 degrees)
+        c = np.abs((t * d).sum(axis=1)) / np.hypot(t[:, 0], t[:, 1])
+        return np.degrees(np.arccos(np.clip(c, 0.0, 1.0)))
+
+    angles = np.minimum(angle(p[nxt[w]] - p[w]), angle(p[prv[w]] - p[w]))
+    pts = np.vstack([p, stacks.nodes])
+    q = pts[stacks.quads]
+    along = 0.5 * (np.hypot(*(q[:, 1] - q[:, 0]).T) + np.hypot(*(q[:, 2] - q[:, 3]).T))
+    across = 0.5 * (np.hypot(*(q[:, 3] - q[:, 0]).T) + np.hypot(*(q[:, 2] - q[:, 1]).T))
+    with np.errstate(divide="ignore"):
+        aspect = np.maximum(along, across) / np.minimum(along, across)
+    plain = ~fan
+    return {
+        "layers": stacks.spec.layers,
+        "first_height": stacks.spec.first,
+        "growth": stacks.spec.growth,
+        "stacks": int(len(stacks.wall)),
+        "fans": int(stacks.fans),
+        "shortened_stacks": int(stacks.shortened),
+        "first_height_min": float(first.min()),
+        "first_height_max": float(first.max()),
+        "min_wall_angle": float(angles[plain].min()) if plain.any() else None,
+        "max_aspect_ratio": float(aspect.max()) if len(aspect) else None,
+        "layer_quads": int(len(stacks.quads)),
+        "layer_triangles": int(len(stacks.triangles)),
+    }
