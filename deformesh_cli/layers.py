@@ -40,8 +40,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .contour import Contour, make_contour
-from .errors import OptionError, SelectionError
+from .contour import MIN_RELATIVE_EDGE, Contour, make_contour
+from .errors import InputError, LimitError, OptionError, SelectionError
 
 #: A wall point whose two edges turn away from the domain by more than this (its
 #: angle on the domain's side over 180 + FAN_TURN degrees) gets a fan: a single
@@ -88,6 +88,13 @@ class LayerSpec:
             raise OptionError(f"--first-height must be a positive number, got {self.first}")
         if not (math.isfinite(self.growth) and self.growth >= 1.0):
             raise OptionError(f"--layer-growth must be at least 1, got {self.growth}")
+        with np.errstate(over="ignore"):
+            full = float(self.heights()[-1])
+        if not math.isfinite(full):
+            raise OptionError(
+                f"--layers {self.layers} growing by {self.growth:g} from {self.first:g} "
+                "overflows a double: give fewer layers or a smaller --layer-growth"
+            )
 
     def heights(self) -> np.ndarray:
         """The full stack's heights ``h_0 = 0, h_1 = H, ..., h_N`` (N + 1,)."""
@@ -257,9 +264,11 @@ def build(
     spec: LayerSpec,
     exterior: bool = False,
     box: tuple[float, float, float, float] | None = None,
+    max_nodes: int | None = None,
 ) -> Stacks:
     """The layers of ``spec`` on ``contour`` (``box``: an exterior mesh's far-field
-    box, whose sides bound the stacks too)."""
+    box, whose sides bound the stacks too; more layer nodes than ``max_nodes`` is a
+    :class:`LimitError`)."""
     rings = range(contour.n_rings) if spec.rings is None else spec.rings
     for r in rings:
         if not 0 <= r < contour.n_rings:
@@ -267,6 +276,12 @@ def build(
     heights = spec.heights()
     full = float(heights[-1])
     p = contour.points
+    least = MIN_RELATIVE_EDGE * float(np.abs(p).max())
+    if not spec.first > least:
+        raise OptionError(
+            f"{contour.source}: --first-height {spec.first:g} is under the coordinates' "
+            f"resolution ({least:.3g} at this contour's distance from the origin)"
+        )
     m = contour.n
     starts = np.asarray(contour.starts)
     owner_all, dir_all, ring_of, arc_all = [], [], [], []
@@ -284,6 +299,11 @@ def build(
         q = p[order]
         seg = np.hypot(*(np.roll(q, -1, axis=0) - q).T)
         arc_all.append((np.concatenate([[0.0], np.cumsum(seg)[:-1]])[owner], float(seg.sum())))
+    if max_nodes is not None and len(owner_all) * spec.layers > max_nodes:
+        raise LimitError(
+            f"{contour.source}: {spec.layers} layers on {len(owner_all):,} stacks are "
+            f"{len(owner_all) * spec.layers:,} nodes, over --max-nodes {max_nodes:,}"
+        )
     wall = np.asarray(owner_all, dtype=np.int64)
     d = np.asarray(dir_all, dtype=np.float64).reshape(-1, 2)
     bound = np.full(len(wall), full)
@@ -344,12 +364,18 @@ def build(
         top = node(s, n_layers)
         top_rings.append(nodes[top - m])
         top_ids.append(top)
-    top_contour = make_contour(
-        np.concatenate(top_rings),
-        source=contour.source,
-        ring_starts=np.cumsum([0] + [len(x) for x in top_rings[:-1]]).tolist(),
-        ring_labels=[contour.ring_labels[r] for r in range(contour.n_rings)],
-    )
+    try:  # (validated as any contour: the bounds above keep it simple and apart)
+        top_contour = make_contour(
+            np.concatenate(top_rings),
+            source=contour.source,
+            ring_starts=np.cumsum([0] + [len(x) for x in top_rings[:-1]]).tolist(),
+            ring_labels=[contour.ring_labels[r] for r in range(contour.n_rings)],
+        )
+    except InputError as exc:
+        raise SelectionError(
+            f"{contour.source}: the boundary layers' top is no contour "
+            f"({str(exc).removeprefix(contour.source + ': ')})"
+        ) from None
     return Stacks(
         spec,
         wall,

@@ -524,7 +524,7 @@ def mesh_with_layers(
     box = None
     if o.exterior:  # (the far field of the body without its layers, a lesser one)
         box = o.box if o.box is not None else far_field_box(contour, o.margin)
-    stacks = _layers.build(contour, spec, o.exterior, box)
+    stacks = _layers.build(contour, spec, o.exterior, box, o.max_nodes)
     core = mesh_contour(
         stacks.top,
         o.replace(layers=0),

@@ -1,0 +1,241 @@
+"""Boundary layers (``--layers``): stacks on the walls' normals, shortened never tangled."""
+
+from __future__ import annotations
+
+import json
+
+import meshio
+import numpy as np
+import pytest
+
+from deformesh_cli import layers, pipeline, quality
+from deformesh_cli.contour import make_contour
+from deformesh_cli.errors import OptionError, SelectionError
+from deformesh_cli.options import MeshOptions
+from deformesh_cli.readers import load_contour
+
+from .conftest import SAMPLES
+from .independent import contract_problems
+from .random_polygons import catalogue
+
+NACA = SAMPLES / "naca0012.csv"
+FAR = (-20.0, -20.0, 21.0, 20.0)
+NACA_LAYERS = {
+    "layers": 30,
+    "first_height": 1e-5,
+    "layer_growth": 1.15,
+    "exterior": True,
+    "box": FAR,
+}
+
+
+def _convex(points: np.ndarray, quads: np.ndarray) -> np.ndarray:
+    """Per quad: every corner turns left (numpy only)."""
+    q = points[quads]
+    e = np.roll(q, -1, axis=1) - q
+    f = np.roll(e, -1, axis=1)
+    return (e[:, :, 0] * f[:, :, 1] - e[:, :, 1] * f[:, :, 0] > 0).all(axis=1)
+
+
+def _cells_area(points: np.ndarray, triangles: np.ndarray, quads: np.ndarray) -> float:
+    total = 0.0
+    for cells in (triangles, quads):
+        x, y = points[cells, 0], points[cells, 1]
+        total += 0.5 * float((x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y).sum())
+    return total
+
+
+@pytest.fixture(scope="module")
+def naca():
+    c = load_contour(str(NACA))
+    return c, pipeline.mesh_contour(c, MeshOptions(**NACA_LAYERS))
+
+
+def test_naca_layers_keep_the_points_and_their_normals(naca):
+    c, res = naca
+    mesh, rep = res.mesh, res.report["layers"]
+    assert np.array_equal(mesh.points[: c.n], c.points)  # every contour point a node
+    assert _convex(mesh.points, mesh.quads).all()
+    x0, y0, x1, y1 = FAR
+    area = (x1 - x0) * (y1 - y0) - c.area
+    assert abs(_cells_area(mesh.points, mesh.triangles, mesh.quads) - area) < 1e-9 * area
+    assert rep["min_wall_angle"] >= 80.0
+    assert rep["fans"] >= 2  # (the blunt trailing edge's two corners)
+    # the first height within 1% of H at every stack that was not shortened
+    st = layers.build(c, layers.LayerSpec(30, 1e-5, 1.15), True, FAR)
+    full = st.share == 1.0
+    assert full.sum() > 0.9 * len(full)
+    first = st.nodes.reshape(len(st.wall), 30, 2)[:, 0] - c.points[st.wall]
+    h = np.hypot(first[:, 0], first[:, 1])
+    assert np.all(np.abs(h[full] - 1e-5) <= 0.01 * 1e-5)
+    # every layer node lies on its wall point's normal, in order
+    along = (st.nodes.reshape(len(st.wall), 30, 2) - c.points[st.wall][:, None]) @ np.array(
+        [[1.0, 0.0], [0.0, 1.0]]
+    )
+    cross = along[:, :, 0] * st.direction[:, None, 1] - along[:, :, 1] * st.direction[:, None, 0]
+    assert np.abs(cross).max() < 1e-12
+    dist = np.hypot(along[:, :, 0], along[:, :, 1])
+    assert (np.diff(dist, axis=1) > 0).all()
+
+
+def test_heights_grow_by_the_ratio():
+    h = layers.LayerSpec(5, 0.1, 1.5).heights()
+    assert h[0] == 0.0 and h[1] == pytest.approx(0.1)
+    assert np.allclose(np.diff(h)[1:] / np.diff(h)[:-1], 1.5)
+    assert np.allclose(layers.LayerSpec(4, 0.2, 1.0).heights(), [0, 0.2, 0.4, 0.6, 0.8])
+
+
+def test_a_square_body_gets_fans_at_its_corners_and_none_inside():
+    sq = make_contour(np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float))
+    out = layers.build(sq, layers.LayerSpec(3, 0.01), exterior=True, box=(-3, -3, 4, 4))
+    assert out.fans == 4
+    assert len(out.triangles) == 4 * 6  # (90 degrees in steps of at most 15: 6 each)
+    inside = layers.build(sq, layers.LayerSpec(3, 0.01), exterior=False)
+    assert inside.fans == 0 and len(inside.triangles) == 0
+    assert len(inside.wall) == 4
+
+
+def test_cells_are_counter_clockwise_and_convex_on_a_slot():
+    c = load_contour(str(SAMPLES / "slot.csv"))
+    res = pipeline.mesh_contour(c, MeshOptions(layers=10, first_height=0.002))
+    mesh = res.mesh
+    assert res.report["layers"]["shortened_stacks"] > 0  # (in the slot)
+    assert _convex(mesh.points, mesh.quads).all()
+    split = np.concatenate([mesh.triangles, mesh.quads[:, [0, 1, 2]], mesh.quads[:, [0, 2, 3]]])
+    assert contract_problems(mesh.points, split, c.points, c.ring) == []
+
+
+def test_two_bodies_close_together_shorten_and_mesh():
+    c = load_contour(str(SAMPLES / "two_bodies.csv"))
+    o = MeshOptions(layers=10, first_height=0.002, exterior=True, box=(-3, -2, 4, 2))
+    res = pipeline.mesh_contour(c, o)
+    assert res.report["layers"]["shortened_stacks"] > 0
+    assert _convex(res.mesh.points, res.mesh.quads).all()
+    # the stacks across the gap (0.1 wide) leave a fifth of it between their tops
+    st = layers.build(c, layers.LayerSpec(10, 0.002), True, (-3, -2, 4, 2))
+    full = float(layers.LayerSpec(10, 0.002).heights()[-1])
+    x, y = c.points[st.wall].T
+    at_gap = np.flatnonzero((np.abs(x - 0.55) < 0.06) & (np.abs(y) < 1e-9))
+    assert len(at_gap) == 2
+    assert (st.share[at_gap] * full <= 0.4 * 0.1 + 1e-12).all()
+
+
+@pytest.mark.parametrize(
+    "sample, args",
+    [("slot.csv", []), ("two_bodies.csv", ["--exterior", "--box=-3,-2,4,2"])],
+)
+def test_a_gap_under_twice_the_first_height_is_refused_in_one_line(run, tmp_path, sample, args):
+    out = tmp_path / "m.vtk"
+    r = run("all", SAMPLES / sample, *args, "--layers", 5, "--first-height", 0.06, "-o", out)
+    assert r.exit_code == 1
+    assert "do not fit near (" in r.stderr and "0.1 wide there" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def _random_outcomes(exterior: bool):
+    ok = refused = 0
+    for name, p, ring in catalogue(100):
+        starts = np.flatnonzero(np.r_[True, ring[1:] != ring[:-1]]).tolist()
+        c = make_contour(p, source=name, ring_starts=starts)
+        size = float(np.ptp(p, axis=0).max())
+        o = MeshOptions(layers=5, first_height=0.01 * size, exterior=exterior)
+        try:
+            res = pipeline.mesh_contour(c, o)
+        except SelectionError as exc:
+            assert "boundary layers of first height" in str(exc) and "do not fit" in str(exc)
+            refused += 1
+            continue
+        mesh = res.mesh
+        assert _convex(mesh.points, mesh.quads).all(), name
+        if not exterior:
+            split = np.concatenate(
+                [mesh.triangles, mesh.quads[:, [0, 1, 2]], mesh.quads[:, [0, 2, 3]]]
+            )
+            assert contract_problems(mesh.points, split, c.points, ring) == [], name
+        ok += 1
+    return ok, refused
+
+
+@pytest.mark.parametrize("exterior, counts", [(False, (37, 63)), (True, (38, 62))])
+def test_random_polygons_mesh_or_are_refused_where_layers_cannot_fit(exterior, counts):
+    """Each polygon meshes with the contract holding (every quad convex) or is refused in
+    one line naming where the layers cannot fit; none folds.  The counts are this
+    construction's on these polygons (their thin parts refuse): a change is a change of
+    the construction, to be looked at."""
+    assert _random_outcomes(exterior) == counts
+
+
+def test_layer_cells_tri_splits_every_quad(naca):
+    c, res = naca
+    tri = pipeline.mesh_contour(c, MeshOptions(**NACA_LAYERS, layer_cells="tri")).mesh
+    assert len(tri.quads) == 0
+    assert len(tri.triangles) == len(res.mesh.triangles) + 2 * len(res.mesh.quads)
+    quality.check_contract(tri, c, FAR)
+    assert np.array_equal(tri.points, res.mesh.points)
+
+
+@pytest.mark.parametrize("suffix", [".vtk", ".vtu", ".msh", ".su2", ".obj", ".ply"])
+def test_every_format_holds_the_quads(run, tmp_path, suffix):
+    out = tmp_path / f"m{suffix}"
+    args = ["--layers", 4, "--first-height", 0.01, "-o", out, "-q"]
+    assert run("all", SAMPLES / "circle.csv", *args).exit_code == 0
+    m = meshio.read(out)
+    kinds = {c.type: len(c.data) for c in m.cells}
+    assert kinds["quad"] == 4 * 64
+    assert np.array_equal(m.points[:64, :2], load_contour(str(SAMPLES / "circle.csv")).points)
+
+
+def test_msh_41_holds_the_quads(run, tmp_path):
+    out = tmp_path / "m.msh"
+    args = ["--layers", 4, "--first-height", 0.01, "--msh-version", "4.1", "-o", out, "-q"]
+    assert run("all", SAMPLES / "circle.csv", *args).exit_code == 0
+    kinds = {c.type: len(c.data) for c in meshio.read(out).cells}
+    assert kinds["quad"] == 4 * 64
+
+
+def test_json_reports_the_layers(run, tmp_path):
+    out = tmp_path / "m.vtk"
+    r = run("all", SAMPLES / "circle.csv", "--layers", 3, "--first-height", 0.01, "-o", out,
+            "--json", "-q")  # fmt: skip
+    rec = json.loads(r.stdout)
+    assert rec["quads"] == 3 * 64
+    assert rec["layers"]["stacks"] == 64 and rec["layers"]["fans"] == 0
+    assert rec["layers"]["first_height_max"] == pytest.approx(0.01)
+
+
+def test_the_same_bytes_twice(run, tmp_path):
+    a, b = tmp_path / "a.vtk", tmp_path / "b.vtk"
+    for out in (a, b):
+        run("all", NACA, "--exterior", "--layers", 8, "--first-height", 1e-4, "-o", out, "-q")
+    assert a.read_bytes() == b.read_bytes()
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--layers", 3], "--first-height"),
+        (["--layers", 3, "--first-height", 0.01, "--layers-on", "hole_9"], "hole_9"),
+        (["--layers", 3, "--first-height", 0.01, "--layer-growth", 0.5], "--layer-growth"),
+        (["--layers", 3, "--first-height", 0.01, "--max-h", 0.1], "--max-h"),
+    ],
+)
+def test_bad_layer_options_are_usage_errors(run, tmp_path, args, message):
+    out = tmp_path / "m.vtk"
+    r = run("all", SAMPLES / "circle.csv", *args, "-o", out)
+    assert r.exit_code == 2
+    assert message in r.stderr
+    assert not out.exists()
+
+
+def test_layers_on_picks_the_rings():
+    c = load_contour(str(SAMPLES / "two_bodies.csv"))
+    o = MeshOptions(layers=3, first_height=0.002, exterior=True, layers_on="contour_2")
+    res = pipeline.mesh_contour(c, o)
+    st = res.report["layers"]
+    assert st["stacks"] == 80  # (the second circle's points only)
+
+
+def test_growth_that_overflows_is_refused():
+    with pytest.raises(OptionError):
+        layers.LayerSpec(1000, 1.0, 1e10).heights()
