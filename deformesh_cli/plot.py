@@ -37,6 +37,9 @@ COLOURS = {
     "angle": ("smallest angle (degrees)", 60.0, np.linspace(0.0, 60.0, 11)),
 }
 
+#: The fill of quads (boundary layers), which the triangles' shading does not measure.
+QUAD_COLOUR = "#c8d8ec"
+
 #: Pixels across a triangle in view that the resolution aims at (110 to 300 dpi), so
 #: that its edges can be told apart.
 PIXELS_ACROSS = 6.0
@@ -100,6 +103,7 @@ def render(
     window: tuple[float, float, float, float] | None = None,
     colour: str = "radius-ratio",
     values: tuple[str, np.ndarray] | None = None,
+    quads: np.ndarray | None = None,
 ) -> bytes:
     """PNG bytes of the mesh.
 
@@ -110,7 +114,8 @@ def render(
     are drawn, thinner as more are in view (rasterised).  ``colour``: a key of
     :data:`COLOURS`; the histogram counts every triangle of the mesh.  ``values``
     (label, one number per triangle) shades by those instead, from their least to
-    their largest.
+    their largest.  ``quads`` (boundary layers) are drawn in one light colour with
+    their edges; the shading and the histogram are the triangles'.
     """
     plt = _pyplot()
     from matplotlib.collections import LineCollection
@@ -125,8 +130,10 @@ def render(
         base, top = float(value.min()), float(value.max())
         top = top if top > base else base + 1.0
         bins, cmap_name = np.linspace(base, top, 11), VALUES_CMAP
+    quads = np.zeros((0, 4), dtype=np.int64) if quads is None else quads
     if boundary is None:
-        boundary = geometry.boundary_edges(tri, len(points))
+        split = np.concatenate([tri, quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+        boundary = geometry.boundary_edges(split, len(points))
     lo, hi = points.min(axis=0), points.max(axis=0)
     whole = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
     view = whole if window is None else tuple(float(v) for v in window)
@@ -159,6 +166,22 @@ def render(
         ax.add_collection(
             LineCollection(points[edges], colors="#202020", linewidths=lw, rasterized=True)
         )
+    if len(quads):
+        from matplotlib.collections import PolyCollection
+
+        qc = points[quads]
+        qlo, qhi = qc.min(axis=1), qc.max(axis=1)
+        seen = (
+            (qhi[:, 0] >= view[0]) & (qlo[:, 0] <= view[2])
+            & (qhi[:, 1] >= view[1]) & (qlo[:, 1] <= view[3])
+        )  # fmt: skip
+        qlw = float(np.clip(0.4 * np.sqrt(4000.0 / max(seen.sum(), 1)), 36.0 / dpi, 0.4))
+        ax.add_collection(
+            PolyCollection(
+                qc[seen], facecolors=QUAD_COLOUR, edgecolors="#202020", linewidths=qlw,
+                rasterized=True,
+            )
+        )  # fmt: skip
     ax.add_collection(LineCollection(points[boundary], colors=BOUNDARY_COLOUR, linewidths=1.2))
     if contour_points is not None and len(contour_points) <= 5000:
         ax.plot(contour_points[:, 0], contour_points[:, 1], ".", color=BOUNDARY_COLOUR, ms=2.5)

@@ -317,9 +317,10 @@ def report(points: np.ndarray, tri: np.ndarray) -> dict:
 
 
 def mesh_for_contour(
-    points: np.ndarray, tri: np.ndarray, contour: Contour
+    points: np.ndarray, tri: np.ndarray, contour: Contour, quads: np.ndarray | None = None
 ) -> tuple[Mesh, Box | None]:
-    """Rebuild a :class:`Mesh` read from a file, for :func:`check_contract` against ``contour``.
+    """Rebuild a :class:`Mesh` read from a file (with its ``quads``, if any), for
+    :func:`check_contract` against ``contour``.
 
     The boundary is walked from each ring's first point; boundary edges left
     over mean an exterior mesh if they all lie on the mesh's bounding box (the
@@ -329,7 +330,8 @@ def mesh_for_contour(
     src, m, n = contour.source, contour.n, len(points)
     if n < m:
         raise ContractError(f"{src}: the mesh has {n} nodes, fewer than the contour's {m} points")
-    edges = boundary_edges(tri, n)
+    quads = np.zeros((0, 4), dtype=np.int64) if quads is None else quads
+    edges = boundary_edges(np.concatenate([tri, quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]]), n)
     nxt = np.full(n, -1, dtype=np.int64)
     starts, counts = np.unique(edges[:, 0], return_counts=True)
     if (counts > 1).any():
@@ -398,21 +400,122 @@ def mesh_for_contour(
         n_extra=n_extra,
         line_group=np.concatenate(group),
         groups=tuple(names),
+        quads=quads,
     )
     return mesh, box
 
 
+def layer_report(
+    points: np.ndarray, quads: np.ndarray, tri: np.ndarray, first: float | None = None
+) -> dict:
+    """What ``deformesh quality`` says of a mesh's quads (boundary layers, corners in
+    deformesh's order: 0 and 1 on the side nearer the wall, 3 above 0 and 2 above 1).
+
+    ``non_convex``: quads not strictly convex and counter-clockwise; the aspect
+    ratio (the longer over the shorter of a quad's mean widths along and across the
+    layers); per *stack* (a boundary node with one node above it; a fan's point,
+    which has several, is left out): its first height, its wall angle (between the
+    first layer edge and the two boundary edges at the node, 90 at best) and the
+    growth between its layers (each layer's height over the one below).  With
+    ``first``: how many first heights are within 1% of it, and the largest relative
+    difference."""
+    q = quads
+    n = len(points)
+    own = np.minimum(signed_areas(points, q[:, [0, 1, 2]]), signed_areas(points, q[:, [0, 2, 3]]))
+    other = np.minimum(signed_areas(points, q[:, [1, 2, 3]]), signed_areas(points, q[:, [1, 3, 0]]))
+    bad = np.minimum(own, other) <= 0
+
+    def dist(a, b):
+        d = points[a] - points[b]
+        return np.hypot(d[:, 0], d[:, 1])
+
+    along = 0.5 * (dist(q[:, 1], q[:, 0]) + dist(q[:, 2], q[:, 3]))
+    across = 0.5 * (dist(q[:, 3], q[:, 0]) + dist(q[:, 2], q[:, 1]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        aspect = np.maximum(along, across) / np.minimum(along, across)
+    # the stacks: each node's node above; a node with two is a fan's
+    pairs = np.unique(np.concatenate([q[:, [0, 3]], q[:, [1, 2]]]), axis=0)
+    lower, count = np.unique(pairs[:, 0], return_counts=True)
+    above = np.full(n, -1, dtype=np.int64)
+    single = lower[count == 1]
+    above[pairs[np.isin(pairs[:, 0], single), 0]] = pairs[np.isin(pairs[:, 0], single), 1]
+    lines = boundary_edges(np.concatenate([tri, q[:, [0, 1, 2]], q[:, [0, 2, 3]]]), n)
+    nxt = np.full(n, -1, dtype=np.int64)
+    prv = np.full(n, -1, dtype=np.int64)
+    nxt[lines[:, 0]], prv[lines[:, 1]] = lines[:, 1], lines[:, 0]
+    wall = np.flatnonzero((nxt >= 0) & (above >= 0))
+    out = {
+        "quads": int(len(q)),
+        "non_convex": int(bad.sum()),
+        "max_aspect_ratio": float(aspect.max()) if len(q) else None,
+        "mean_aspect_ratio": float(aspect.mean()) if len(q) else None,
+        "stacks": int(len(wall)),
+        "fans": int(np.count_nonzero(np.isin(lower[count > 1], lines[:, 0]))),
+    }
+    if not len(wall):
+        return out
+    h1 = dist(above[wall], wall)
+    up = points[above[wall]] - points[wall]
+
+    def angle(t: np.ndarray) -> np.ndarray:
+        c = np.abs((t * up).sum(axis=1)) / (np.hypot(t[:, 0], t[:, 1]) * h1)
+        return np.degrees(np.arccos(np.clip(c, 0.0, 1.0)))
+
+    wall_angle = np.minimum(
+        angle(points[nxt[wall]] - points[wall]), angle(points[prv[wall]] - points[wall])
+    )
+    growth_lo, growth_hi = np.inf, -np.inf
+    cur, below = above[wall], h1
+    while True:
+        go = above[cur] >= 0
+        if not go.any():
+            break
+        h = dist(above[cur[go]], cur[go])
+        ratio = h / below[go]
+        growth_lo, growth_hi = min(growth_lo, ratio.min()), max(growth_hi, ratio.max())
+        cur, below = above[cur[go]], h
+    out.update(
+        first_height_min=float(h1.min()),
+        first_height_max=float(h1.max()),
+        min_wall_angle=float(wall_angle.min()),
+        growth_min=None if growth_lo == np.inf else float(growth_lo),
+        growth_max=None if growth_hi == -np.inf else float(growth_hi),
+    )
+    if first is not None:
+        off = np.abs(h1 - first) / first
+        out["first_height_within_1pct"] = int(np.count_nonzero(off <= 0.01))
+        out["first_height_max_difference"] = float(off.max())
+    return out
+
+
 def assess(
-    points: np.ndarray, tri: np.ndarray, contour: Contour | None = None
+    points: np.ndarray,
+    tri: np.ndarray,
+    contour: Contour | None = None,
+    quads: np.ndarray | None = None,
+    first: float | None = None,
 ) -> tuple[dict, str | None]:
     """:func:`report` plus the contract verdict: ``(report, problem or None)``.
 
-    Folded triangles are a problem with or without a contour; with one, the
-    whole contract is checked (:func:`mesh_for_contour`, :func:`check_contract`).
+    Folded triangles (and quads not convex) are a problem with or without a contour;
+    with one, the whole contract is checked (:func:`mesh_for_contour`,
+    :func:`check_contract`).  ``quads``: the mesh's quads, measured by
+    :func:`layer_report` (``first``: the first height they were made for); the angle
+    measures are the triangles'.
     """
-    rep = report(points, tri)
+    quads = np.zeros((0, 4), dtype=np.int64) if quads is None else quads
+    rep = report(points, tri) if len(tri) else {"nodes": int(len(points)), "triangles": 0}
     problem = None
-    if rep["folded"]:  # checked first: a fold also breaks the boundary walk
+    if len(quads):
+        rep["layers"] = layer_report(points, quads, tri, first)
+        rep["area"] = float(
+            signed_areas(
+                points, np.concatenate([tri, quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+            ).sum()
+        )
+        if rep["layers"]["non_convex"]:
+            problem = f"{rep['layers']['non_convex']} quad(s) not convex"
+    if rep.get("folded"):  # checked first: a fold also breaks the boundary walk
         x, y = rep["smallest_area_at"]
         problem = (
             f"{rep['folded']} folded triangle(s); the worst, near ({x:.6g}, {y:.6g}), "
@@ -423,7 +526,7 @@ def assess(
         rep["contour"] = contour.source
         if problem is None:
             try:
-                mesh, box = mesh_for_contour(points, tri, contour)
+                mesh, box = mesh_for_contour(points, tri, contour, quads)
                 check_contract(mesh, contour, box)
                 rep["exterior"] = box is not None
             except ContractError as exc:

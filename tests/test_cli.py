@@ -34,12 +34,14 @@ def _mesh_ok(run, contour, out, *opts):
     c = load_contour(contour)
     from deformesh_cli.mesh import Mesh
 
+    line_block = [k for k, block in enumerate(m.cells) if block.type == "line"][0]
     mesh = Mesh(
         m.points[:, :2],
         m.cells_dict["triangle"],
         m.cells_dict["line"],
         c.n,
         rec["extra_boundary_nodes"],
+        line_group=np.asarray(m.cell_data["group"][line_block]) - 1,  # (the .msh tags)
     )
     check_contract(mesh, c)
     assert rec["nodes"] == len(m.points) and rec["triangles"] == len(mesh.triangles)

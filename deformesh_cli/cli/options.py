@@ -41,7 +41,8 @@ class BoxType(click.ParamType):
         return v
 
 
-def _positive(ctx, param, value):
+def positive(ctx, param, value):
+    """click callback: a finite number > 0 (or none given)."""
     if value is not None and not (value > 0 and math.isfinite(value)):
         raise click.BadParameter("must be a finite number > 0")
     return value
@@ -64,7 +65,7 @@ def click_option(f: dataclasses.Field, help: str | None = None) -> Callable:
         kw["type"] = click.Choice(meta["choices"], case_sensitive=f.name != "fmt")
         kw["show_default"] = f.default is not None
     elif kind == "positive":
-        kw.update(type=float, callback=_positive, show_default=f.default is not None)
+        kw.update(type=float, callback=positive, show_default=f.default is not None)
     elif kind == "float":
         kw["type"] = float
     elif kind == "count":

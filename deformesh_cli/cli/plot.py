@@ -72,7 +72,7 @@ def command(
     if window is not None and not (window[0] < window[2] and window[1] < window[3]):
         raise click.BadParameter("X0 < X1 and Y0 < Y1 are needed", param_hint="--window")
     files.check_outputs([output], [mesh_path, contour_path])
-    points, tri, data = formats.read_mesh(mesh_path, point_data=True)
+    points, tri, quads, data = formats.read_mesh(mesh_path, point_data=True, quads=True)
     cpts = None
     if contour_path is not None:
         c = load_contour(
@@ -89,7 +89,9 @@ def command(
         tri,
         output,
         contour_points=cpts,
-        title=f"{mesh_path}: {len(points)} nodes, {len(tri)} triangles",
+        title=f"{mesh_path}: {len(points)} nodes, {len(tri)} triangles"
+        + (f", {len(quads)} quads" if len(quads) else ""),
         window=window,
         colour=colour,
+        quads=quads,
     )

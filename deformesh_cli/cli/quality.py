@@ -8,7 +8,7 @@ from .. import files, formats, quality
 from ..options import MeshOptions
 from ..readers import load_contour
 from .errors import fail, handle_errors
-from .options import contour_reading, json_option, quiet_option, take
+from .options import contour_reading, json_option, positive, quiet_option, take
 
 
 @click.command("quality")
@@ -20,24 +20,37 @@ from .options import contour_reading, json_option, quiet_option, take
     default=None,
     help="Check the mesh contract against this contour (the file it was made from).",
 )
+@click.option(
+    "--first-height",
+    "first",
+    type=float,
+    callback=positive,
+    default=None,
+    metavar="H",
+    help="Boundary layers: count the stacks whose first height is within 1%% of H.",
+)
 @contour_reading()
 @json_option("Print the report as JSON.")
 @quiet_option
 @handle_errors
-def command(mesh_path: str, contour_path: str | None, as_json: bool, quiet: bool, **kwargs) -> None:
+def command(
+    mesh_path: str, contour_path: str | None, first, as_json: bool, quiet: bool, **kwargs
+) -> None:
     """Report a mesh's angles, areas and radius ratios; check the contract against a contour.
 
-    Exit 1 if a triangle is folded or (with --contour) the contract is broken; with
-    -q, that is all it says.
+    A mesh with quads (boundary layers) also gets their convexity, aspect ratios,
+    first heights, wall angles and growth.  Exit 1 if a triangle is folded, a quad
+    not convex, or (with --contour) the contract is broken; with -q, that is all it
+    says.
     """
     o = take(MeshOptions, kwargs)
-    points, tri = formats.read_mesh(mesh_path)
+    points, tri, quads = formats.read_mesh(mesh_path, quads=True)
     c = None
     if contour_path is not None:
         c = load_contour(
             contour_path, None, o.decimal, o.tolerance, o.element_id, o.resample, o.stroke
         )
-    rep, problem = quality.assess(points, tri, c)
+    rep, problem = quality.assess(points, tri, c, quads, first)
     rep = {"mesh": mesh_path, **rep}
     if not quiet:
         files.write_stdout(files.to_json(rep) if as_json else quality_text(rep))
@@ -47,9 +60,49 @@ def command(mesh_path: str, contour_path: str | None, as_json: bool, quiet: bool
 
 def quality_text(r: dict) -> str:
     """The report as text: sizes, angles, areas, radius ratios and their histogram."""
+    layers = r.get("layers")
+    quads = f", {layers['quads']} quads" if layers else ""
+    out = [
+        f"{r['mesh']}: {r['nodes']} nodes, {r['triangles']} triangles{quads}, area {r['area']:.6g}"
+    ]
+    if r["triangles"]:
+        out += _triangle_lines(r)
+    if layers:
+        out += _layer_lines(layers)
+    out.append(f"contract: {r['contract']}")
+    return "\n".join(out)
+
+
+def _layer_lines(q: dict) -> list[str]:
+    """The quads' lines of the report."""
+    out = [
+        f"quads: {q['non_convex']} not convex; aspect ratio mean {q['mean_aspect_ratio']:.3g}, "
+        f"max {q['max_aspect_ratio']:.3g}",
+    ]
+    if q["stacks"]:
+        out.append(
+            f"layers: {q['stacks']} stacks ({q['fans']} fan points left out); first height "
+            f"{q['first_height_min']:.3g}-{q['first_height_max']:.3g}; wall angle min "
+            f"{q['min_wall_angle']:.1f} deg"
+            + (
+                f"; growth {q['growth_min']:.3g}-{q['growth_max']:.3g}"
+                if q["growth_min"] is not None
+                else ""
+            )
+        )
+    if "first_height_within_1pct" in q:
+        worst = 100 * q["first_height_max_difference"]
+        out.append(
+            f"first height within 1% of H at {q['first_height_within_1pct']} of "
+            f"{q['stacks']} stacks (largest difference {worst:.2f}%)"
+        )
+    return out
+
+
+def _triangle_lines(r: dict) -> list[str]:
+    """The triangles' lines of the report."""
     x, y = r["smallest_area_at"]
     out = [
-        f"{r['mesh']}: {r['nodes']} nodes, {r['triangles']} triangles, area {r['area']:.6g}",
         f"angles: min {r['min_angle']:.2f} deg, max {r['max_angle']:.2f} deg; "
         f"{r['angles_below_20']} triangle(s) with an angle below 20 deg",
         f"smallest signed area: {r['smallest_area']:.3g} at ({x:.6g}, {y:.6g}); "
@@ -60,5 +113,4 @@ def quality_text(r: dict) -> str:
     top = max(h["counts"]) or 1
     for lo, hi, k in zip(h["edges"], h["edges"][1:], h["counts"]):
         out.append(f"  {lo:.1f}-{hi:.1f} {k:9d} {'#' * round(40 * k / top)}".rstrip())
-    out.append(f"contract: {r['contract']}")
-    return "\n".join(out)
+    return out

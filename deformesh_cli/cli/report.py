@@ -57,8 +57,10 @@ def finish(
             mesh.triangles,
             boundary=mesh.lines,
             contour_points=mesh.points[: mesh.n_contour],
-            title=f"{output}: {mesh.n_nodes} nodes, {len(mesh.triangles)} triangles",
+            title=f"{output}: {mesh.n_nodes} nodes, {len(mesh.triangles)} triangles"
+            + (f", {len(mesh.quads)} quads" if len(mesh.quads) else ""),
             window=plot.zoom_window(mesh.points[: mesh.n_contour]),  # (as plot's --zoom)
+            quads=mesh.quads,
         )
     if picture is None:
         formats.write_mesh(mesh, output, fmt, msh_version)

@@ -1,4 +1,4 @@
-"""Reading a mesh file back (any format meshio reads): its 2D points and triangles."""
+"""Reading a mesh file back (any format meshio reads): its 2D points, triangles and quads."""
 
 from __future__ import annotations
 
@@ -90,20 +90,22 @@ def _inflated(header: bytes, size: int, code: str) -> int:
     return max(blocks - 1, 0) * block + (last or block) if blocks else 0
 
 
-def read_mesh(path: str, fmt: str | None = None, *, point_data: bool = False):
-    """A mesh file's 2D points and triangles (and with ``point_data``, its point data
-    as a third item: a dict of arrays, one row a node).
+def read_mesh(path: str, fmt: str | None = None, *, point_data: bool = False, quads: bool = False):
+    """A mesh file's 2D points and triangles (with ``quads``, then its quads; with
+    ``point_data``, then its point data: a dict of arrays, one row a node).
 
     z must be 0 (the meshes are planar), and every coordinate finite and within
     :data:`~deformesh_cli.contour.MAX_COORDINATE`.  meshio prints and exits on some bad
     files; both become one-line :class:`~deformesh_cli.errors.ReadError` messages.
+    Without ``quads``, a file with quads is an :class:`InputError` (the command works
+    on triangles).
     """
     m = read_meshio(path, fmt)
-    pts, tri = checked(m, path)
+    out = checked(m, path, quads=quads)
     if point_data:
-        data = {k: np.asarray(v) for k, v in m.point_data.items() if len(v) == len(pts)}
-        return pts, tri, data
-    return pts, tri
+        data = {k: np.asarray(v) for k, v in m.point_data.items() if len(v) == len(out[0])}
+        return (*out, data)
+    return out
 
 
 def contour_nodes(point_data: dict, n: int, path: str) -> np.ndarray | None:
@@ -124,10 +126,18 @@ def contour_nodes(point_data: dict, n: int, path: str) -> np.ndarray | None:
     return v >= 0
 
 
-def checked(m, path: str) -> tuple[np.ndarray, np.ndarray]:
-    """A ``meshio.Mesh``'s 2D points and triangles, checked as :func:`read_mesh` says."""
+def checked(m, path: str, quads: bool = False):
+    """A ``meshio.Mesh``'s 2D points and triangles (and with ``quads``, its quads),
+    checked as :func:`read_mesh` says."""
     tri = [c.data for c in m.cells if c.type == "triangle"]
-    if not tri:
+    quad = [c.data for c in m.cells if c.type == "quad"]
+    if quad and not quads:
+        k = sum(len(q) for q in quad)
+        raise InputError(
+            f"{path}: the mesh has {k:,} quads (boundary layers); this command works on "
+            "triangles: write the mesh with --layer-cells tri"
+        )
+    if not tri and not quad:
         kinds = sorted({c.type for c in m.cells}) or ["none"]
         raise InputError(f"{path}: no triangles in the mesh (cells: {', '.join(kinds)})")
     pts = np.asarray(m.points, dtype=np.float64)
@@ -145,7 +155,11 @@ def checked(m, path: str) -> tuple[np.ndarray, np.ndarray]:
             f"{path}: node {k} is at ({float(pts[k, 0]):g}, {float(pts[k, 1]):g}): "
             f"coordinates must be finite and within {MAX_COORDINATE:g}"
         )
-    tri = np.concatenate(tri).astype(np.int64)
-    if tri.min() < 0 or tri.max() >= len(pts):
-        raise InputError(f"{path}: a triangle refers to a node that does not exist")
+    tri = np.concatenate(tri).astype(np.int64) if tri else np.zeros((0, 3), np.int64)
+    quad = np.concatenate(quad).astype(np.int64) if quad else np.zeros((0, 4), np.int64)
+    for cells, name in ((tri, "triangle"), (quad, "quad")):
+        if len(cells) and (cells.min() < 0 or cells.max() >= len(pts)):
+            raise InputError(f"{path}: a {name} refers to a node that does not exist")
+    if quads:
+        return np.ascontiguousarray(pts), tri, quad
     return np.ascontiguousarray(pts), tri
