@@ -239,3 +239,129 @@ def test_layers_on_picks_the_rings():
 def test_growth_that_overflows_is_refused():
     with pytest.raises(OptionError):
         layers.LayerSpec(1000, 1.0, 1e10).heights()
+
+
+@pytest.fixture(scope="module")
+def circle_files(tmp_path_factory):
+    """The circle with 4 layers, quads and split, in .msh 2.2, 4.1 and .vtu/.vtk."""
+    from deformesh_cli import formats
+
+    d = tmp_path_factory.mktemp("layers")
+    c = load_contour(str(SAMPLES / "circle.csv"))
+    out = {}
+    for cells in layers.LAYER_CELLS:
+        mesh = pipeline.mesh_contour(
+            c, MeshOptions(layers=4, first_height=0.01, layer_cells=cells)
+        ).mesh
+        for name, version in (("m22.msh", "2.2"), ("m41.msh", "4.1"), ("m.vtu", None),
+                              ("m.vtk", None), ("m.su2", None)):  # fmt: skip
+            path = d / f"{cells}_{name}"
+            formats.write_mesh(mesh, str(path), msh_version=version or "2.2")
+            out[cells, name] = (path, mesh)
+    return out
+
+
+@pytest.mark.parametrize("name", ["m22.msh", "m41.msh"])
+def test_gmsh_reads_the_quads_and_the_groups(circle_files, name):
+    import gmsh  # the test extra installs it
+
+    path, mesh = circle_files["quad", name]
+    gmsh.initialize()
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.open(str(path))
+        kinds, tags, _ = gmsh.model.mesh.getElements(2)
+        count = dict(zip(kinds.tolist(), [len(t) for t in tags]))
+        names = {gmsh.model.getPhysicalName(d, t) for d, t in gmsh.model.getPhysicalGroups()}
+    finally:
+        gmsh.finalize()
+    assert count == {2: len(mesh.triangles), 3: len(mesh.quads)}
+    assert {"contour", "domain"} <= names
+
+
+@pytest.mark.parametrize("name", ["m22.msh", "m41.msh", "m.vtu"])
+def test_scikit_fem_reads_the_split_layers_with_their_boundary(circle_files, name):
+    import skfem
+
+    path, mesh = circle_files["tri", name]
+    m = skfem.MeshTri.load(str(path))
+    assert m.nelements == len(mesh.triangles)
+    assert np.array_equal(m.p.T, mesh.points)
+    assert "contour" in m.boundaries and len(m.boundaries["contour"]) == 64
+
+
+@pytest.mark.parametrize("name", ["m.vtu", "m.vtk"])
+def test_vtk_reads_both_cell_types(circle_files, name):
+    import vtk
+
+    path, mesh = circle_files["quad", name]
+    r = (
+        vtk.vtkXMLUnstructuredGridReader()
+        if name.endswith("vtu")
+        else (vtk.vtkUnstructuredGridReader())
+    )
+    r.SetFileName(str(path))
+    r.Update()
+    g = r.GetOutput()
+    kinds = [g.GetCellType(k) for k in range(g.GetNumberOfCells())]
+    assert kinds.count(vtk.VTK_QUAD) == len(mesh.quads)
+    assert kinds.count(vtk.VTK_TRIANGLE) == len(mesh.triangles)
+
+
+def test_meshio_reads_the_su2_quads(circle_files):
+    path, mesh = circle_files["quad", "m.su2"]
+    kinds = {c.type: len(c.data) for c in meshio.read(path).cells}
+    assert kinds["quad"] == len(mesh.quads) and kinds["triangle"] == len(mesh.triangles)
+
+
+def test_quality_measures_the_layers_and_checks_the_contract(run, circle_files):
+    path, mesh = circle_files["quad", "m.vtu"]
+    r = run("quality", path, "--contour", SAMPLES / "circle.csv", "--first-height", 0.01,
+            "--json")  # fmt: skip
+    assert r.exit_code == 0, r.stderr
+    rep = json.loads(r.stdout)
+    lay = rep["layers"]
+    assert rep["contract"] == "ok" and lay["quads"] == len(mesh.quads)
+    assert lay["non_convex"] == 0 and lay["stacks"] == 64 and lay["fans"] == 0
+    assert lay["first_height_within_1pct"] == 64
+    assert lay["growth_min"] == pytest.approx(1.2) and lay["growth_max"] == pytest.approx(1.2)
+    assert lay["min_wall_angle"] == pytest.approx(90.0 - 360.0 / 64 / 2)  # (the bisector)
+    total = _cells_area(mesh.points, mesh.triangles, mesh.quads)
+    assert rep["area"] == pytest.approx(total, rel=1e-12)
+    text = run("quality", path).stdout
+    assert "quads: 0 not convex" in text and "layers: 64 stacks" in text
+
+
+def test_quality_finds_a_quad_that_is_not_convex(run, tmp_path, circle_files):
+    from deformesh_cli import formats
+
+    _, mesh = circle_files["quad", "m.vtu"]
+    bent = mesh.points.copy()
+    q = mesh.quads[0]
+    bent[q[2]] = bent[q[0]] + 0.01 * (bent[q[2]] - bent[q[0]])  # (corner 2 pulled in past 0-1-3)
+    path = tmp_path / "bent.vtu"
+    from dataclasses import replace
+
+    formats.write_mesh(replace(mesh, points=bent), str(path))
+    r = run("quality", path)
+    assert r.exit_code == 1 and "not convex" in r.stderr
+
+
+def test_plot_draws_the_quads(run, tmp_path, circle_files):
+    path, _ = circle_files["quad", "m.vtu"]
+    png = tmp_path / "m.png"
+    assert run("plot", path, "-o", png).exit_code == 0
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize("command", ["move", "adapt"])
+def test_commands_on_triangles_refuse_quads_in_one_line(run, tmp_path, circle_files, command):
+    path, _ = circle_files["quad", "m.vtu"]
+    if command == "move":
+        args = ["move", path, SAMPLES / "circle.csv", "--out-dir", tmp_path / "o"]
+    else:
+        args = ["adapt", path, "-o", tmp_path / "a.vtu", "--monitor", "1 + x*x"]
+    r = run(*args)
+    assert r.exit_code == 1
+    assert "quad" in r.stderr and "--layer-cells tri" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1

@@ -323,8 +323,12 @@ def _read(path: str):
     m = read_meshio(path)
     others = sorted({c.type for c in m.cells} - {"triangle", "line", "vertex"})
     if others:
+        hint = (
+            " (boundary layers: write the mesh with --layer-cells tri)" if "quad" in others else ""
+        )
         raise InputError(
-            f"{path}: cells other than triangles ({', '.join(others)}); adapt moves triangle meshes"
+            f"{path}: cells other than triangles ({', '.join(others)}); adapt moves triangle "
+            f"meshes{hint}"
         )
     return m
 
