@@ -62,6 +62,8 @@ bench: $(VENV)/.installed-bench
 	$(BIN)/python benchmarks/run_thin.py --repeat 3
 	$(BIN)/python benchmarks/run_startup.py --repeat 9
 	$(BIN)/python benchmarks/run_corpus_processes.py --repeat 3
+	$(BIN)/python benchmarks/run_layers.py --repeat 3
+	$(BIN)/python benchmarks/run_layers_solver.py
 
 # only the side-by-side comparison with Triangle and Gmsh (about 25 minutes)
 bench-peers: $(VENV)/.installed-bench

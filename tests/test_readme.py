@@ -393,3 +393,35 @@ def test_limits_peer_numbers_are_the_benchmark_file():
     ]
     top = sorted(coast, reverse=True)[:4]
     assert f"the four largest coastlines {top[-1]:.1f} to {top[0]:.1f} times" in text
+
+
+def _section_rows(name: str, width: int) -> list[list[str]]:
+    """The table rows of ``width`` cells in RESULTS.md's section ``name``."""
+    results = (ROOT / "benchmarks" / "RESULTS.md").read_text()
+    part = results.split(f"<!-- section:{name} -->")[1].split(f"<!-- end:{name} -->")[0]
+    rows = [[c.strip() for c in row.strip().strip("|").split("|")] for row in part.splitlines()]
+    return [r for r in rows if len(r) == width and not r[0].startswith("---")]
+
+
+def test_layer_numbers_in_the_docs_are_the_benchmark_file():
+    """docs/method.md's comparison with Gmsh and its solver errors are the rows ``make
+    bench`` last wrote ("layers", "layers-solver")."""
+    method = " ".join(DOCS["method.md"].split())
+    peer = {r[0]: r for r in _section_rows("layers", 12)}
+    ours, gmsh = peer["deformesh"], peer["gmsh"]
+    assert (
+        f"deformesh {ours[1]} s, Gmsh {gmsh[1]} s as whole processes; both keep the "
+        f"{ours[6].split(' of ')[1]} points, Gmsh adds {gmsh[7]} wall nodes where it splits "
+        f"edges; {ours[5]} quads and {ours[4]} triangles against {gmsh[5]} and {gmsh[4]}; "
+        f"smallest wall angle {ours[9]} degrees against {gmsh[9]}; largest aspect ratio "
+        f"{ours[11]} against {gmsh[11]}."
+    ) in method
+    assert ours[7] == "0" and ours[6] == gmsh[6]
+    solved = {r[0]: r for r in _section_rows("layers-solver", 6)}
+    layers, plain = solved["with layers"], solved["without layers"]
+    assert (
+        f"15 layers from 0.002 give an L2 error of {layers[4]} and an H1 seminorm error of "
+        f"{layers[5]} at {layers[2]} nodes, against {plain[4]} and {plain[5]} without layers "
+        f"at {plain[2]} nodes."
+    ) in method
+    assert float(layers[4]) < float(plain[4]) and float(layers[5]) < float(plain[5])
