@@ -365,3 +365,32 @@ def test_commands_on_triangles_refuse_quads_in_one_line(run, tmp_path, circle_fi
     assert r.exit_code == 1
     assert "quad" in r.stderr and "--layer-cells tri" in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_a_top_whose_ear_would_leave_a_needle_meshes():
+    """sonar.svg (simple-icons) with layers: its layers' top has a sharp corner whose
+    ear, cut, leaves a corner of 4 degrees that is no ear; the corner is kept, and the
+    mesh is made."""
+    from .conftest import DATA
+
+    c = load_contour(str(DATA / "layers" / "sonar.svg"))
+    size = float(np.ptp(c.points, axis=0).max())
+    res = pipeline.mesh_contour(c, MeshOptions(layers=10, first_height=1e-3 * size))
+    assert res.report["contract"] == "ok"
+    assert _convex(res.mesh.points, res.mesh.quads).all()
+
+
+def test_stacks_that_cross_stop_half_way_to_the_crossing():
+    """Two stacks whose segments cross (not neighbours: a wedge's two sides) each reach at
+    most half the way to the crossing; stacks that do not cross, and a fan's (one wall
+    point), keep their lengths."""
+    start = np.array([[0.0, 0.0], [2.0, 0.0], [5.0, 0.0], [5.0, 0.0]])
+    d = np.array([[0.6, 0.8], [-0.6, 0.8], [0.0, 1.0], [0.6, 0.8]])
+    d = d / np.hypot(d[:, 0], d[:, 1])[:, None]
+    bound = np.array([3.0, 3.0, 3.0, 3.0])
+    out = layers._crossing_bounds(start, d, bound, np.array([0, 1, 2, 2]))
+    # the first two meet at (1, 4/3), 5/3 along each
+    assert out[0] == pytest.approx(0.5 * 5.0 / 3.0) and out[1] == pytest.approx(0.5 * 5.0 / 3.0)
+    assert out[2] == 3.0 and out[3] == 3.0
+    short = layers._crossing_bounds(start, d, np.array([1.0, 1.0, 3.0, 3.0]), np.arange(4))
+    assert short[0] == 1.0 and short[1] == 1.0  # (they end before they meet)

@@ -1159,9 +1159,12 @@ def cut_ears(contour: Contour, exterior: bool = False):
     contour's points has a triangle at P, and one on each side, no better than
     those: the ear is within that share of the best there), and no other point lies in
     the closed triangle A P B (so no contour edge crosses the chord and the ear
-    lies in the domain).  Cuts repeat on the points left (sharpest first) while a
-    ring keeps more than three points.  A needle the cells could follow only by
-    thousands of cells across is one triangle, as in any mesh of those points."""
+    lies in the domain), and the corners the cut leaves at A and B are at least
+    :data:`EAR_SHARE` of P's unless such a corner is an ear to cut in turn (a needle
+    is cut tip by tip; a cut never leaves a far sharper needle it cannot cut).  Cuts
+    repeat on the points left (sharpest first) while a ring keeps more than three
+    points.  A needle the cells could follow only by thousands of cells across is one
+    triangle, as in any mesh of those points."""
     import heapq
 
     p = contour.points
@@ -1190,7 +1193,28 @@ def cut_ears(contour: Contour, exterior: bool = False):
             rooms[u, v] = float(edge_angles(p, np.array([[u, v]]), geom)[0])
         return rooms[u, v]
 
-    def candidate(k: int) -> float | None:
+    def _corner(k: int, a: int, b: int) -> float:
+        """The angle at ``k`` on the domain's side between ``a`` before it and ``b``
+        after it (degrees)."""
+        u, v = p[a] - p[k], p[b] - p[k]
+        return float(np.degrees(np.arctan2(u[1] * v[0] - u[0] * v[1], u @ v)) % 360.0)
+
+    def _ear_after(k: int, j: int) -> bool:
+        """Whether ``j`` (a neighbour of ``k``) is an ear once ``k`` is cut (one step
+        ahead: ``j``'s own neighbours are not looked at)."""
+        a, b = int(prv[k]), int(nxt[k])
+        old_next, old_prev = nxt[a], prv[b]
+        nxt[a], prv[b] = b, a
+        alive[k] = False
+        left[contour.ring[k]] -= 1
+        try:
+            return candidate(j, look=False) is not None
+        finally:
+            nxt[a], prv[b] = old_next, old_prev
+            alive[k] = True
+            left[contour.ring[k]] += 1
+
+    def candidate(k: int, look: bool = True) -> float | None:
         a, b = prv[k], nxt[k]
         u, v = p[a] - p[k], p[b] - p[k]
         cross = u[1] * v[0] - u[0] * v[1]  # (b to a, counter-clockwise about k)
@@ -1212,6 +1236,11 @@ def cut_ears(contour: Contour, exterior: bool = False):
             if not (side < THIN_ANGLE and min(rest) >= EAR_SHARE * side):
                 return None
             ang = min(rest)
+        # the corners the cut leaves at a and b: none under EAR_SHARE of the one it takes
+        # away, but for one that is an ear to cut in turn (a needle is cut tip by tip)
+        for j, after in ((a, _corner(a, prv[a], b)), (b, _corner(b, a, nxt[b]))):
+            if after < EAR_SHARE * ang and not (look and _ear_after(k, j)):
+                return None
         ear = shapely.Polygon(p[[a, k, b]])
         near = tree.query(ear, predicate="intersects")
         near = near[alive[near]]
