@@ -177,6 +177,54 @@ def _meet_bounds(a: np.ndarray, da: np.ndarray, b: np.ndarray, db: np.ndarray) -
     return np.where((den != 0) & (u > 0), u, np.inf)
 
 
+def _thickness(p, wall, d, per_ring, arc_all, rings, full: float, near) -> np.ndarray:
+    """Each stack's thickness: the full one, lowered by the neighbours' rule, the
+    domain's width by it (``near``, per contour point), the crossings, then smoothly
+    along each ring."""
+    bound = np.full(len(wall), full)
+    for r in rings:  # converging neighbours
+        s = per_ring[r]
+        nxt = np.roll(s, -1)
+        a, b = p[wall[s]], p[wall[nxt]]
+        differ = wall[s] != wall[nxt]
+        u = np.where(differ, _meet_bounds(a, d[s], b, d[nxt]), np.inf)
+        v = np.where(differ, _meet_bounds(b, d[nxt], a, d[s]), np.inf)
+        bound[s] = np.minimum(bound[s], MEET_SHARE * u)
+        bound[nxt] = np.minimum(bound[nxt], MEET_SHARE * v)
+    bound = np.minimum(bound, GAP_SHARE * near[wall])
+    # any two stacks that cross (a wedge's two sides, a bend's stacks beyond neighbours)
+    bound = _crossing_bounds(p[wall], d, bound, wall)
+    thick = np.empty(len(wall))
+    for r, (arc_r, per) in zip(rings, arc_all):
+        s = per_ring[r]
+        thick[s] = _smooth(bound[s], arc_r, per)
+    return thick
+
+
+def _crossing_bounds(
+    start: np.ndarray, d: np.ndarray, bound: np.ndarray, wall: np.ndarray
+) -> np.ndarray:
+    """``bound`` lowered where two stacks (from ``start`` along ``d``, ``bound`` long;
+    a fan's, which share their wall point, aside) cross: each then reaches at most
+    :data:`MEET_SHARE` of the way to the crossing, so no two cross.  The pairs come
+    from a tree of the segments (shapely's STRtree), not from all pairs."""
+    import shapely
+
+    ends = start + bound[:, None] * d
+    segs = shapely.linestrings(np.stack([start, ends], axis=1))
+    i, j = shapely.STRtree(segs).query(segs, predicate="intersects")
+    keep = (i < j) & (wall[i] != wall[j])
+    i, j = i[keep], j[keep]
+    if not len(i):
+        return bound
+    u = _meet_bounds(start[i], d[i], start[j], d[j])
+    v = _meet_bounds(start[j], d[j], start[i], d[i])
+    out = bound.copy()
+    np.minimum.at(out, i, np.where(np.isfinite(u), MEET_SHARE * u, out[i]))
+    np.minimum.at(out, j, np.where(np.isfinite(v), MEET_SHARE * v, out[j]))
+    return out
+
+
 def _smooth(bound: np.ndarray, arc: np.ndarray, perimeter: float) -> np.ndarray:
     """The least over the ring's stacks ``j`` of ``bound[j] + SLOPE d(i, j)``, ``d``
     along the ring either way round (``arc``: the stacks' places, non-decreasing)."""
@@ -284,18 +332,16 @@ def build(
         )
     m = contour.n
     starts = np.asarray(contour.starts)
-    owner_all, dir_all, ring_of, arc_all = [], [], [], []
-    fans = 0
+    rings = list(rings)
+    owner_all, dir_all, arc_all = [], [], []
     per_ring: list = [None] * contour.n_rings
     for r in rings:
         order = _domain_order(contour, r, exterior)
-        owner, dirs, f = _directions(p[order])
-        fans += f
+        owner, dirs, _ = _directions(p[order])
         start = len(owner_all)
         per_ring[r] = np.arange(start, start + len(owner))
         owner_all.extend(order[owner].tolist())
         dir_all.extend(dirs)
-        ring_of.extend([r] * len(owner))
         q = p[order]
         seg = np.hypot(*(np.roll(q, -1, axis=0) - q).T)
         arc_all.append((np.concatenate([[0.0], np.cumsum(seg)[:-1]])[owner], float(seg.sum())))
@@ -306,17 +352,6 @@ def build(
         )
     wall = np.asarray(owner_all, dtype=np.int64)
     d = np.asarray(dir_all, dtype=np.float64).reshape(-1, 2)
-    bound = np.full(len(wall), full)
-    # converging neighbours
-    for r in rings:
-        s = per_ring[r]
-        nxt = np.roll(s, -1)
-        a, b = p[wall[s]], p[wall[nxt]]
-        differ = wall[s] != wall[nxt]
-        u = np.where(differ, _meet_bounds(a, d[s], b, d[nxt]), np.inf)
-        v = np.where(differ, _meet_bounds(b, d[nxt], a, d[s]), np.inf)
-        bound[s] = np.minimum(bound[s], MEET_SHARE * u)
-        bound[nxt] = np.minimum(bound[nxt], MEET_SHARE * v)
     # other parts of the contour, across the domain, and the box
     near, (width, x, y) = _clearances(
         contour, exterior, box, np.unique(wall), full / GAP_SHARE, spec.first
@@ -328,12 +363,12 @@ def build(
             "the first height; give a smaller --first-height, or leave that ring out "
             "(--layers-on)"
         )
-    bound = np.minimum(bound, GAP_SHARE * near[wall])
-    # smoothly along each ring
-    thick = np.empty(len(wall))
-    for r, (arc_r, per) in zip(rings, arc_all):
-        s = per_ring[r]
-        thick[s] = _smooth(bound[s], arc_r, per)
+    thick = _thickness(p, wall, d, per_ring, arc_all, rings, full, near)
+    fans = int(sum(
+        np.count_nonzero((wall[per_ring[r]] == np.roll(wall[per_ring[r]], -1))
+                         & (wall[per_ring[r]] != np.roll(wall[per_ring[r]], 1)))
+        for r in rings
+    ))  # fmt: skip
     share = np.minimum(thick / full, 1.0)
     # nodes and cells
     n_layers = spec.layers
@@ -367,15 +402,12 @@ def build(
     try:  # (validated as any contour: the bounds above keep it simple and apart)
         top_contour = make_contour(
             np.concatenate(top_rings),
-            source=contour.source,
+            source=f"{contour.source} (the boundary layers' top)",
             ring_starts=np.cumsum([0] + [len(x) for x in top_rings[:-1]]).tolist(),
             ring_labels=[contour.ring_labels[r] for r in range(contour.n_rings)],
         )
-    except InputError as exc:
-        raise SelectionError(
-            f"{contour.source}: the boundary layers' top is no contour "
-            f"({str(exc).removeprefix(contour.source + ': ')})"
-        ) from None
+    except InputError as exc:  # (its messages name it: the file, then "the ... top")
+        raise SelectionError(str(exc)) from None
     return Stacks(
         spec,
         wall,

@@ -519,15 +519,21 @@ def mesh_with_layers(
 ) -> MeshResult:
     """:func:`mesh_contour` with boundary layers (:mod:`.layers`): the stacks grown
     from the walls' points, the rest of the domain meshed as a contour of their top
-    nodes (with the options' other fields), the two joined and checked."""
+    nodes (with the options' other fields, extra boundary nodes taken out on any
+    grid), the two joined and checked."""
     spec = layer_spec(contour, o)
+    if o.merge_extra == "keep":
+        raise OptionError(
+            "--merge-extra keep would leave grid nodes between the layers' top nodes; "
+            "the layers need them taken out (merge, which --layers does on any grid)"
+        )
     box = None
     if o.exterior:  # (the far field of the body without its layers, a lesser one)
         box = o.box if o.box is not None else far_field_box(contour, o.margin)
     stacks = _layers.build(contour, spec, o.exterior, box, o.max_nodes)
     core = mesh_contour(
         stacks.top,
-        o.replace(layers=0),
+        o.replace(layers=0, merge_extra="merge"),  # (the top nodes its only boundary nodes)
         callback=callback,
         size_function=size_function,
         seconds=seconds,
