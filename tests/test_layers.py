@@ -218,6 +218,11 @@ def test_the_same_bytes_twice(run, tmp_path):
         (["--layers", 3, "--first-height", 0.01, "--layers-on", "hole_9"], "hole_9"),
         (["--layers", 3, "--first-height", 0.01, "--layer-growth", 0.5], "--layer-growth"),
         (["--layers", 3, "--first-height", 0.01, "--max-h", 0.1], "--max-h"),
+        (["--layers", 3, "--first-height", 0.01, "--merge-extra", "keep"], "--merge-extra"),
+        (["--layers", 1001, "--first-height", 0.01], "--layers"),
+        (["--layers", 3, "--first-height", "nan"], "--first-height"),
+        (["--layers", 3, "--first-height", 0.01, "--layer-growth", "inf"], "--layer-growth"),
+        (["--layers", 400, "--first-height", 0.01, "--layer-growth", 10], "overflows"),
     ],
 )
 def test_bad_layer_options_are_usage_errors(run, tmp_path, args, message):
@@ -394,3 +399,15 @@ def test_stacks_that_cross_stop_half_way_to_the_crossing():
     assert out[2] == 3.0 and out[3] == 3.0
     short = layers._crossing_bounds(start, d, np.array([1.0, 1.0, 3.0, 3.0]), np.arange(4))
     assert short[0] == 1.0 and short[1] == 1.0  # (they end before they meet)
+
+
+@pytest.mark.parametrize("grid", [["--h", "0.05"], ["--grid", "uniform"]])
+def test_layers_on_the_uniform_grid_take_the_extra_nodes_out(run, tmp_path, grid):
+    """The paper's grid keeps extra boundary nodes; under layers they would sit between
+    the top nodes, so the core takes them out: the layers' top is its boundary."""
+    out = tmp_path / "m.vtu"
+    r = run("all", SAMPLES / "circle.csv", "--layers", 3, "--first-height", 0.01, *grid,
+            "-o", out, "--json", "-q")  # fmt: skip
+    assert r.exit_code == 0, r.stderr
+    rec = json.loads(r.stdout)
+    assert rec["contract"] == "ok" and rec["extra_boundary_nodes"] == 0 and rec["quads"] == 192
