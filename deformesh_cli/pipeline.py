@@ -353,7 +353,10 @@ def run_triangulate(
             recovered += more
     # the interior taken to the size field the grid was laid for (none on the uniform
     # grid; none with a size function, which the deformation follows)
-    sizes = None if size is not None else sel.size_field(contour, o.growth, o.max_h, o.max_nodes)
+    sizes = None
+    if size is None:  # (an exterior mesh's box as the selection saw it)
+        box = _construct.exterior_box(contour, o.box, o.margin) if sel.exterior else None
+        sizes = sel.size_field(contour, o.growth, o.max_h, o.max_nodes, box)
     coarsened = 0
     if sizes is not None:
         mesh, coarsened = _coarsen.coarsen(mesh, sizes)
@@ -521,6 +524,23 @@ def mesh_with_layers(
     from the walls' points, the rest of the domain meshed as a contour of their top
     nodes (with the options' other fields, extra boundary nodes taken out on any
     grid), the two joined and checked."""
+    stacks = grow_layers(contour, o)
+    core = mesh_contour(
+        stacks.top,
+        core_options(o),
+        callback=callback,
+        size_function=size_function,
+        seconds=seconds,
+    )
+    mesh, report = join_layers(contour, stacks, core.mesh, core.report, core.selection, o)
+    return MeshResult(mesh, core.selection, core.deform_stats, report)
+
+
+@names_its_file
+def grow_layers(contour: Contour, o: MeshOptions) -> _layers.Stacks:
+    """The boundary layers ``o`` asks for on ``contour`` (:func:`.layers.build`; an
+    exterior mesh's stacks bounded by its far-field box, that of the body without its
+    layers when none is given)."""
     spec = layer_spec(contour, o)
     if o.merge_extra == "keep":
         raise OptionError(
@@ -528,23 +548,31 @@ def mesh_with_layers(
             "the layers need them taken out (merge, which --layers does on any grid)"
         )
     box = None
-    if o.exterior:  # (the far field of the body without its layers, a lesser one)
+    if o.exterior:
         box = o.box if o.box is not None else far_field_box(contour, o.margin)
-    stacks = _layers.build(contour, spec, o.exterior, box, o.max_nodes)
-    core = mesh_contour(
-        stacks.top,
-        o.replace(layers=0, merge_extra="merge"),  # (the top nodes its only boundary nodes)
-        callback=callback,
-        size_function=size_function,
-        seconds=seconds,
-    )
-    mesh = _layers.combine(contour, stacks, core.mesh, o.exterior)
+    return _layers.build(contour, spec, o.exterior, box, o.max_nodes)
+
+
+def core_options(o: MeshOptions) -> MeshOptions:
+    """The options the rest of the domain is meshed with under layers: no layers of its
+    own, and extra boundary nodes taken out on any grid (the top nodes its only
+    boundary nodes)."""
+    return o.replace(layers=0, merge_extra="merge")
+
+
+def join_layers(
+    contour: Contour, stacks, core: Mesh, core_report: dict, sel: Selection, o: MeshOptions
+) -> tuple[Mesh, dict]:
+    """The mesh of ``contour``: the layer cells of ``stacks`` and ``core`` (the mesh of
+    their top, meshed on ``sel``), split as ``o.layer_cells`` asks, checked; and its
+    summary."""
+    mesh = _layers.combine(contour, stacks, core, o.exterior)
     if o.layer_cells == "tri":
         mesh = _layers.split_quads(mesh)
-    quality.check_contract(mesh, contour, core.selection.grid.box if o.exterior else None)
-    report = {**core.report, **quality.stats(mesh), "contract": "ok"}
+    quality.check_contract(mesh, contour, sel.grid.box if o.exterior else None)
+    report = {**core_report, **quality.stats(mesh), "contract": "ok"}
     report["layers"] = _layers.summary(stacks, contour)
-    return MeshResult(mesh, core.selection, core.deform_stats, report)
+    return mesh, report
 
 
 #: A mesh whose smallest angle is under this (degrees) gets a note: what its boundary

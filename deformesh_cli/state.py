@@ -34,7 +34,7 @@ from .select.graded import MAX_CELLS_ACROSS, Quadtree
 from .size import MAX_FIELD_ROWS, from_rows
 
 FORMAT = "deformesh-state"
-VERSION = 5
+VERSION = 6
 STAGES = ("selected", "deformed")
 
 _ARRAYS = {
@@ -66,11 +66,14 @@ class State:
     #: long edges split, on the graded grid its sharp ears cut): derived from the
     #: contour and the recorded options
     laid: Laid | None = None
+    #: the boundary layers the options ask for (:func:`.pipeline.grow_layers`), the grid
+    #: laid for their top; derived from the contour and the options, or None
+    stacks: object = None
 
     def __post_init__(self):
         if self.laid is None:
             graded = isinstance(self.selection, GradedSelection)
-            self.laid = lay(self.contour, from_record(MeshOptions, self.options), graded)
+            self.laid, self.stacks = laid_for(self.contour, self.options, graded)
 
     @property
     def grid_contour(self) -> Contour:
@@ -84,8 +87,23 @@ class State:
         if self.size_field is not None:
             return from_rows(self.size_field, f"{name}: its size field")
         if self.options.get("size") is not None:
-            return from_expression(self.options["size"], self.contour)
+            return from_expression(self.options["size"], self.laid.contour)
         return None
+
+
+def laid_for(contour: Contour, options: dict, graded: bool, max_nodes: int | None = None):
+    """``(laid, stacks)``: the contour the grid is laid for under the recorded
+    ``options`` (with layers, their top: :func:`.pipeline.grow_layers`), and the
+    layers, or None; ``max_nodes`` bounds the laying (not the layers)."""
+    from .pipeline import core_options, grow_layers
+
+    o = from_record(MeshOptions, options)
+    stacks = grow_layers(contour, o) if o.layers else None
+    if max_nodes is not None:  # (the grid's contour bounded: by the path, when loading)
+        o = o.replace(max_nodes=max_nodes)
+    if stacks is None:
+        return lay(contour, o, graded), None
+    return lay(stacks.top, core_options(o), graded), stacks
 
 
 def dumps(state: State) -> bytes:
@@ -421,8 +439,7 @@ def _parse(zf: zipfile.ZipFile, meta: dict, stage: str) -> State:
     }
     sel = (GradedSelection if graded else Selection)(**fields)
     try:  # (the grid was laid for the contour split at max_h: bounded by the path)
-        o = from_record(MeshOptions, options).replace(max_nodes=max(4, len(fields["path_nodes"])))
-        laid = lay(contour, o, graded)
+        laid, stacks = laid_for(contour, options, graded, max(4, len(fields["path_nodes"])))
     except LimitError:
         raise _Damaged(
             "options.max_h splits the contour into more points than the path has"
@@ -443,7 +460,7 @@ def _parse(zf: zipfile.ZipFile, meta: dict, stage: str) -> State:
             raise _Damaged(str(exc)) from None
     return State(
         stage, contour, sel, None if points is None else points.astype(float), options,
-        None if field_rows is None else field_rows.astype(np.float64), laid,
+        None if field_rows is None else field_rows.astype(np.float64), laid, stacks,
     )  # fmt: skip
 
 

@@ -411,3 +411,24 @@ def test_layers_on_the_uniform_grid_take_the_extra_nodes_out(run, tmp_path, grid
     assert r.exit_code == 0, r.stderr
     rec = json.loads(r.stdout)
     assert rec["contract"] == "ok" and rec["extra_boundary_nodes"] == 0 and rec["quads"] == 192
+
+
+@pytest.mark.parametrize(
+    "sample, args",
+    [
+        ("naca0012.csv", ["--exterior", "--box=-20,-20,21,20", "--layers", 30,
+                          "--first-height", 1e-5, "--layer-growth", 1.15]),
+        ("slot.csv", ["--layers", 10, "--first-height", 0.002, "--layer-cells", "tri"]),
+        ("circle.csv", ["--exterior", "--box=-3,-3,4,3"]),  # (a far field given tight)
+    ],
+)  # fmt: skip
+def test_the_stages_give_alls_bytes(run, tmp_path, sample, args):
+    """select | deform | triangulate records the layer options and gives ``all``'s mesh
+    byte for byte (and so does a far field in a given box, whose sides the coarsening's
+    sizes see in both)."""
+    a, s, d, b = (tmp_path / n for n in ("a.vtk", "s.state", "d.state", "b.vtk"))
+    assert run("all", SAMPLES / sample, *args, "-o", a, "-q").exit_code == 0
+    assert run("select", SAMPLES / sample, *args, "-o", s, "-q").exit_code == 0
+    assert run("deform", s, "-o", d, "-q").exit_code == 0
+    assert run("triangulate", d, "-o", b, "-q").exit_code == 0
+    assert a.read_bytes() == b.read_bytes()

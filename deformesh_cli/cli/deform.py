@@ -38,7 +38,7 @@ def command(state_in: str, output: str, quiet: bool, **kwargs) -> None:
     if own:
         del given["size"], given["size_field"]
     o = from_record(MeshOptions, st.options).replace(**given)
-    size = st.size_function(name) if own else _size.make(o.size, o.size_field, st.contour)
+    size = st.size_function(name) if own else _size.make(o.size, o.size_field, st.laid.contour)
     try:
         with steps_bar(quiet) as progress:
             d = pipeline.run_deform(
@@ -54,7 +54,9 @@ def command(state_in: str, output: str, quiet: bool, **kwargs) -> None:
         raise InputError(f"{name}: its recorded size function: {exc}") from None
     options = {**st.options, **o.stage("deform"), "size_field": None}
     rows = None if size is None else size.rows
-    out = state.State("deformed", st.contour, st.selection, d.points, options, rows, st.laid)
+    out = state.State(
+        "deformed", st.contour, st.selection, d.points, options, rows, st.laid, st.stacks
+    )
     files.write_bytes(state.dumps(out), output)
     say(
         quiet,

@@ -15,7 +15,7 @@ from .options import check_binary_stdout, fields, output_option, quiet_option, s
 @click.command("select")
 @click.argument("contour", type=click.Path(dir_okay=False, allow_dash=True))
 @output_option("State file to write ('-' for stdout).")
-@stages("select", "read")
+@stages("select", "read", "layers")
 @fields(MeshOptions, "size", "size_field")
 @quiet_option
 @handle_errors
@@ -30,14 +30,14 @@ def command(contour: str, output: str, quiet: bool, **kwargs) -> None:
     _size.check_options(o.size, o.size_field)
     files.check_outputs([output], [contour, o.size_field])
     c = load_contour(contour, None, o.decimal, o.tolerance, o.element_id, o.resample, o.stroke)
-    size = _size.make(o.size, o.size_field, c)
-    laid = pipeline.lay(c, o)
+    options = {**o.stage("read"), **o.stage("select"), **o.stage("layers")}
+    laid, stacks = state.laid_for(c, options, pipeline.grid_mode(o.grid, o.h) == "graded")
+    size = _size.make(o.size, o.size_field, laid.contour)
     sel = pipeline.run_select(laid.grid, o, size_function=size)
-    options = {**o.stage("read"), **o.stage("select")}
     if o.size is not None:
         options["size"] = o.size
     rows = None if size is None else size.rows  # (a field's rows, never its path)
-    st = state.State("selected", c, sel, options=options, size_field=rows, laid=laid)
+    st = state.State("selected", c, sel, options=options, size_field=rows, laid=laid, stacks=stacks)
     files.write_bytes(state.dumps(st), output)
     g = sel.grid
     say(

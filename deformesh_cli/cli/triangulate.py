@@ -7,7 +7,7 @@ import time
 import click
 
 from .. import files, pipeline, state
-from ..errors import FoldError, InputError, SizeError
+from ..errors import FoldError, InputError, OptionError, SizeError
 from ..options import MeshOptions, from_record
 from .errors import handle_errors
 from .options import (
@@ -48,8 +48,18 @@ def command(
     deformed = pipeline.Deformed(st.selection, st.points)
     try:
         size = st.size_function(name)
-        mesh, report = pipeline.run_triangulate(st.laid, deformed, o, size_function=size)
+        if st.stacks is not None and o.merge_extra == "keep":
+            raise OptionError(
+                "--merge-extra keep would leave grid nodes between the layers' top nodes "
+                f"of {name}; the layers need them taken out"
+            )
+        core = pipeline.core_options(o) if st.stacks is not None else o
+        mesh, report = pipeline.run_triangulate(st.laid, deformed, core, size_function=size)
         report.update(pipeline.selection_report(st.selection))
+        if st.stacks is not None:  # (the layers and the mesh of their top, joined)
+            mesh, report = pipeline.join_layers(
+                st.contour, st.stacks, mesh, report, st.selection, o
+            )
     except FoldError as exc:  # (the state's deformed points are what folds)
         raise FoldError(f"{name}: {exc}") from None
     except SizeError as exc:

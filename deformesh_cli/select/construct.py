@@ -146,15 +146,16 @@ class GradedSelection:
     _kept: np.ndarray | None = field(default=None, init=False, repr=False)
     _sizes: graded.SizeField | None = field(default=None, init=False, repr=False)
 
-    def size_field(self, contour: Contour, growth: float, max_h, max_nodes):
+    def size_field(self, contour: Contour, growth: float, max_h, max_nodes, box=None):
         """The size field the grid was laid for without a size function
-        (:func:`size_field` of the contour it was laid for and these options): stage 3
-        coarsens the interior to it."""
+        (:func:`size_field` of the contour it was laid for and these options, ``box``
+        an exterior mesh's: :func:`exterior_box`): stage 3 coarsens the interior to
+        it."""
         if self._sizes is None and self.path_rule == OWN_TRIANGLES:
             # (no node but the contour's: nothing to coarsen, no samples to take)
             self._sizes = graded.SizeField(contour.points, contour.edge_lengths(), growth, max_h)
         if self._sizes is None:
-            self._sizes = size_field(contour, self.exterior, growth, max_h, max_nodes)
+            self._sizes = size_field(contour, self.exterior, growth, max_h, max_nodes, box)
         return self._sizes
 
     @property
@@ -419,7 +420,7 @@ def select_constructed(
     lo, hi = contour.points.min(axis=0), contour.points.max(axis=0)
     given = box is not None
     if exterior:  # (the box is part of the domain's boundary: the sizes see its sides)
-        box = _checked_box(contour, far_field_box(contour, margin) if box is None else box, True)
+        box = exterior_box(contour, box, margin)
         xy, size, s, edge, field = _wanted(contour, True, max_nodes, size_function, box)
     else:  # (the background only: at least the room for the loop around the contour)
         xy, size, s, edge, field = _wanted(contour, False, max_nodes, size_function)
@@ -532,17 +533,25 @@ def _wanted(contour: Contour, exterior: bool, max_nodes: int | None, size_functi
     return xy, size, s, edge, field
 
 
+def exterior_box(contour: Contour, box, margin) -> tuple[float, float, float, float]:
+    """The box an exterior mesh of ``contour`` is laid in: ``box`` as given (checked),
+    or the far field at ``margin``."""
+    return _checked_box(contour, far_field_box(contour, margin) if box is None else box, True)
+
+
 def size_field(
     contour: Contour,
     exterior: bool = False,
     growth: float = graded.DEFAULT_GROWTH,
     max_h: float | None = None,
     max_nodes: int | None = None,
+    box: tuple[float, float, float, float] | None = None,
 ) -> graded.SizeField:
     """The size field :func:`select_constructed` lays the grid for with no size
     function, every point's cells at :data:`CELL_FACTOR` times its size (before any is
-    halved for a crowded point)."""
-    xy, size, _, _, _ = _wanted(contour, exterior, max_nodes, None)
+    halved for a crowded point); ``box``: an exterior mesh's (:func:`exterior_box`),
+    whose sides count as the contour's do."""
+    xy, size, _, _, _ = _wanted(contour, exterior, max_nodes, None, box if exterior else None)
     s = graded.graded_sizes(xy, size * CELL_FACTOR, growth)
     return graded.SizeField(xy, s, growth, max_h)
 

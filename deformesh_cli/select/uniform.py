@@ -362,7 +362,7 @@ class Selection:
         inside = self.inside_triangles()
         return ~inside if self.exterior else inside
 
-    def size_field(self, contour, growth, max_h, max_nodes) -> None:
+    def size_field(self, contour, growth, max_h, max_nodes, box=None) -> None:
         """None: Appendix A's grid is uniform, and its mesh stays as the paper builds it
         (stage 3 coarsens nothing)."""
         return None
