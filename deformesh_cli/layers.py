@@ -364,6 +364,16 @@ def build(
             "(--layers-on)"
         )
     thick = _thickness(p, wall, d, per_ring, arc_all, rings, full, near)
+    for r in rings:  # (a ring none of whose stacks holds the first height: a small hole)
+        most = float(thick[per_ring[r]].max())
+        if most < spec.first:
+            raise SelectionError(
+                f"{contour.source}: boundary layers of first height {spec.first:g} do not "
+                f"fit on {contour.ring_name(r)} ({contour.ring_labels[r]}): no stack there can "
+                f"be thicker than {most:.3g} (its walls converge or face each other); give a "
+                "smaller "
+                "--first-height, or leave that ring out (--layers-on)"
+            )
     fans = int(sum(
         np.count_nonzero((wall[per_ring[r]] == np.roll(wall[per_ring[r]], -1))
                          & (wall[per_ring[r]] != np.roll(wall[per_ring[r]], 1)))

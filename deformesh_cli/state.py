@@ -91,14 +91,26 @@ class State:
         return None
 
 
-def laid_for(contour: Contour, options: dict, graded: bool, max_nodes: int | None = None):
-    """``(laid, stacks)``: the contour the grid is laid for under the recorded
-    ``options`` (with layers, their top: :func:`.pipeline.grow_layers`), and the
-    layers, or None; ``max_nodes`` bounds the laying (not the layers)."""
-    from .pipeline import core_options, grow_layers
+def _stacks(contour: Contour, options: dict):
+    """The boundary layers the recorded ``options`` ask for, or None."""
+    from .pipeline import grow_layers
 
     o = from_record(MeshOptions, options)
-    stacks = grow_layers(contour, o) if o.layers else None
+    return grow_layers(contour, o) if o.layers else None
+
+
+def laid_for(
+    contour: Contour, options: dict, graded: bool, max_nodes: int | None = None, stacks=None
+):
+    """``(laid, stacks)``: the contour the grid is laid for under the recorded
+    ``options`` (with layers, their top: :func:`.pipeline.grow_layers`, or ``stacks``
+    if already grown), and the layers, or None; ``max_nodes`` bounds the laying (not
+    the layers)."""
+    from .pipeline import core_options
+
+    o = from_record(MeshOptions, options)
+    if stacks is None:
+        stacks = _stacks(contour, options)
     if max_nodes is not None:  # (the grid's contour bounded: by the path, when loading)
         o = o.replace(max_nodes=max_nodes)
     if stacks is None:
@@ -438,8 +450,9 @@ def _parse(zf: zipfile.ZipFile, meta: dict, stage: str) -> State:
         "exterior": meta["exterior"],
     }
     sel = (GradedSelection if graded else Selection)(**fields)
+    stacks = _stacks(contour, options)  # (their refusals name the file: as any run's)
     try:  # (the grid was laid for the contour split at max_h: bounded by the path)
-        laid, stacks = laid_for(contour, options, graded, max(4, len(fields["path_nodes"])))
+        laid, _ = laid_for(contour, options, graded, max(4, len(fields["path_nodes"])), stacks)
     except LimitError:
         raise _Damaged(
             "options.max_h splits the contour into more points than the path has"

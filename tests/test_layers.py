@@ -432,3 +432,13 @@ def test_the_stages_give_alls_bytes(run, tmp_path, sample, args):
     assert run("deform", s, "-o", d, "-q").exit_code == 0
     assert run("triangulate", d, "-o", b, "-q").exit_code == 0
     assert a.read_bytes() == b.read_bytes()
+
+
+def test_a_ring_too_narrow_for_one_first_layer_is_refused(run, tmp_path):
+    """Inside the unit circle every stack converges on the centre (none thicker than
+    half the radius): a first height of 0.9 fits nowhere, which no point's clearance
+    shows (the far side is the same part of the ring)."""
+    out = tmp_path / "m.vtk"
+    r = run("all", SAMPLES / "circle.csv", "--layers", 3, "--first-height", 0.9, "-o", out)
+    assert r.exit_code == 1 and "do not fit on contour" in r.stderr
+    assert "no stack there can be thicker than 0.5" in r.stderr and not out.exists()
