@@ -4,16 +4,17 @@ Each wall point gets a straight *stack*: a direction into the domain (the bisect
 of its two edges' normals, or at a sharp convex corner a *fan* of directions from
 one edge's normal to the other's) and ``N`` layer nodes along it, layer ``k`` at
 
-    h_k = c (H (R^k - 1) / (R - 1)),
+    h_k = H (r^k - 1) / (r - 1),
 
-``H`` the first height, ``R`` the growth and ``c`` in (0, 1] the stack's share of
-the full thickness ``T = H (R^N - 1) / (R - 1)``.  Consecutive stacks are joined by
-quads, layer by layer (a fan's first cells, which share their wall point, are
-triangles).  The top nodes of the stacks form the boundary of the rest of the
-domain, which the construction meshes with exactly those nodes (:mod:`.pipeline`).
+``H`` the first height and ``r`` the growth: ``R`` on a full stack, less on a
+shortened one so that it ends at its thickness (:func:`stack_heights`).
+Consecutive stacks are joined by quads, layer by layer (a fan's first cells,
+which share their wall point, are triangles).  The top nodes of the stacks form
+the boundary of the rest of the domain, which the construction meshes with exactly
+those nodes (:mod:`.pipeline`).
 
-Where a full stack would not fit, it is made shorter (``c < 1``), by three rules of
-geometry, then smoothly along the wall:
+Where a full stack would not fit, it is made shorter, by these rules of geometry,
+then smoothly along the wall:
 
 - **converging neighbours**: a stack reaches at most :data:`MEET_SHARE` of the way
   to the line of the next stack's or the previous stack's direction, where it heads
@@ -175,6 +176,41 @@ def _meet_bounds(a: np.ndarray, da: np.ndarray, b: np.ndarray, db: np.ndarray) -
     with np.errstate(divide="ignore", invalid="ignore"):
         u = num / den
     return np.where((den != 0) & (u > 0), u, np.inf)
+
+
+def stack_heights(spec: LayerSpec, thick: np.ndarray) -> np.ndarray:
+    """Per stack of thickness ``thick`` (at most the full one), its layer heights
+    ``h_0 = 0 .. h_N = thick`` ((S, N + 1)).  A stack keeps the first height ``H``
+    and grows its layers by the ratio ``r`` in ``[1, R]`` that gives its thickness,
+    ``H (r^N - 1) / (r - 1)`` (the full stack: ``R``); one thinner than ``N H`` has
+    ``N`` equal layers.  ``r`` is found by bisection, a fixed number of halvings (the
+    same bits on every machine)."""
+    n, h = spec.layers, spec.first
+    k = np.arange(n + 1, dtype=np.float64)
+    thick = np.asarray(thick, dtype=np.float64)
+    even = thick[:, None] * k[None, :] / n
+    if spec.growth == 1.0:
+        return even
+    lo = np.ones(len(thick))
+    hi = np.full(len(thick), spec.growth)
+    target = thick / h
+    for _ in range(BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            total = np.where(mid > 1.0, (mid**n - 1.0) / (mid - 1.0), float(n))
+        low = total < target
+        lo, hi = np.where(low, mid, lo), np.where(low, hi, mid)
+    r = np.where(thick >= float(spec.heights()[-1]), spec.growth, lo)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        grown = h * np.where(
+            (r > 1.0)[:, None], (r[:, None] ** k[None, :] - 1.0) / (r[:, None] - 1.0), k[None, :]
+        )
+    grown[:, -1] = thick  # (the stack's top exactly where its bounds put it)
+    return np.where((thick >= n * h)[:, None], grown, even)
+
+
+#: Halvings of the growth interval when a shortened stack's ratio is sought.
+BISECTIONS = 60
 
 
 def _thickness(p, wall, d, per_ring, arc_all, rings, full: float, near) -> np.ndarray:
@@ -382,7 +418,8 @@ def build(
     share = np.minimum(thick / full, 1.0)
     # nodes and cells
     n_layers = spec.layers
-    nodes = p[wall][:, None, :] + (share[:, None] * heights[None, 1:])[:, :, None] * d[:, None, :]
+    along = stack_heights(spec, np.minimum(thick, full))
+    nodes = p[wall][:, None, :] + along[:, 1:, None] * d[:, None, :]
     nodes = nodes.reshape(-1, 2)
 
     def node(s: np.ndarray, k: int) -> np.ndarray:
@@ -522,14 +559,16 @@ def split_quads(mesh):
 
 
 def summary(stacks: Stacks, contour: Contour) -> dict:
-    """What a meshing summary says of the layers: the counts, the first heights, the
+    """What a meshing summary says of the layers: the counts, the first heights (each
+    stack's first node's distance from its wall point), the
     wall angles (between the wall edges and each stack's first layer edge, the
     smallest over the stacks outside fans), the layer cells' largest aspect ratio
     (the longer over the shorter of a quad's mean widths along and across the wall)
     and the stacks shortened."""
     n = contour.n
     p = contour.points
-    first = stacks.share * stacks.spec.first
+    rise = stacks.nodes[:: stacks.spec.layers] - p[stacks.wall]  # (each stack's first node)
+    first = np.hypot(rise[:, 0], rise[:, 1])
     # wall angle: each stack's direction against the two wall edges at its point
     nxt = np.arange(n)
     for r, s in enumerate(stacks.rings):

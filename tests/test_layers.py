@@ -442,3 +442,19 @@ def test_a_ring_too_narrow_for_one_first_layer_is_refused(run, tmp_path):
     r = run("all", SAMPLES / "circle.csv", "--layers", 3, "--first-height", 0.9, "-o", out)
     assert r.exit_code == 1 and "do not fit on contour" in r.stderr
     assert "no stack there can be thicker than 0.5" in r.stderr and not out.exists()
+
+
+def test_a_shortened_stack_keeps_its_first_height_and_grows_less():
+    """Stacks of thickness T: the full one grows by R; one between N H and the full one
+    keeps H and grows by less (the same ratio layer to layer); one under N H has N equal
+    layers; every stack ends at its thickness."""
+    spec = layers.LayerSpec(10, 0.01, 1.2)
+    full = float(spec.heights()[-1])
+    thick = np.array([full, 0.5 * (full + 0.1), 0.1, 0.05])
+    h = layers.stack_heights(spec, thick)
+    assert np.allclose(h[0], spec.heights())
+    assert h[1, 1] == pytest.approx(0.01) and h[2, 1] == pytest.approx(0.01)
+    ratio = np.diff(h[1])[1:] / np.diff(h[1])[:-1]
+    assert np.allclose(ratio, ratio[0]) and 1.0 < ratio[0] < 1.2
+    assert np.allclose(np.diff(h[3]), 0.005)
+    assert np.array_equal(h[:, -1], thick) and (np.diff(h, axis=1) > 0).all()
