@@ -46,6 +46,8 @@ class Contour:
     ring_labels : tuple of str
         Per ring: how messages name it (``ring 1`` unless the reader knows better,
         e.g. ``path#logo subpath 2`` for SVG).
+    numbers : (m,) int64 or None
+        Per point, the given point messages name it by (a derived contour's), or None.
     """
 
     points: np.ndarray
@@ -56,6 +58,9 @@ class Contour:
     ring_clockwise: tuple[bool, ...] = ()
     depth: tuple[int, ...] = ()
     ring_labels: tuple[str, ...] = ()
+    #: per point, the input point messages name it by (a contour derived from another,
+    #: the grid's with ears cut, names the given points); None: its own index
+    numbers: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self):
         if not self.starts:
@@ -140,7 +145,8 @@ class Contour:
         if line:
             parts.append(f"line {line}")
         at = f" ({', '.join(parts)})" if parts else ""
-        return f"point {k}{at} at ({x:.6g}, {y:.6g})"
+        name = k if self.numbers is None else int(self.numbers[k])
+        return f"point {name}{at} at ({x:.6g}, {y:.6g})"
 
     def edge_lengths(self) -> np.ndarray:
         """Length of the edge from each point to the next point on its ring."""

@@ -409,3 +409,13 @@ def test_the_ear_prefilter_leaves_out_no_ear(seed):
     finally:
         construct._maybe_ears = prefilter
     assert np.array_equal(every[1], filtered[1]) and np.array_equal(every[2], filtered[2])
+
+
+def test_the_grid_contour_names_the_given_points():
+    """With an ear cut, the grid's contour has fewer points; its messages still name each
+    point by its index in the given contour (a refusal points at the user's point)."""
+    pts = np.array([[0, 0], [1, 0], [1, 1], [0.52, 1.0], [0.5, 3.0], [0.48, 1.0], [0, 1]])
+    c = make_contour(pts.astype(float), None, "spike.csv")
+    grid, kept, ears = construct.cut_ears(c)
+    assert ears.tolist() == [[3, 4, 5]] and grid.n == 6
+    assert grid.where(4) == c.where(5) and grid.where(5) == c.where(6)

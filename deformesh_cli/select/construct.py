@@ -1302,13 +1302,24 @@ def cut_ears(contour: Contour, exterior: bool = False):
     pair = np.where(stored_prev[:, None], np.column_stack([first, first + 1]),
                     np.column_stack([first + 1, first]))  # fmt: skip
     kept = np.insert(kept, np.repeat(np.searchsorted(kept, tips), 2), pair.ravel())
-    return _kept_contour(contour, xy, lines, ring_of, kept), kept, np.array(ears, dtype=np.int64)
+    return (
+        _kept_contour(contour, xy, lines, ring_of, kept, tips),
+        kept,
+        np.array(ears, dtype=np.int64),
+    )
 
 
-def _kept_contour(contour: Contour, xy, lines, ring_of, kept) -> Contour:
+def _kept_contour(contour: Contour, xy, lines, ring_of, kept, tips=None) -> Contour:
     """The contour of the points ``kept`` (indices into ``xy``, ``lines`` and
-    ``ring_of``, in the contour's stored order), its rings as ``contour``'s."""
+    ``ring_of``, in the contour's stored order), its rings as ``contour``'s; its
+    messages name each point by ``contour``'s (an added point ``m + 2 j`` or ``m + 2 j
+    + 1`` by the cut tip ``tips[j]`` it stands beside)."""
     ring = ring_of[kept]
+    m = contour.n
+    own = contour.numbers if contour.numbers is not None else np.arange(m)
+    beside = np.asarray(tips if tips is not None else [], dtype=np.int64)
+    numbers = np.where(kept < m, own[np.minimum(kept, m - 1)],
+                       own[beside[np.maximum(kept - m, 0) // 2]] if len(beside) else 0)  # fmt: skip
     starts = tuple(np.searchsorted(ring, np.arange(contour.n_rings + 1)).tolist())
     return Contour(
         xy[kept],
@@ -1318,6 +1329,7 @@ def _kept_contour(contour: Contour, xy, lines, ring_of, kept) -> Contour:
         ring_clockwise=contour.ring_clockwise,
         depth=contour.depth,
         ring_labels=contour.ring_labels,
+        numbers=numbers,
     )
 
 
