@@ -37,7 +37,7 @@ the place and the width there.  Nothing here prints or exits.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -132,7 +132,6 @@ class Stacks:
     exterior: bool = False
     fans: int = 0
     shortened: int = 0
-    notes: list[str] = field(default_factory=list)
 
 
 def _domain_order(contour: Contour, r: int, exterior: bool) -> np.ndarray:
@@ -370,10 +369,12 @@ def build(
     starts = np.asarray(contour.starts)
     rings = list(rings)
     owner_all, dir_all, arc_all = [], [], []
+    fans = 0
     per_ring: list = [None] * contour.n_rings
     for r in rings:
         order = _domain_order(contour, r, exterior)
-        owner, dirs, _ = _directions(p[order])
+        owner, dirs, ring_fans = _directions(p[order])
+        fans += ring_fans
         start = len(owner_all)
         per_ring[r] = np.arange(start, start + len(owner))
         owner_all.extend(order[owner].tolist())
@@ -407,14 +408,8 @@ def build(
                 f"{contour.source}: boundary layers of first height {spec.first:g} do not "
                 f"fit on {contour.ring_name(r)} ({contour.ring_labels[r]}): no stack there can "
                 f"be thicker than {most:.3g} (its walls converge or face each other); give a "
-                "smaller "
-                "--first-height, or leave that ring out (--layers-on)"
+                "smaller --first-height, or leave that ring out (--layers-on)"
             )
-    fans = int(sum(
-        np.count_nonzero((wall[per_ring[r]] == np.roll(wall[per_ring[r]], -1))
-                         & (wall[per_ring[r]] != np.roll(wall[per_ring[r]], 1)))
-        for r in rings
-    ))  # fmt: skip
     share = np.minimum(thick / full, 1.0)
     # nodes and cells
     n_layers = spec.layers
