@@ -140,29 +140,29 @@ def _domain_order(contour: Contour, r: int, exterior: bool) -> np.ndarray:
     return order[::-1] if contour.is_hole(r) != exterior else order
 
 
-def _directions(p: np.ndarray) -> tuple[list[int], list[np.ndarray], int]:
+def _directions(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
     """Per point of a closed ring ``p`` (the domain on the left), its stacks'
     directions: the bisector of its edges' normals, or a fan from the incoming
     edge's normal to the outgoing one's where the ring turns away from the domain
-    by more than :data:`FAN_TURN`; returns (point of each stack, directions, fans)."""
+    by more than :data:`FAN_TURN`; returns (point of each stack, directions (S, 2),
+    fans), the stacks in the ring's order."""
     e = np.roll(p, -1, axis=0) - p
     t = e / np.hypot(e[:, 0], e[:, 1])[:, None]
     nu = np.column_stack([-t[:, 1], t[:, 0]])  # (left normals: into the domain)
     t_in, nu_in = np.roll(t, 1, axis=0), np.roll(nu, 1, axis=0)
     turn = np.arctan2(t_in[:, 0] * t[:, 1] - t_in[:, 1] * t[:, 0], (t_in * t).sum(axis=1))
-    owner, dirs, fans = [], [], 0
-    for i in range(len(p)):
-        if turn[i] < -math.radians(FAN_TURN):
-            fans += 1
-            m = math.ceil(-turn[i] / math.radians(FAN_STEP))
-            phi = math.atan2(nu_in[i, 1], nu_in[i, 0]) + turn[i] * np.arange(m + 1) / m
-            owner.extend([i] * (m + 1))
-            dirs.extend(np.column_stack([np.cos(phi), np.sin(phi)]))
-        else:
-            b = nu_in[i] + nu[i]
-            owner.append(i)
-            dirs.append(b / math.hypot(b[0], b[1]))
-    return owner, dirs, fans
+    fan = turn < -math.radians(FAN_TURN)
+    steps = np.where(fan, np.ceil(-turn / math.radians(FAN_STEP)), 0.0).astype(np.int64)
+    owner = np.repeat(np.arange(len(p)), steps + 1)
+    j = np.arange(len(owner)) - np.repeat(np.cumsum(steps + 1) - (steps + 1), steps + 1)
+    b = nu_in + nu
+    bis = b / np.hypot(b[:, 0], b[:, 1])[:, None]
+    with np.errstate(invalid="ignore", divide="ignore"):  # (a fan's angle; no fan: unused)
+        phi = np.arctan2(nu_in[owner, 1], nu_in[owner, 0]) + turn[owner] * j / np.maximum(
+            steps[owner], 1
+        )
+    dirs = np.where(fan[owner][:, None], np.column_stack([np.cos(phi), np.sin(phi)]), bis[owner])
+    return owner, dirs, int(fan.sum())
 
 
 def _meet_bounds(a: np.ndarray, da: np.ndarray, b: np.ndarray, db: np.ndarray) -> np.ndarray:
@@ -375,20 +375,20 @@ def build(
         order = _domain_order(contour, r, exterior)
         owner, dirs, ring_fans = _directions(p[order])
         fans += ring_fans
-        start = len(owner_all)
+        start = sum(len(o) for o in owner_all)
         per_ring[r] = np.arange(start, start + len(owner))
-        owner_all.extend(order[owner].tolist())
-        dir_all.extend(dirs)
+        owner_all.append(order[owner])
+        dir_all.append(dirs)
         q = p[order]
         seg = np.hypot(*(np.roll(q, -1, axis=0) - q).T)
         arc_all.append((np.concatenate([[0.0], np.cumsum(seg)[:-1]])[owner], float(seg.sum())))
-    if max_nodes is not None and len(owner_all) * spec.layers > max_nodes:
+    wall = np.concatenate(owner_all).astype(np.int64)
+    d = np.concatenate(dir_all).astype(np.float64).reshape(-1, 2)
+    if max_nodes is not None and len(wall) * spec.layers > max_nodes:
         raise LimitError(
-            f"{contour.source}: {spec.layers} layers on {len(owner_all):,} stacks are "
-            f"{len(owner_all) * spec.layers:,} nodes, over --max-nodes {max_nodes:,}"
+            f"{contour.source}: {spec.layers} layers on {len(wall):,} stacks are "
+            f"{len(wall) * spec.layers:,} nodes, over --max-nodes {max_nodes:,}"
         )
-    wall = np.asarray(owner_all, dtype=np.int64)
-    d = np.asarray(dir_all, dtype=np.float64).reshape(-1, 2)
     # other parts of the contour, across the domain, and the box
     near, (width, x, y) = _clearances(
         contour, exterior, box, np.unique(wall), full / GAP_SHARE, spec.first
