@@ -27,7 +27,7 @@ from .options import contour_reading, json_option, positive, quiet_option, take
     callback=positive,
     default=None,
     metavar="H",
-    help="Boundary layers: count the stacks whose first height is within 1%% of H.",
+    help="Boundary layers: count the stacks whose first height is within 1% of H.",
 )
 @contour_reading()
 @json_option("Print the report as JSON.")
