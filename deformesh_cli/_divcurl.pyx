@@ -7,6 +7,7 @@ replace (:func:`~deformesh_cli.divcurl.stiffness_entries` with ``np.bincount``,
 """
 
 from libc.math cimport fabs, sqrt
+from ._sort cimport sort_run
 
 
 def assemble(
@@ -112,7 +113,7 @@ def pattern(
     from a counting sort (at most 9 per triangle) and compacted; returns the count of
     entries.  ``indptr``: ``n_free + 1``."""
     cdef Py_ssize_t nt = tri.shape[0]
-    cdef Py_ssize_t t, a, b, r, s, k, lo, hi, mid, out, begin, end
+    cdef Py_ssize_t t, a, b, r, k, lo, hi, mid, out, begin, end
     cdef long long fr, fc, v
     with nogil:
         for r in range(n_free + 1):
@@ -141,13 +142,7 @@ def pattern(
         begin = 0
         for r in range(n_free):  # each row sorted, each column once, compacted
             end = indptr[r]
-            for k in range(begin + 1, end):
-                v = indices[k]
-                s = k
-                while s > begin and indices[s - 1] > v:
-                    indices[s] = indices[s - 1]
-                    s -= 1
-                indices[s] = v
+            sort_run(indices, begin, end)
             indptr[r] = out
             k = begin
             while k < end:

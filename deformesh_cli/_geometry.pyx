@@ -4,6 +4,8 @@
 node (a counting sort) and, within a node's row, stably sorted by its higher node
 (rows are a node's few neighbours)."""
 
+from ._sort cimport sort_run, sort_run_with
+
 
 cdef void _sort_sides(
     const long long[:, :] tri, long long n, long long[:] row, long long[:] ent,
@@ -14,8 +16,8 @@ cdef void _sort_sides(
     in entry order; ``row[r]``: where node ``r``'s row ends (it starts where ``r - 1``'s
     ends).  The nodes must lie in ``0 .. n - 1``."""
     cdef Py_ssize_t nt = tri.shape[0]
-    cdef Py_ssize_t t, s, i, j, start, end
-    cdef long long a, b, lo, e, h
+    cdef Py_ssize_t t, s, i, start, end
+    cdef long long a, b, lo
     for i in range(n + 1):
         row[i] = 0
     for t in range(nt):
@@ -36,16 +38,7 @@ cdef void _sort_sides(
     start = 0
     for i in range(n):
         end = row[i]
-        for j in range(start + 1, end):  # stable insertion sort by hi
-            h = hi[j]
-            e = ent[j]
-            t = j
-            while t > start and hi[t - 1] > h:
-                hi[t] = hi[t - 1]
-                ent[t] = ent[t - 1]
-                t -= 1
-            hi[t] = h
-            ent[t] = e
+        sort_run_with(hi, ent, start, end)  # (stable: equal ends keep entry order)
         start = end
 
 
@@ -71,8 +64,8 @@ def edge_table(
     neighbours) is sorted, and its runs of one ``hi`` counted.  ``row`` (n + 1),
     ``buf`` and the outputs (3 per triangle; only the first ones are written)."""
     cdef Py_ssize_t nt = tri.shape[0]
-    cdef Py_ssize_t t, j, q, r, m = 0, start = 0, end
-    cdef long long a, b, lo, v, h, f, c
+    cdef Py_ssize_t t, j, r, m = 0, start = 0, end
+    cdef long long a, b, lo, h, f, c
     cdef bint bad = False
     with nogil:
         for t in range(nt):
@@ -103,13 +96,7 @@ def edge_table(
                     row[b] += 1
         for r in range(n):  # (row[r] is now where row r ends)
             end = row[r]
-            for j in range(start + 1, end):  # insertion sort: a row is a few sides
-                v = buf[j]
-                q = j
-                while q > start and buf[q - 1] > v:
-                    buf[q] = buf[q - 1]
-                    q -= 1
-                buf[q] = v
+            sort_run(buf, start, end)  # (a row is a few sides)
             j = start
             while j < end:
                 h = buf[j] >> 1

@@ -10,6 +10,7 @@ gradients.  Compiled without fused multiply-adds: the same bits on every process
 from libc.stdlib cimport calloc, free, malloc
 
 from ._buffers cimport Buf, push, release
+from ._sort cimport sort_run_with
 
 
 cdef inline void _unlink(long long i, long long *head, long long *nxt, long long *prv,
@@ -357,8 +358,8 @@ def permute_upper(
     counting sort by column, then each column's few rows sorted; returns its
     entries' count."""
     cdef Py_ssize_t n = indptr.shape[0] - 1
-    cdef Py_ssize_t i, q, j, t, m = 0
-    cdef long long r, c, vr, vs
+    cdef Py_ssize_t i, q, t, m = 0
+    cdef long long r, c
     with nogil:
         for i in range(n + 1):
             Ap[i] = 0
@@ -384,16 +385,7 @@ def permute_upper(
             Ap[i] = Ap[i - 1]
         Ap[0] = 0
         for c in range(n):
-            for j in range(Ap[c] + 1, Ap[c + 1]):  # insertion sort by row
-                vr = Ai[j]
-                vs = src[j]
-                t = j
-                while t > Ap[c] and Ai[t - 1] > vr:
-                    Ai[t] = Ai[t - 1]
-                    src[t] = src[t - 1]
-                    t -= 1
-                Ai[t] = vr
-                src[t] = vs
+            sort_run_with(Ai, src, Ap[c], Ap[c + 1])  # (by row)
     return m
 
 

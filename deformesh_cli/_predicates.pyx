@@ -7,6 +7,7 @@ segments meet triangles (a touch counts), one pair per loop step."""
 from fractions import Fraction
 
 from libc.math cimport fabs
+from ._sort cimport sort_run
 
 #: Shewchuk's ``ccwerrboundA``, (3 + 16 eps) eps with eps = 2^-53: where the float
 #: determinant's magnitude exceeds this times its terms' sum, its sign is exact.
@@ -131,7 +132,7 @@ def boxes_meet_segments(
     point, exactly, by query then segment number into ``out_box``, ``out_seg``;
     returns how many (past the arrays' length only counted: call again with room)."""
     cdef Py_ssize_t nq = x0.shape[0], cap = out_box.shape[0]
-    cdef Py_ssize_t q, i, k, top, m = 0, first, j, v
+    cdef Py_ssize_t q, i, k, top, m = 0, first
     cdef long long e
     cdef long long stack[128]
     for q in range(nq):
@@ -156,11 +157,5 @@ def boxes_meet_segments(
                         out_seg[m] = e
                     m += 1
         if m <= cap:  # (this query's segments ascending: insertion sort, a few each)
-            for j in range(first + 1, m):
-                v = out_seg[j]
-                i = j - 1
-                while i >= first and out_seg[i] > v:
-                    out_seg[i + 1] = out_seg[i]
-                    i -= 1
-                out_seg[i + 1] = v
+            sort_run(out_seg, first, m)
     return m

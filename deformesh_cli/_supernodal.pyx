@@ -10,6 +10,8 @@ update of every earlier supernode with a row among its columns (linked lists kee
 them), then factorises its block.  Every sum runs in a fixed order and the module is
 compiled without fused multiply-adds: the same bits on every processor."""
 
+from ._sort cimport sort_run
+
 def supernodes(const long long[::1] parent, const long long[::1] count, long long[::1] first):
     """The columns ``0 .. n - 1`` (in elimination order: a parent after its children) in
     runs where column ``j + 1`` is ``j``'s parent and has one row fewer below the
@@ -46,8 +48,8 @@ def structure(
     ``rp`` says (the counts are not this pattern's), or -1."""
     cdef Py_ssize_t ns = first.shape[0] - 1
     cdef Py_ssize_t n = parent.shape[0]
-    cdef Py_ssize_t s, k, p, q, c, t, m, below, end
-    cdef long long f, l, i, v, sp
+    cdef Py_ssize_t s, k, p, c, m, below, end
+    cdef long long f, l, i, sp
     cdef long long bad = -1
     with nogil:
         for k in range(n):
@@ -91,13 +93,7 @@ def structure(
                 bad = s
                 break
             below = rp[s] + (l - f + 1)
-            for q in range(below + 1, m):  # insertion sort (a block's rows are few)
-                v = rows[q]
-                t = q
-                while t > below and rows[t - 1] > v:
-                    rows[t] = rows[t - 1]
-                    t -= 1
-                rows[t] = v
+            sort_run(rows, below, m)  # (a block's rows are few)
             if parent[l] >= 0:
                 sp = owner[parent[l]]
                 nxt[s] = head[sp]
