@@ -290,17 +290,12 @@ def _clearances(
     counts its middle's clearance less half its length, at most what any of its
     points has."""
     from .geometry import next_on_ring, prev_on_ring
-    from .select.construct import TURN, _domain_walk, _to_box
-    from .select.segments import Segments
+    from .select.construct import TURN, _domain_walk, _to_box, contour_segments
 
     p, m, ring = contour.points, contour.n, contour.ring
     nxt, prv = next_on_ring(ring), prev_on_ring(ring)
     length = contour.edge_lengths()
-    starts = np.asarray(contour.starts)
-    run = np.cumsum(length)
-    arc = run - length - np.concatenate([[0.0], run])[starts[:-1]][ring]
-    perimeter = np.add.reduceat(length, starts[:-1])
-    segments = Segments(p, p[nxt], arc, length, ring, perimeter)
+    segments, arc, _ = contour_segments(contour)
     dom_next, dom_prev = _domain_walk(contour, exterior)
     is_wall = np.zeros(m, dtype=bool)
     is_wall[walls] = True
@@ -553,40 +548,15 @@ def split_quads(mesh):
     return replace(mesh, triangles=tri, quads=np.zeros((0, 4), dtype=np.int64))
 
 
-def summary(stacks: Stacks, contour: Contour) -> dict:
-    """What a meshing summary says of the layers: the counts, the first heights (each
-    stack's first node's distance from its wall point), the
-    wall angles (between the wall edges and each stack's first layer edge, the
-    smallest over the stacks outside fans), the layer cells' largest aspect ratio
-    (the longer over the shorter of a quad's mean widths along and across the wall)
-    and the stacks shortened."""
-    n = contour.n
-    p = contour.points
-    rise = stacks.nodes[:: stacks.spec.layers] - p[stacks.wall]  # (each stack's first node)
-    first = np.hypot(rise[:, 0], rise[:, 1])
-    # wall angle: each stack's direction against the two wall edges at its point
-    nxt = np.arange(n)
-    for r, s in enumerate(stacks.rings):
-        if s is not None:
-            order = _domain_order(contour, r, stacks.exterior)
-            nxt[order] = np.roll(order, -1)
-    prv = np.empty_like(nxt)
-    prv[nxt] = np.arange(n)
-    w, d = stacks.wall, stacks.direction
-    fan = (w == np.roll(w, 1)) | (w == np.roll(w, -1))  # (a ring has 3 points or more)
+def summary(stacks: Stacks, mesh) -> dict:
+    """What a meshing summary says of the layers: the construction's counts, and the
+    measures ``deformesh quality`` takes of the quads of ``mesh`` (the layers joined to
+    the rest, before any split: :func:`.quality.layer_report`): the first heights, the
+    smallest wall angle (both over the stacks outside fans) and the largest aspect
+    ratio."""
+    from .quality import layer_report
 
-    def angle(t: np.ndarray) -> np.ndarray:  # (between the lines: 0 to 90 degrees)
-        c = np.abs((t * d).sum(axis=1)) / np.hypot(t[:, 0], t[:, 1])
-        return np.degrees(np.arccos(np.clip(c, 0.0, 1.0)))
-
-    angles = np.minimum(angle(p[nxt[w]] - p[w]), angle(p[prv[w]] - p[w]))
-    pts = np.vstack([p, stacks.nodes])
-    q = pts[stacks.quads]
-    along = 0.5 * (np.hypot(*(q[:, 1] - q[:, 0]).T) + np.hypot(*(q[:, 2] - q[:, 3]).T))
-    across = 0.5 * (np.hypot(*(q[:, 3] - q[:, 0]).T) + np.hypot(*(q[:, 2] - q[:, 1]).T))
-    with np.errstate(divide="ignore"):
-        aspect = np.maximum(along, across) / np.minimum(along, across)
-    plain = ~fan
+    measured = layer_report(mesh.points, mesh.quads, mesh.triangles)
     return {
         "layers": stacks.spec.layers,
         "first_height": stacks.spec.first,
@@ -594,10 +564,10 @@ def summary(stacks: Stacks, contour: Contour) -> dict:
         "stacks": int(len(stacks.wall)),
         "fans": int(stacks.fans),
         "shortened_stacks": int(stacks.shortened),
-        "first_height_min": float(first.min()),
-        "first_height_max": float(first.max()),
-        "min_wall_angle": float(angles[plain].min()) if plain.any() else None,
-        "max_aspect_ratio": float(aspect.max()) if len(aspect) else None,
+        "first_height_min": measured.get("first_height_min"),
+        "first_height_max": measured.get("first_height_max"),
+        "min_wall_angle": measured.get("min_wall_angle"),
+        "max_aspect_ratio": measured["max_aspect_ratio"],
         "layer_quads": int(len(stacks.quads)),
         "layer_triangles": int(len(stacks.triangles)),
     }

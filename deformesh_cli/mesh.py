@@ -46,11 +46,15 @@ class Mesh:
     def split(self) -> np.ndarray:
         """The triangles with each quad as two (corners 0 1 2 and 0 2 3): the mesh as
         the triangle-only checks and measures read it."""
-        if not len(self.quads):
-            return self.triangles
-        q = self.quads
-        return np.concatenate([self.triangles, q[:, [0, 1, 2]], q[:, [0, 2, 3]]])
+        return as_triangles(self.triangles, self.quads)
 
     @property
     def n_nodes(self) -> int:
         return len(self.points)
+
+
+def as_triangles(triangles: np.ndarray, quads: np.ndarray) -> np.ndarray:
+    """``triangles`` and each of ``quads`` as two (corners 0 1 2 and 0 2 3)."""
+    if not len(quads):
+        return triangles
+    return np.concatenate([triangles, quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])

@@ -547,9 +547,7 @@ def grow_layers(contour: Contour, o: MeshOptions) -> _layers.Stacks:
             "--merge-extra keep would leave grid nodes between the layers' top nodes; "
             "the layers need them taken out (merge, which --layers does on any grid)"
         )
-    box = None
-    if o.exterior:
-        box = o.box if o.box is not None else far_field_box(contour, o.margin)
+    box = _construct.exterior_box(contour, o.box, o.margin) if o.exterior else None
     return _layers.build(contour, spec, o.exterior, box, o.max_nodes)
 
 
@@ -567,11 +565,11 @@ def join_layers(
     their top, meshed on ``sel``), split as ``o.layer_cells`` asks, checked; and its
     summary."""
     mesh = _layers.combine(contour, stacks, core, o.exterior)
+    layers = _layers.summary(stacks, mesh)  # (measured on the quads)
     if o.layer_cells == "tri":
         mesh = _layers.split_quads(mesh)
     quality.check_contract(mesh, contour, sel.grid.box if o.exterior else None)
-    report = {**core_report, **quality.stats(mesh), "contract": "ok"}
-    report["layers"] = _layers.summary(stacks, contour)
+    report = {**core_report, **quality.stats(mesh), "contract": "ok", "layers": layers}
     return mesh, report
 
 

@@ -12,6 +12,7 @@ import numpy as np
 
 from . import files, geometry, quality
 from .errors import DeformeshError, OptionError
+from .mesh import as_triangles
 
 #: Colour map of the radius ratio: red = poor (sliver), green = equilateral.
 CMAP = "RdYlGn"
@@ -132,8 +133,7 @@ def render(
         bins, cmap_name = np.linspace(base, top, 11), VALUES_CMAP
     quads = np.zeros((0, 4), dtype=np.int64) if quads is None else quads
     if boundary is None:
-        split = np.concatenate([tri, quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
-        boundary = geometry.boundary_edges(split, len(points))
+        boundary = geometry.boundary_edges(as_triangles(tri, quads), len(points))
     lo, hi = points.min(axis=0), points.max(axis=0)
     whole = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
     view = whole if window is None else tuple(float(v) for v in window)

@@ -19,7 +19,7 @@ import numpy as np
 from .contour import Contour
 from .errors import ContractError, InputError
 from .geometry import EdgeTable, boundary_edges, directed_boundary, edge_uses, signed_areas
-from .mesh import Mesh
+from .mesh import Mesh, as_triangles
 
 #: A background box ``(xmin, ymin, xmax, ymax)``.
 Box = tuple[float, float, float, float]
@@ -108,7 +108,7 @@ def check_contract(
     m = contour.n
     pts, tri = mesh.points, mesh.split
     if len(mesh.quads):
-        edges = None  # (counted on the triangles alone)
+        edges = None  # (counted on the triangles alone: counted below, on these)
     if mesh.n_contour != m or len(pts) < m:
         raise ContractError(f"{src}: mesh has {mesh.n_contour} contour nodes, contour has {m}")
     # 1. contour points are nodes 0..m-1, bit for bit
@@ -143,7 +143,7 @@ def check_contract(
             f"{src}: node {k} at ({pts[k, 0]:.6g}, {pts[k, 1]:.6g}) is a corner of no triangle"
         )
     # 2. the boundary is exactly the rings (and the box)
-    _check_boundary(mesh, contour, box, edges)
+    _check_boundary(mesh, contour, box, edge_uses(tri, len(pts)) if edges is None else edges)
     # 4. area conservation
     poly = contour.area
     if box is not None:
@@ -331,7 +331,7 @@ def mesh_for_contour(
     if n < m:
         raise ContractError(f"{src}: the mesh has {n} nodes, fewer than the contour's {m} points")
     quads = np.zeros((0, 4), dtype=np.int64) if quads is None else quads
-    edges = boundary_edges(np.concatenate([tri, quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]]), n)
+    edges = boundary_edges(as_triangles(tri, quads), n)
     nxt = np.full(n, -1, dtype=np.int64)
     starts, counts = np.unique(edges[:, 0], return_counts=True)
     if (counts > 1).any():
@@ -439,7 +439,7 @@ def layer_report(
     above = np.full(n, -1, dtype=np.int64)
     single = lower[count == 1]
     above[pairs[np.isin(pairs[:, 0], single), 0]] = pairs[np.isin(pairs[:, 0], single), 1]
-    lines = boundary_edges(np.concatenate([tri, q[:, [0, 1, 2]], q[:, [0, 2, 3]]]), n)
+    lines = boundary_edges(as_triangles(tri, q), n)
     nxt = np.full(n, -1, dtype=np.int64)
     prv = np.full(n, -1, dtype=np.int64)
     nxt[lines[:, 0]], prv[lines[:, 1]] = lines[:, 1], lines[:, 0]
@@ -508,11 +508,7 @@ def assess(
     problem = None
     if len(quads):
         rep["layers"] = layer_report(points, quads, tri, first)
-        rep["area"] = float(
-            signed_areas(
-                points, np.concatenate([tri, quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
-            ).sum()
-        )
+        rep["area"] = float(signed_areas(points, as_triangles(tri, quads)).sum())
         if rep["layers"]["non_convex"]:
             problem = f"{rep['layers']['non_convex']} quad(s) not convex"
     if rep.get("folded"):  # checked first: a fold also breaks the boundary walk

@@ -272,11 +272,7 @@ def feature_samples(
     prv = prev_on_ring(contour.ring)
     a, b = p, p[nxt]
     length = contour.edge_lengths()
-    starts = np.asarray(contour.starts)
-    run = np.cumsum(length)
-    arc = run - length - np.concatenate([[0.0], run])[starts[:-1]][ring]  # along its ring
-    perimeter = np.add.reduceat(length, starts[:-1])
-    segments = Segments(a, b, arc, length, ring, perimeter)
+    segments, arc, perimeter = contour_segments(contour)
     # the directions forward and back along the contour with the domain on the left:
     # at each point, and along each edge
     dom_next, dom_prev = _domain_walk(contour, exterior)
@@ -329,6 +325,19 @@ def feature_samples(
         seg = np.repeat(seg, 2)
         t0, t1 = np.column_stack([t0, tm]).ravel(), np.column_stack([tm, t1]).ravel()
     return np.concatenate(out_xy), np.concatenate(out_size), s, np.concatenate(out_edge)
+
+
+def contour_segments(contour: Contour) -> tuple[Segments, np.ndarray, np.ndarray]:
+    """``(segments, arc, perimeter)``: the contour's edges (edge ``k`` from point ``k`` to
+    the next on its ring) ready for clearance queries, how far along its ring each
+    starts, and each ring's length."""
+    ring, length = contour.ring, contour.edge_lengths()
+    p = contour.points
+    starts = np.asarray(contour.starts)
+    run = np.cumsum(length)
+    arc = run - length - np.concatenate([[0.0], run])[starts[:-1]][ring]  # along its ring
+    perimeter = np.add.reduceat(length, starts[:-1])
+    return Segments(p, p[next_on_ring(ring)], arc, length, ring, perimeter), arc, perimeter
 
 
 def _to_box(q: np.ndarray, box: tuple[float, float, float, float]) -> np.ndarray:
