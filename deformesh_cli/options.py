@@ -22,6 +22,7 @@ from .deform import DEFAULT_STEPS, MAX_STEPS, SOLVERS, SOLVES
 from .formats import FORMATS, MSH_VERSIONS
 from .layers import DEFAULT_GROWTH as DEFAULT_LAYER_GROWTH
 from .layers import LAYER_CELLS, MAX_LAYERS
+from .quads import CELLS
 from .select import DEFAULT_MAX_NODES, GRIDS, MAX_NODES_CEILING
 from .select.graded import DEFAULT_GROWTH
 
@@ -66,7 +67,7 @@ class MeshOptions:
     ``stroke``, ``resample``.  Stage 1 (select): ``h``, ``box``, ``margin``, ``strict``,
     ``max_nodes``, ``exterior``, ``grid``.  Stage 2 (deform): ``steps``,
     ``solver``, ``solve``, ``size``, ``size_field``.  Stage 3 (triangulate):
-    ``improve``, ``merge_extra``.  Boundary layers (``deformesh all``): ``layers``,
+    ``improve``, ``merge_extra``, ``cells``.  Boundary layers (``deformesh all``): ``layers``,
     ``first_height``, ``layer_growth``, ``layers_on``, ``layer_cells``.  Writing:
     ``fmt``, ``msh_version``.
     """
@@ -202,6 +203,15 @@ class MeshOptions:
         "choice",
         choices=MERGE_EXTRA,
     )
+    cells: str = _opt(
+        "tri",
+        "Cells: triangles ('tri'); 'quad': pairs of triangles made quads where every "
+        "corner of the quad is within 45 degrees of a right angle, chosen over the whole "
+        "mesh, triangles elsewhere; 'quad-only': every cell split into quads (a node at "
+        "the middle of every edge, the boundary's included).",
+        "choice",
+        choices=CELLS,
+    )
     # boundary layers
     layers: int = _opt(
         0,
@@ -277,7 +287,7 @@ STAGES: dict[str, tuple[str, ...]] = {
         "max_h",
     ),  # fmt: skip
     "deform": ("steps", "solver", "solve", "size", "size_field"),
-    "triangulate": ("improve", "merge_extra"),
+    "triangulate": ("improve", "merge_extra", "cells"),
     "layers": ("layers", "first_height", "layer_growth", "layers_on", "layer_cells"),
     "write": ("fmt", "msh_version"),
 }

@@ -18,6 +18,7 @@ from . import deadline, forced, geometry, quality, triangulate, untangle
 from . import deform as _deform
 from . import improve as _improve
 from . import layers as _layers
+from . import quads as _quads
 from . import recover as _recover
 from . import size as _size
 from .contour import Contour, count_words, far_field_box, split_edges
@@ -481,11 +482,38 @@ def mesh_contour(
         d = run_deform(laid.grid, sel, o, callback=callback, size_function=size)
         lap("deform")
         mesh, report = run_triangulate(laid, d, o, size_function=size, cut=cut.result())
-    lap("triangulate")
     report.update(selection_report(sel))
+    mesh, report = shape_cells(laid.contour, mesh, report, o, sel.grid.box if o.exterior else None)
+    lap("triangulate")
     if d.stats is not None:
         report["moved_nodes"] = int(d.stats.moved_nodes)  # the band's nodes, or every node
     return MeshResult(mesh, sel, d.stats, report)
+
+
+def shape_cells(
+    contour: Contour, mesh: Mesh, report: dict, o: MeshOptions, box=None
+) -> tuple[Mesh, dict]:
+    """The cells ``o.cells`` asks for (:mod:`.quads`) on the finished ``mesh`` of
+    ``contour`` (``box``: an exterior mesh's), checked, and its summary with the
+    quads' record: ``tri`` leaves both as they are."""
+    if o.cells == "tri":
+        return mesh, report
+    if o.cells not in _quads.CELLS:
+        raise OptionError(f"--cells must be one of {', '.join(_quads.CELLS)}, got {o.cells!r}")
+    mesh, made = _quads.recombine(mesh)
+    report = {**report, "cells": o.cells, "quads_made": made["quads_made"]}
+    if o.cells == "quad-only":
+        mesh, added = _quads.subdivide(mesh, triangulate.BOX_SIDES)
+        report["split_boundary_edges"] = added
+        report["notes"] = [
+            *report.get("notes", []),
+            f"--cells quad-only put a node at the middle of each of the {added} boundary "
+            "edges (after the given points)",
+        ]
+    quality.check_contract(mesh, contour, box)
+    stats = quality.stats(mesh)
+    report.update(stats)
+    return mesh, report
 
 
 def layer_spec(contour: Contour, o: MeshOptions) -> _layers.LayerSpec:
@@ -493,6 +521,7 @@ def layer_spec(contour: Contour, o: MeshOptions) -> _layers.LayerSpec:
     rings by their boundary groups (``contour``, ``contour_2``, ``hole_1``, ...)."""
     if o.first_height is None:
         raise OptionError("--layers needs --first-height (the first layer's height)")
+    check_layer_cells(o)
     if o.max_h is not None:
         raise OptionError(
             "--max-h would split the walls' edges under the layers; give --layers without it"
@@ -509,6 +538,16 @@ def layer_spec(contour: Contour, o: MeshOptions) -> _layers.LayerSpec:
             )
         rings = tuple(sorted({names[w] for w in wanted}))
     return _layers.LayerSpec(o.layers, o.first_height, o.layer_growth, rings)
+
+
+def check_layer_cells(o: MeshOptions) -> None:
+    """Refuse ``--cells quad-only`` with boundary layers: splitting every cell in four
+    would halve the layers' heights, the first one's included."""
+    if o.cells == "quad-only":
+        raise OptionError(
+            "--cells quad-only would split the boundary layers' quads in four and halve "
+            "their first height; give --cells quad with --layers"
+        )
 
 
 @names_its_file
@@ -533,6 +572,8 @@ def mesh_with_layers(
         seconds=seconds,
     )
     mesh, report = join_layers(contour, stacks, core.mesh, core.report, core.selection, o)
+    box = core.selection.grid.box if o.exterior else None
+    mesh, report = shape_cells(contour, mesh, report, o, box)
     return MeshResult(mesh, core.selection, core.deform_stats, report)
 
 
@@ -555,7 +596,7 @@ def core_options(o: MeshOptions) -> MeshOptions:
     """The options the rest of the domain is meshed with under layers: no layers of its
     own, and extra boundary nodes taken out on any grid (the top nodes its only
     boundary nodes)."""
-    return o.replace(layers=0, merge_extra="merge")
+    return o.replace(layers=0, merge_extra="merge", cells="tri")
 
 
 def join_layers(

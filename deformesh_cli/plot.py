@@ -216,7 +216,13 @@ def render(
     axh.set_ylabel(label, fontsize=8)
     axh.set_xlabel("triangles", fontsize=8)
     axh.tick_params(labelsize=7)
-    axh.set_title(f"angles {smallest.min():.1f}-{largest.max():.1f} deg", fontsize=8)
+    if len(tri):
+        axh.set_title(f"angles {smallest.min():.1f}-{largest.max():.1f} deg", fontsize=8)
+    elif len(quads):  # (a mesh of quads only: their corners' angles)
+        from .quads import report as quad_report
+
+        q = quad_report(points, quads, tri)
+        axh.set_title(f"quad angles {q['min_angle']:.1f}-{q['max_angle']:.1f} deg", fontsize=8)
     fig.tight_layout()
     buf = _io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, metadata={"Software": None})

@@ -78,18 +78,34 @@ SUMMARY_KEYS = (
 
 
 def stats(mesh: Mesh) -> dict:
-    """Summary numbers of a mesh (JSON-ready): counts, then :data:`SUMMARY_KEYS`."""
-    r = report(mesh.points, mesh.triangles)
+    """Summary numbers of a mesh (JSON-ready): counts, then :data:`SUMMARY_KEYS` (the
+    triangles' angles and radius ratios; in a mesh of quads only, the quads' angles and
+    no radius ratio), and with quads ``quad_quality`` (:func:`.quads.report`)."""
     out = {
         "nodes": int(mesh.n_nodes),
-        "triangles": r["triangles"],
+        "triangles": int(len(mesh.triangles)),
         "boundary_nodes": int(len(mesh.lines)),
         "extra_boundary_nodes": int(mesh.n_extra),
-        **{k: r[k] for k in SUMMARY_KEYS},
     }
-    if len(mesh.quads):  # (the angles are the triangles'; the area is every cell's)
-        out["quads"] = int(len(mesh.quads))
-        out["area"] = float(signed_areas(mesh.points, mesh.split).sum())
+    if len(mesh.triangles):
+        r = report(mesh.points, mesh.triangles)
+        out.update({k: r[k] for k in SUMMARY_KEYS})
+    if len(mesh.quads):  # (the area is every cell's)
+        from .quads import report as quad_report
+
+        q = quad_report(mesh.points, mesh.quads, mesh.triangles)
+        cells = signed_areas(mesh.points, mesh.split)
+        out["quads"] = q["quads"]
+        if not len(mesh.triangles):
+            out.update(
+                min_angle=q["min_angle"],
+                max_angle=q["max_angle"],
+                smallest_area=float((cells[: q["quads"]] + cells[q["quads"] :]).min()),
+                mean_radius_ratio=None,
+                min_radius_ratio=None,
+            )
+        out["area"] = float(cells.sum())
+        out["quad_quality"] = {k: v for k, v in q.items() if k not in ("quads",)}
     return out
 
 
@@ -500,17 +516,24 @@ def assess(
     Folded triangles (and quads not convex) are a problem with or without a contour;
     with one, the whole contract is checked (:func:`mesh_for_contour`,
     :func:`check_contract`).  ``quads``: the mesh's quads, measured by
-    :func:`layer_report` (``first``: the first height they were made for); the angle
-    measures are the triangles'.
+    :func:`.quads.report` (``quad_quality``) and, with ``first`` (the first height of
+    boundary layers), their stacks by :func:`layer_report` (``layers``); the angle
+    measures at the top level are the triangles'.
     """
     quads = np.zeros((0, 4), dtype=np.int64) if quads is None else quads
     rep = report(points, tri) if len(tri) else {"nodes": int(len(points)), "triangles": 0}
     problem = None
     if len(quads):
-        rep["layers"] = layer_report(points, quads, tri, first)
+        from .quads import report as quad_report
+
+        q = quad_report(points, quads, tri)
+        rep["quads"] = q.pop("quads")
+        rep["quad_quality"] = q
+        if first is not None:
+            rep["layers"] = layer_report(points, quads, tri, first)
         rep["area"] = float(signed_areas(points, as_triangles(tri, quads)).sum())
-        if rep["layers"]["non_convex"]:
-            problem = f"{rep['layers']['non_convex']} quad(s) not convex"
+        if q["non_convex"]:
+            problem = f"{q['non_convex']} quad(s) not convex"
     if rep.get("folded"):  # checked first: a fold also breaks the boundary walk
         x, y = rep["smallest_area_at"]
         problem = (

@@ -326,15 +326,17 @@ def test_quality_measures_the_layers_and_checks_the_contract(run, circle_files):
     assert r.exit_code == 0, r.stderr
     rep = json.loads(r.stdout)
     lay = rep["layers"]
-    assert rep["contract"] == "ok" and lay["quads"] == len(mesh.quads)
-    assert lay["non_convex"] == 0 and lay["stacks"] == 64 and lay["fans"] == 0
+    assert rep["contract"] == "ok" and rep["quads"] == len(mesh.quads)
+    assert rep["quad_quality"]["non_convex"] == 0 and lay["stacks"] == 64 and lay["fans"] == 0
     assert lay["first_height_within_1pct"] == 64
     assert lay["growth_min"] == pytest.approx(1.2) and lay["growth_max"] == pytest.approx(1.2)
     assert lay["min_wall_angle"] == pytest.approx(90.0 - 360.0 / 64 / 2)  # (the bisector)
     total = _cells_area(mesh.points, mesh.triangles, mesh.quads)
     assert rep["area"] == pytest.approx(total, rel=1e-12)
-    text = run("quality", path).stdout
+    text = run("quality", path, "--first-height", 0.01).stdout
     assert "quads: 0 not convex" in text and "layers: 64 stacks" in text
+    plain = run("quality", path).stdout  # (no stacks read into quads without H)
+    assert "quads: 0 not convex" in plain and "stacks" not in plain
 
 
 def test_quality_finds_a_quad_that_is_not_convex(run, tmp_path, circle_files):

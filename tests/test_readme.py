@@ -425,3 +425,22 @@ def test_layer_numbers_in_the_docs_are_the_benchmark_file():
         f"at {plain[2]} nodes."
     ) in method
     assert float(layers[4]) < float(plain[4]) and float(layers[5]) < float(plain[5])
+
+
+def test_quad_numbers_in_the_docs_are_the_benchmark_file():
+    """docs/method.md's comparison with Gmsh's Blossom recombination is the rows ``make
+    bench`` last wrote ("quads")."""
+    method = " ".join(DOCS["method.md"].split())
+    rows = {(r[0], r[1]): r for r in _section_rows("quads", 10)}
+
+    def phrase(name, label):
+        ours, gmsh = rows[name, "deformesh"], rows[name, "gmsh"]
+        assert ours[6] == gmsh[6] and ours[6].split(" of ")[0] == ours[6].split(" of ")[1]
+        return (
+            f"{label}, {ours[7]} of the area in quads, the smallest scaled Jacobian {ours[9]}, "
+            f"{ours[2]} s, against Gmsh's {gmsh[7]}, {gmsh[9]} and {gmsh[2]} s"
+        )
+
+    assert f"{phrase('circle', 'the circle')}; {phrase('naca0012', 'the NACA 0012')}." in method
+    assert float(rows["circle", "deformesh"][7].rstrip("%")) >= 80
+    assert float(rows["naca0012", "deformesh"][7].rstrip("%")) >= 70

@@ -27,7 +27,8 @@ from .options import contour_reading, json_option, positive, quiet_option, take
     callback=positive,
     default=None,
     metavar="H",
-    help="Boundary layers: count the stacks whose first height is within 1% of H.",
+    help="Boundary layers: measure the quads' stacks (first heights, wall angles, "
+    "growth) and count those whose first height is within 1% of H.",
 )
 @contour_reading()
 @json_option("Print the report as JSON.")
@@ -38,8 +39,9 @@ def command(
 ) -> None:
     """Report a mesh's angles, areas and radius ratios; check the contract against a contour.
 
-    A mesh with quads (boundary layers) also gets their convexity, aspect ratios,
-    first heights, wall angles and growth.  Exit 1 if a triangle is folded, a quad
+    A mesh with quads also gets their convexity, angles, scaled Jacobians, aspect
+    ratios and share of the area; with --first-height (boundary layers), their
+    stacks' first heights, wall angles and growth.  Exit 1 if a triangle is folded, a quad
     not convex, or (with --contour) the contract is broken; with -q, that is all it
     says.
     """
@@ -60,41 +62,42 @@ def command(
 
 def quality_text(r: dict) -> str:
     """The report as text: sizes, angles, areas, radius ratios and their histogram."""
-    layers = r.get("layers")
-    quads = f", {layers['quads']} quads" if layers else ""
+    quads = f", {r['quads']} quads" if r.get("quads") else ""
     out = [
         f"{r['mesh']}: {r['nodes']} nodes, {r['triangles']} triangles{quads}, area {r['area']:.6g}"
     ]
     if r["triangles"]:
         out += _triangle_lines(r)
-    if layers:
-        out += _layer_lines(layers)
+    if r.get("quads"):
+        out += _quad_lines(r["quad_quality"], r.get("layers"))
     out.append(f"contract: {r['contract']}")
     return "\n".join(out)
 
 
-def _layer_lines(q: dict) -> list[str]:
-    """The quads' lines of the report."""
+def _quad_lines(q: dict, layers: dict | None) -> list[str]:
+    """The quads' lines of the report (and their stacks', for boundary layers)."""
     out = [
-        f"quads: {q['non_convex']} not convex; aspect ratio mean {q['mean_aspect_ratio']:.3g}, "
-        f"max {q['max_aspect_ratio']:.3g}",
+        f"quads: {q['non_convex']} not convex; angles {q['min_angle']:.2f}-"
+        f"{q['max_angle']:.2f} deg; scaled Jacobian min {q['min_scaled_jacobian']:.3f}; "
+        f"aspect ratio mean {q['mean_aspect_ratio']:.3g}, max {q['max_aspect_ratio']:.3g}; "
+        f"{100 * q['area_share']:.1f}% of the area",
     ]
-    if q["stacks"]:
+    if layers and layers["stacks"]:
         out.append(
-            f"layers: {q['stacks']} stacks ({q['fans']} fan points left out); first height "
-            f"{q['first_height_min']:.3g}-{q['first_height_max']:.3g}; wall angle min "
-            f"{q['min_wall_angle']:.1f} deg"
+            f"layers: {layers['stacks']} stacks ({layers['fans']} fan points left out); first "
+            f"height {layers['first_height_min']:.3g}-{layers['first_height_max']:.3g}; wall "
+            f"angle min {layers['min_wall_angle']:.1f} deg"
             + (
-                f"; growth {q['growth_min']:.3g}-{q['growth_max']:.3g}"
-                if q["growth_min"] is not None
+                f"; growth {layers['growth_min']:.3g}-{layers['growth_max']:.3g}"
+                if layers["growth_min"] is not None
                 else ""
             )
         )
-    if "first_height_within_1pct" in q:
-        worst = 100 * q["first_height_max_difference"]
+    if layers and "first_height_within_1pct" in layers:
+        worst = 100 * layers["first_height_max_difference"]
         out.append(
-            f"first height within 1% of H at {q['first_height_within_1pct']} of "
-            f"{q['stacks']} stacks (largest difference {worst:.2f}%)"
+            f"first height within 1% of H at {layers['first_height_within_1pct']} of "
+            f"{layers['stacks']} stacks (largest difference {worst:.2f}%)"
         )
     return out
 

@@ -53,6 +53,8 @@ def command(
                 "--merge-extra keep would leave grid nodes between the layers' top nodes "
                 f"of {name}; the layers need them taken out"
             )
+        if st.stacks is not None:
+            pipeline.check_layer_cells(o)
         core = pipeline.core_options(o) if st.stacks is not None else o
         mesh, report = pipeline.run_triangulate(st.laid, deformed, core, size_function=size)
         report.update(pipeline.selection_report(st.selection))
@@ -60,6 +62,8 @@ def command(
             mesh, report = pipeline.join_layers(
                 st.contour, st.stacks, mesh, report, st.selection, o
             )
+        box = st.selection.grid.box if o.exterior else None
+        mesh, report = pipeline.shape_cells(st.contour, mesh, report, o, box)
     except FoldError as exc:  # (the state's deformed points are what folds)
         raise FoldError(f"{name}: {exc}") from None
     except SizeError as exc:

@@ -28,9 +28,11 @@ def contour_point(mesh: Mesh) -> np.ndarray:
 
 
 def cell_blocks(mesh: Mesh) -> list[tuple[str, np.ndarray]]:
-    """The cells by kind, as meshio names them: the triangles, the quads (only where
-    boundary layers made some), then the boundary lines."""
-    out = [("triangle", mesh.triangles.astype(np.int64))]
+    """The cells by kind, as meshio names them: the triangles (unless the mesh is of
+    quads only), the quads (only where there are some), then the boundary lines."""
+    out = []
+    if len(mesh.triangles) or not len(mesh.quads):
+        out.append(("triangle", mesh.triangles.astype(np.int64)))
     if len(mesh.quads):
         out.append(("quad", mesh.quads.astype(np.int64)))
     out.append(("line", mesh.lines.astype(np.int64)))

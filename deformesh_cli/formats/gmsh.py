@@ -19,16 +19,20 @@ MESHIO_NAMES = {"2.2": "gmsh22", "4.1": "gmsh"}
 
 _GMSH_TYPE = {"triangle": 2, "quad": 3, "line": 1}
 
+#: The surface entity of each kind of 2D cell.
+SURFACE = {"triangle": 1, "quad": 2}
+
 
 def blocks(mesh: Mesh) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray]]:
     """Element blocks as ``(meshio type, physical tags, geometrical tags, connectivity)``:
-    the triangles and any quads (physical ``domain``; geometrical 1, and 2 for the
-    quads: a Gmsh 4.1 entity holds one kind of element), then one block of lines per
-    boundary group (physical = geometrical = the group's tag)."""
+    the triangles and any quads (physical ``domain``; geometrical 1 for the triangles,
+    2 for the quads: meshio writes one kind of element per entity), then one block of
+    lines per boundary group (physical = geometrical = the group's tag)."""
     line_tag = (mesh.line_group + 1).astype(np.int64)
+    domain = groups(mesh)["domain"][0]
     out = [
-        (kind, np.full(len(cells), groups(mesh)["domain"][0]), np.full(len(cells), k), cells)
-        for k, (kind, cells) in enumerate(cell_blocks(mesh)[:-1], start=1)
+        (kind, np.full(len(cells), domain), np.full(len(cells), SURFACE[kind]), cells)
+        for kind, cells in cell_blocks(mesh)[:-1]
     ]
     for tag in np.unique(line_tag):
         on = line_tag == tag
@@ -71,6 +75,28 @@ def write_meshio(mesh: Mesh, path: str, version: str) -> None:
     meshio.write(path, m, file_format=MESHIO_NAMES[version], binary=False)
     if version == "4.1":
         _nodes_in_order(path, mesh.points, point_data["gmsh:dim_tags"])
+        _all_entities(path, mesh, bl)
+
+
+def _all_entities(path: str, mesh: Mesh, bl) -> None:
+    """Rewrite the ``$Entities`` section of the 4.1 file ``path`` to list every entity an
+    element block names: meshio lists only those that hold a node, and a surface whose
+    nodes all lie on the boundary or on the other surface would be missing (Gmsh then
+    refuses the file).  The same lines as meshio's: no bounding box, one physical tag,
+    no bounding entities."""
+    curves = sorted({int(b[2][0]) for b in bl if b[0] == "line"})
+    surfaces = sorted({int(b[2][0]) for b in bl if b[0] != "line"})
+    domain = groups(mesh)["domain"][0]
+    out = [f"$Entities\n0 {len(curves)} {len(surfaces)} 0\n"]
+    out += [f"{t} 0 0 0 0 0 0 1 {t} 0\n" for t in curves]
+    out += [f"{t} 0 0 0 0 0 0 1 {domain} 0\n" for t in surfaces]
+    out.append("$EndEntities\n")
+    with open(path, encoding="ascii") as f:
+        text = f.read()
+    head, rest = text.split("$Entities\n", 1)
+    tail = rest.split("$EndEntities\n", 1)[1]
+    with open(path, "w", encoding="ascii") as f:
+        f.write(head + "".join(out) + tail)
 
 
 def _nodes_in_order(path: str, points: np.ndarray, dim_tags: np.ndarray) -> None:

@@ -1,0 +1,307 @@
+"""Quadrilateral cells from a triangle mesh (``--cells``).
+
+``quad``: pairs of neighbouring triangles become quads, chosen by a matching over
+the whole mesh (:func:`recombine`); ``quad-only``: every cell split into quads
+(:func:`subdivide`), which puts a node at the middle of every edge, the boundary's
+included.  Neither moves a node: the contour's points stay the boundary's (with
+``quad-only``, every second boundary node).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .geometry import signed_areas
+from .mesh import Mesh
+
+#: ``--cells``: triangles only (the mesh as built), quads where a pair of triangles
+#: makes a good one, or quads only.
+CELLS = ("tri", "quad", "quad-only")
+
+
+def corner_terms(points: np.ndarray, quads: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Per quad corner (``(q, 4)`` each): the cross and dot products of the two edges
+    leaving it (to the next corner, then to the previous one), and the product of
+    their lengths.  The corner's angle is ``atan2(cross, dot)``, its scaled Jacobian
+    ``cross / lengths``."""
+    p = points[quads]  # (q, 4, 2)
+    nxt = np.roll(p, -1, axis=1) - p
+    prv = np.roll(p, 1, axis=1) - p
+    cross = nxt[..., 0] * prv[..., 1] - nxt[..., 1] * prv[..., 0]
+    dot = nxt[..., 0] * prv[..., 0] + nxt[..., 1] * prv[..., 1]
+    lengths = np.hypot(nxt[..., 0], nxt[..., 1]) * np.hypot(prv[..., 0], prv[..., 1])
+    return cross, dot, lengths
+
+
+def good(points: np.ndarray, quads: np.ndarray) -> np.ndarray:
+    """Whether each quad is one :func:`recombine` keeps: every corner's angle strictly
+    between 45 and 135 degrees (``|dot| < cross``: exact in floating point for the
+    grid's own right-angled triangles, whose 45-degree parallelograms are left out)."""
+    cross, dot, _ = corner_terms(points, quads)
+    return (np.abs(dot) < cross).all(axis=1)
+
+
+def scaled_jacobian(points: np.ndarray, quads: np.ndarray) -> np.ndarray:
+    """Each quad's smallest scaled Jacobian: the sine of its corner angle farthest from
+    a right angle (1 for a rectangle, <= 0 for a quad that is not convex)."""
+    cross, _, lengths = corner_terms(points, quads)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.nan_to_num(cross / lengths).min(axis=1)
+
+
+def candidates(points: np.ndarray, tri: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The pairs of triangles across an interior edge whose union is a good quad
+    (:func:`good`): ``(first, second, quads)``, the quads counter-clockwise from the
+    first triangle's corner opposite the shared edge, in the order of the edges sorted
+    by their nodes."""
+    t = len(tri)
+    # edge k of a triangle is opposite its corner k
+    edges = np.concatenate([tri[:, [1, 2]], tri[:, [2, 0]], tri[:, [0, 1]]])
+    owner = np.tile(np.arange(t, dtype=np.int64), 3)
+    corner = np.repeat(np.arange(3, dtype=np.int64), t)
+    key = np.sort(edges, axis=1)
+    order = np.lexsort((key[:, 1], key[:, 0]))
+    k = key[order]
+    same = np.flatnonzero((k[1:] == k[:-1]).all(axis=1))
+    a, b = order[same], order[same + 1]
+    ta, ca, tb, cb = owner[a], corner[a], owner[b], corner[b]
+    quads = np.stack(
+        [tri[ta, ca], tri[ta, (ca + 1) % 3], tri[tb, cb], tri[ta, (ca + 2) % 3]], axis=1
+    )
+    keep = good(points, quads)
+    return ta[keep], tb[keep], quads[keep]
+
+
+def best_matching(n: int, a: np.ndarray, b: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """A matching of the graph on nodes ``0 .. n-1`` with edges ``(a, b)`` of weights
+    ``w > 0``: the indices of the edges taken.
+
+    The matching problem's linear relaxation is solved exactly, as an assignment on
+    the graph's bipartite double cover (each node a row and a column; edge ``(a, b)``
+    the entries ``(a, b)`` and ``(b, a)``, a node left single its diagonal entry):
+    scipy's sparse Jonker-Volgenant solver.  Its optimum is a permutation whose cycles
+    of two are matched pairs and whose fixed points are single nodes; a longer cycle
+    is a half-integral part, which is rounded to its best matching (every second edge
+    of an even cycle, and of an odd one the best leaving one node single).  Where no
+    cycle is longer than two, the matching is a best one; each longer odd cycle costs
+    at most one edge's weight."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import min_weight_full_bipartite_matching
+
+    m = len(a)
+    if m == 0:
+        return np.zeros(0, dtype=np.int64)
+    nodes = np.arange(n, dtype=np.int64)
+    rows = np.concatenate([a, b, nodes])
+    cols = np.concatenate([b, a, nodes])
+    # (weights must be non-zero: 1 more each, the same for every full assignment)
+    weight = np.concatenate([1.0 + w, 1.0 + w, np.ones(n)])
+    biadj = sp.csr_array((weight, (rows, cols)), shape=(n, n))
+    r, c = min_weight_full_bipartite_matching(biadj, maximize=True)
+    sigma = np.empty(n, dtype=np.int64)
+    sigma[r] = c
+    # the edge of each node's entry (-1: single), by its (row, column) key
+    keys = np.concatenate([a * n + b, b * n + a])
+    order = np.argsort(keys)
+    at = np.searchsorted(keys[order], nodes * n + sigma)
+    used = np.where(sigma == nodes, -1, order[np.minimum(at, 2 * m - 1)] % m)
+    pairs = (sigma != nodes) & (sigma[sigma] == nodes) & (nodes < sigma)
+    taken = [used[pairs]]
+    longer = np.flatnonzero((sigma != nodes) & (sigma[sigma] != nodes))
+    seen = np.zeros(n, dtype=bool)
+    for start in longer.tolist():
+        if seen[start]:
+            continue
+        cycle = [start]
+        seen[start] = True
+        v = int(sigma[start])
+        while v != start:
+            cycle.append(v)
+            seen[v] = True
+            v = int(sigma[v])
+        taken.append(_round_cycle(used[cycle], w))
+    return np.sort(np.concatenate(taken))
+
+
+def _round_cycle(edges: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """The best matching among the edges of one cycle (``edges[i]`` joins its nodes
+    ``i`` and ``i + 1``): every second edge on an even cycle; on an odd one, every
+    second edge after the node left single, that node chosen for the largest weight
+    (the first such)."""
+    k = len(edges)
+    if k % 2 == 0:
+        even, odd = edges[0::2], edges[1::2]
+        return even if w[even].sum() >= w[odd].sum() else odd
+    best, pick = -np.inf, None
+    for single in range(k):  # (node ``single`` left out: edges single+1, single+3, ...)
+        take = edges[(single + 1 + 2 * np.arange(k // 2)) % k]
+        total = w[take].sum()
+        if total > best:
+            best, pick = total, take
+    return pick
+
+
+def recombine(mesh: Mesh) -> tuple[Mesh, dict]:
+    """``mesh`` with pairs of its triangles made quads (its own quads kept): of the pairs
+    whose union is a good quad (:func:`candidates`), a matching over the whole mesh
+    (:func:`best_matching`) weighted by each quad's smallest scaled Jacobian
+    (:func:`scaled_jacobian`, above ``sin 45`` for every candidate, so two quads always
+    outweigh one).  Returns the mesh and what was done (``quads_made``)."""
+    tri = mesh.triangles
+    a, b, quads = candidates(mesh.points, tri)
+    w = scaled_jacobian(mesh.points, quads)
+    taken = best_matching(len(tri), a, b, w)
+    single = np.ones(len(tri), dtype=bool)
+    single[a[taken]] = single[b[taken]] = False
+    out = _with_cells(mesh, tri[single], np.concatenate([mesh.quads, quads[taken]]))
+    return out, {"quads_made": int(len(taken))}
+
+
+def _with_cells(mesh: Mesh, tri: np.ndarray, quads: np.ndarray) -> Mesh:
+    return Mesh(
+        mesh.points,
+        tri,
+        mesh.lines,
+        n_contour=mesh.n_contour,
+        n_extra=mesh.n_extra,
+        line_group=mesh.line_group,
+        groups=mesh.groups,
+        n_box=mesh.n_box,
+        point_data=dict(mesh.point_data),
+        quads=quads,
+    )
+
+
+def subdivide(mesh: Mesh, box_groups: tuple[str, ...] = ()) -> tuple[Mesh, int]:
+    """``mesh`` with every cell split into quads: a node at the middle of every edge and
+    at the centre of every cell (a triangle's centroid, a quad's corner average), each
+    triangle into three quads and each quad into four, all counter-clockwise and
+    convex (a triangle's pieces: its centroid is inside; a quad's: the images of the
+    unit square's quarters under its bilinear map, which a convex quad keeps convex).
+
+    Every boundary edge gets a middle node too (a mesh of quads only has an even
+    number of boundary edges).  Numbering as :class:`.mesh.Mesh` wants: the contour's
+    points first, then the other ring nodes (the middles among them) in boundary
+    order, then the box sides' (``box_groups``), then the interior nodes.  Point data
+    is carried linearly.  Returns the mesh and the number of boundary nodes added."""
+    pts, tri, quads = mesh.points, mesh.triangles, mesh.quads
+    nt, nq, n = len(tri), len(quads), mesh.n_nodes
+    sides = np.concatenate(
+        [
+            tri[:, [0, 1]],
+            tri[:, [1, 2]],
+            tri[:, [2, 0]],
+            *(quads[:, [k, (k + 1) % 4]] for k in range(4)),
+        ]
+    )
+    key = np.sort(sides, axis=1)
+    edges, side_edge = np.unique(key, axis=0, return_inverse=True)
+    side_edge = side_edge.ravel()
+    ne = len(edges)
+    # provisional numbering: old nodes, then edge middles, then cell centres
+    mid = n + side_edge
+    centre = n + ne + np.arange(nt + nq)
+    t_mid = mid[: 3 * nt].reshape(3, nt).T  # (middle of 01, 12, 20)
+    q_mid = mid[3 * nt :].reshape(4, nq).T  # (middle of 01, 12, 23, 30)
+    tc, qc = centre[:nt], centre[nt:]
+    cells = []
+    for k in range(3):  # corner k, the middle after it, the centre, the middle before it
+        cells.append(np.stack([tri[:, k], t_mid[:, k], tc, t_mid[:, (k + 2) % 3]], axis=1))
+    for k in range(4):
+        cells.append(np.stack([quads[:, k], q_mid[:, k], qc, q_mid[:, (k + 3) % 4]], axis=1))
+    new_quads = np.concatenate(cells)
+    new_pts = np.concatenate(
+        [
+            pts,
+            0.5 * (pts[edges[:, 0]] + pts[edges[:, 1]]),
+            pts[tri].mean(axis=1),
+            pts[quads].mean(axis=1),
+        ]
+    )
+    # the boundary: each line split at its middle
+    line_key = np.sort(mesh.lines, axis=1)
+    at = np.searchsorted(
+        edges[:, 0] * (n + 1) + edges[:, 1], line_key[:, 0] * (n + 1) + line_key[:, 1]
+    )
+    line_mid = n + at
+    lines = np.stack([mesh.lines[:, 0], line_mid, line_mid, mesh.lines[:, 1]], axis=1).reshape(
+        -1, 2
+    )
+    groups = np.repeat(mesh.line_group, 2)
+    # renumbered: contour points, ring nodes, box nodes, the rest
+    box_ids = [g for g, name in enumerate(mesh.groups) if name in box_groups]
+    on_box = np.isin(groups, box_ids)
+    m = mesh.n_contour
+    ring_walk = lines[~on_box, 0]
+    box_walk = lines[on_box, 0]
+    ring_extra = _first_seen(ring_walk[ring_walk >= m])
+    box_nodes = _first_seen(box_walk[box_walk >= m])
+    box_nodes = box_nodes[~np.isin(box_nodes, ring_extra)]
+    total = len(new_pts)
+    placed = np.zeros(total, dtype=bool)
+    placed[:m] = True
+    placed[ring_extra] = placed[box_nodes] = True
+    perm = np.concatenate([np.arange(m), ring_extra, box_nodes, np.flatnonzero(~placed)])
+    inv = np.empty(total, dtype=np.int64)
+    inv[perm] = np.arange(total)
+    data = {}
+    for name, v in mesh.point_data.items():
+        full = np.concatenate(
+            [v, 0.5 * (v[edges[:, 0]] + v[edges[:, 1]]), v[tri].mean(axis=1), v[quads].mean(axis=1)]
+        )
+        data[name] = full[perm]
+    out = Mesh(
+        new_pts[perm],
+        np.zeros((0, 3), dtype=np.int64),
+        inv[lines],
+        n_contour=m,
+        n_extra=len(ring_extra),
+        line_group=groups,
+        groups=mesh.groups,
+        n_box=len(box_nodes),
+        point_data=data,
+        quads=inv[new_quads],
+    )
+    return out, int(len(mesh.lines))
+
+
+def _first_seen(nodes: np.ndarray) -> np.ndarray:
+    """``nodes`` without repeats, in the order each first appears."""
+    _, at = np.unique(nodes, return_index=True)
+    return nodes[np.sort(at)]
+
+
+def report(points: np.ndarray, quads: np.ndarray, tri: np.ndarray) -> dict:
+    """What ``quality`` says of a mesh's quads: their count, how many are not strictly
+    convex and counter-clockwise, their smallest and largest corner angles, their
+    smallest scaled Jacobian, their aspect ratios (the longer over the shorter of the
+    mean widths between opposite sides) and the share of the mesh's area in them."""
+    q = quads
+    cross, dot, lengths = corner_terms(points, q)
+    angle = np.degrees(np.arctan2(cross, dot)) % 360.0
+    own = np.minimum(signed_areas(points, q[:, [0, 1, 2]]), signed_areas(points, q[:, [0, 2, 3]]))
+    other = np.minimum(signed_areas(points, q[:, [1, 2, 3]]), signed_areas(points, q[:, [1, 3, 0]]))
+    bad = np.minimum(own, other) <= 0
+
+    def dist(i, j):
+        d = points[q[:, i]] - points[q[:, j]]
+        return np.hypot(d[:, 0], d[:, 1])
+
+    one = 0.5 * (dist(1, 0) + dist(2, 3))
+    two = 0.5 * (dist(3, 0) + dist(2, 1))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        aspect = np.maximum(one, two) / np.minimum(one, two)
+    quad_area = float(
+        signed_areas(points, q[:, [0, 1, 2]]).sum() + signed_areas(points, q[:, [0, 2, 3]]).sum()
+    )
+    total = quad_area + float(signed_areas(points, tri).sum()) if len(tri) else quad_area
+    return {
+        "quads": int(len(q)),
+        "non_convex": int(bad.sum()),
+        "min_angle": float(angle.min()),
+        "max_angle": float(angle.max()),
+        "min_scaled_jacobian": float(scaled_jacobian(points, q).min()),
+        "mean_aspect_ratio": float(aspect.mean()),
+        "max_aspect_ratio": float(aspect.max()),
+        "area_share": quad_area / total if total else None,
+    }
