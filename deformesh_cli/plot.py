@@ -116,7 +116,8 @@ def render(
     :data:`COLOURS`; the histogram counts every triangle of the mesh.  ``values``
     (label, one number per triangle) shades by those instead, from their least to
     their largest.  ``quads`` (boundary layers) are drawn in one light colour with
-    their edges; the shading and the histogram are the triangles'.
+    their edges; the shading and the histogram are the triangles' (a mesh of quads
+    alone: the histogram of their smallest scaled Jacobians).
     """
     plt = _pyplot()
     from matplotlib.collections import LineCollection
@@ -205,6 +206,16 @@ def render(
         inset.set_yticks([])
         inset.set_facecolor("white")
 
+    what = "triangles"
+    if not len(tri) and len(quads):  # (a mesh of quads only: their scaled Jacobians)
+        from .quads import scaled_jacobian
+
+        label, value, what = (
+            "quads' smallest scaled Jacobian",
+            scaled_jacobian(points, quads),
+            "quads",
+        )
+        base, top, bins = 0.0, 1.0, np.linspace(0.0, 1.0, 11)
     counts, edges_ = np.histogram(value, bins=bins)
     mids = 0.5 * (edges_[:-1] + edges_[1:])
     axh.barh(
@@ -214,7 +225,7 @@ def render(
     axh.set_xlim(0.8, max(10, 2 * counts.max()))
     axh.set_ylim(base, top)
     axh.set_ylabel(label, fontsize=8)
-    axh.set_xlabel("triangles", fontsize=8)
+    axh.set_xlabel(what, fontsize=8)
     axh.tick_params(labelsize=7)
     if len(tri):
         axh.set_title(f"angles {smallest.min():.1f}-{largest.max():.1f} deg", fontsize=8)

@@ -312,3 +312,12 @@ def test_random_polygons_mesh_with_quads(exterior, count):
     """Every valid polygon meshes with quads and with quads only, the contract holding
     (the exterior meshes are the slow ones: fewer of them)."""
     assert _random_quads(exterior, count) == count
+
+
+def test_plot_draws_a_mesh_of_quads(run, tmp_path):
+    """A mesh of quads alone is drawn, its histogram the quads' scaled Jacobians."""
+    mesh, png = tmp_path / "m.vtu", tmp_path / "m.png"
+    assert run("all", CIRCLE, "-o", mesh, "--cells", "quad-only", "-q").exit_code == 0
+    r = run("plot", mesh, "-o", png)
+    assert r.exit_code == 0, r.stderr
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
