@@ -37,6 +37,10 @@ class Mesh:
     #: (q, 4) int64: quadrilateral cells, counter-clockwise (boundary layers'); none
     #: on a triangle mesh
     quads: np.ndarray = field(default_factory=lambda: np.zeros((0, 4), dtype=np.int64))
+    #: (k, 2) int64: periodic pairs ``(node, partner)``, ``partner`` the boundary node at
+    #: ``node + shift`` (``--periodic``); none otherwise
+    periodic: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
+    shift: tuple[float, float] | None = None
 
     def __post_init__(self):
         if self.line_group is None:

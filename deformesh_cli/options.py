@@ -30,8 +30,8 @@ from .select.graded import DEFAULT_GROWTH
 #: ``text``, ``flag`` (``--x``), ``switch`` (``--x/--no-x``), ``choice`` (one of
 #: ``choices``), ``positive`` (a finite float > 0), ``float``, ``count`` (an int >= ``min``
 #: and <= ``max`` where given),
-#: ``box`` (XMIN,YMIN,XMAX,YMAX), ``path`` (an existing file).
-KINDS = ("text", "flag", "switch", "choice", "positive", "float", "count", "box", "path")
+#: ``box`` (XMIN,YMIN,XMAX,YMAX), ``vector`` (DX,DY, not both 0), ``path`` (an existing file).
+KINDS = ("text", "flag", "switch", "choice", "positive", "float", "count", "box", "vector", "path")
 
 
 #: ``deformesh move``'s default floor on a frame's smallest angle, in degrees: the
@@ -65,8 +65,8 @@ class MeshOptions:
 
     Reading the contour: ``decimal``, ``tolerance``, ``element_id``,
     ``stroke``, ``resample``.  Stage 1 (select): ``h``, ``box``, ``margin``, ``strict``,
-    ``max_nodes``, ``exterior``, ``grid``.  Stage 2 (deform): ``steps``,
-    ``solver``, ``solve``, ``size``, ``size_field``.  Stage 3 (triangulate):
+    ``max_nodes``, ``exterior``, ``grid``, ``growth``, ``max_h``, ``periodic``.  Stage 2
+    (deform): ``steps``, ``solver``, ``solve``, ``size``, ``size_field``.  Stage 3 (triangulate):
     ``improve``, ``merge_extra``, ``cells``.  Boundary layers (``deformesh all``): ``layers``,
     ``first_height``, ``layer_growth``, ``layers_on``, ``layer_cells``.  Writing:
     ``fmt``, ``msh_version``.
@@ -161,6 +161,14 @@ class MeshOptions:
         "Default: the given points are the boundary; cells as large as the box allows.",
         "positive",
         metavar="H",
+    )
+    periodic: tuple[float, float] | None = _opt(
+        None,
+        "Pair every boundary node p with the boundary node at p + (DX, DY), if any (the "
+        "mesh is periodic there); with --exterior and the box's height (0,H) or width "
+        "(W,0), the opposite box sides get matching nodes. Refused when it pairs no "
+        "boundary edge with another.",
+        "vector",
     )
     # stage 2: deform
     steps: int = _opt(DEFAULT_STEPS, _STEPS_HELP, "count", min=1, max=MAX_STEPS)
@@ -285,6 +293,7 @@ STAGES: dict[str, tuple[str, ...]] = {
         "grid",
         "growth",
         "max_h",
+        "periodic",
     ),  # fmt: skip
     "deform": ("steps", "solver", "solve", "size", "size_field"),
     "triangulate": ("improve", "merge_extra", "cells"),

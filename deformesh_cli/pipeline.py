@@ -6,6 +6,7 @@ is what ``deformesh all`` runs.  Nothing here prints or exits.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -18,6 +19,7 @@ from . import deadline, forced, geometry, quality, triangulate, untangle
 from . import deform as _deform
 from . import improve as _improve
 from . import layers as _layers
+from . import periodic as _periodic
 from . import quads as _quads
 from . import recover as _recover
 from . import size as _size
@@ -181,6 +183,7 @@ def run_select(
             max_nodes=o.max_nodes,
             max_h=o.max_h,
             size_function=size,
+            periodic=o.periodic,
         )
     try:
         with deadline.limit(deadline.search_bound(contour.n)):
@@ -483,11 +486,28 @@ def mesh_contour(
         lap("deform")
         mesh, report = run_triangulate(laid, d, o, size_function=size, cut=cut.result())
     report.update(selection_report(sel))
-    mesh, report = shape_cells(laid.contour, mesh, report, o, sel.grid.box if o.exterior else None)
+    mesh, report = finish_mesh(laid.contour, mesh, report, o, sel.grid.box if o.exterior else None)
     lap("triangulate")
     if d.stats is not None:
         report["moved_nodes"] = int(d.stats.moved_nodes)  # the band's nodes, or every node
     return MeshResult(mesh, sel, d.stats, report)
+
+
+def finish_mesh(
+    contour: Contour, mesh: Mesh, report: dict, o: MeshOptions, box=None
+) -> tuple[Mesh, dict]:
+    """The last steps on a checked mesh: the cells ``o.cells`` asks for
+    (:func:`shape_cells`), then the periodic pairs ``o.periodic`` asks for
+    (:func:`.periodic.pair`: the mesh's ``periodic`` and point data ``periodic``, each
+    node's partner or -1; the summary's ``periodic`` record)."""
+    mesh, report = shape_cells(contour, mesh, report, o, box)
+    if o.periodic is None:
+        return mesh, report
+    pairs = _periodic.pair(mesh, o.periodic, contour.source)
+    data = {**mesh.point_data, "periodic": _periodic.partner_data(mesh.n_nodes, pairs)}
+    mesh = dataclasses.replace(mesh, periodic=pairs, shift=tuple(o.periodic), point_data=data)
+    report = {**report, "periodic": {"shift": list(o.periodic), "pairs": int(len(pairs))}}
+    return mesh, report
 
 
 def shape_cells(
@@ -573,7 +593,7 @@ def mesh_with_layers(
     )
     mesh, report = join_layers(contour, stacks, core.mesh, core.report, core.selection, o)
     box = core.selection.grid.box if o.exterior else None
-    mesh, report = shape_cells(contour, mesh, report, o, box)
+    mesh, report = finish_mesh(contour, mesh, report, o, box)
     return MeshResult(mesh, core.selection, core.deform_stats, report)
 
 

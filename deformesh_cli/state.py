@@ -605,6 +605,7 @@ def _option_kind(f) -> str:
         "float": "a finite number",
         "count": f"a whole number >= {f.metadata.get('min', 0)}",
         "box": "a box [XMIN, YMIN, XMAX, YMAX]",
+        "vector": "a translation [DX, DY], not both 0",
     }[kind]
 
 
@@ -629,6 +630,9 @@ def _option_ok(f, v) -> bool:
     if kind == "box":
         return (isinstance(v, list) and len(v) == 4 and all(_is_coordinate(x) for x in v)
                 and v[0] < v[2] and v[1] < v[3])  # fmt: skip
+    if kind == "vector":
+        return (isinstance(v, list) and len(v) == 2 and all(_is_coordinate(x) for x in v)
+                and any(x != 0 for x in v))  # fmt: skip
     return False
 
 

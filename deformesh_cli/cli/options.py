@@ -41,6 +41,27 @@ class BoxType(click.ParamType):
         return v
 
 
+class VectorType(click.ParamType):
+    """DX,DY as a tuple of two finite floats, not both zero."""
+
+    name = "DX,DY"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple):
+            return value
+        try:
+            v = tuple(float(s) for s in value.split(","))
+        except ValueError:
+            self.fail(f"{value!r} is not two numbers DX,DY", param, ctx)
+        if len(v) != 2:
+            self.fail(f"{value!r} has {len(v)} numbers, expected DX,DY", param, ctx)
+        if not all(math.isfinite(x) for x in v) or v == (0.0, 0.0):
+            self.fail(
+                f"{value!r} is not a translation (two finite numbers, not both 0)", param, ctx
+            )
+        return v
+
+
 def positive(ctx, param, value):
     """click callback: a finite number > 0 (or none given)."""
     if value is not None and not (value > 0 and math.isfinite(value)):
@@ -72,6 +93,8 @@ def click_option(f: dataclasses.Field, help: str | None = None) -> Callable:
         kw.update(type=click.IntRange(min=meta["min"], max=meta.get("max")), show_default=True)
     elif kind == "box":
         kw["type"] = BoxType()
+    elif kind == "vector":
+        kw["type"] = VectorType()
     elif kind == "path":
         kw["type"] = click.Path(dir_okay=False)
     return click.option(*decls, **kw)

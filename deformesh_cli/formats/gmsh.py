@@ -27,17 +27,77 @@ def blocks(mesh: Mesh) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray]]:
     """Element blocks as ``(meshio type, physical tags, geometrical tags, connectivity)``:
     the triangles and any quads (physical ``domain``; geometrical 1 for the triangles,
     2 for the quads: meshio writes one kind of element per entity), then one block of
-    lines per boundary group (physical = geometrical = the group's tag)."""
+    lines per boundary curve (:func:`line_curves`; physical: the group's tag)."""
     line_tag = (mesh.line_group + 1).astype(np.int64)
+    curve = line_curves(mesh)
     domain = groups(mesh)["domain"][0]
     out = [
         (kind, np.full(len(cells), domain), np.full(len(cells), SURFACE[kind]), cells)
         for kind, cells in cell_blocks(mesh)[:-1]
     ]
-    for tag in np.unique(line_tag):
-        on = line_tag == tag
-        out.append(("line", line_tag[on], line_tag[on], mesh.lines[on].astype(np.int64)))
+    for tag in np.unique(curve):
+        on = curve == tag
+        out.append(("line", line_tag[on], curve[on], mesh.lines[on].astype(np.int64)))
     return out
+
+
+def line_curves(mesh: Mesh) -> np.ndarray:
+    """Each boundary line's curve (Gmsh's geometrical entity): its group's tag, but on a
+    periodic mesh the lines of the sides that repeat get curves of their own (tags
+    after the groups', one per group and role: Gmsh links one curve to another, never
+    a curve to itself, and one ring can hold both sides of a channel)."""
+    curve = (mesh.line_group + 1).astype(np.int64)
+    role = _side_roles(mesh)
+    if role is None:
+        return curve
+    sides = sorted(set(zip(role[role > 0].tolist(), curve[role > 0].tolist())))
+    new = {key: len(mesh.groups) + 2 + k for k, key in enumerate(sides)}  # (after domain)
+    for k in np.flatnonzero(role > 0).tolist():
+        curve[k] = new[int(role[k]), int(curve[k])]
+    return curve
+
+
+def _side_roles(mesh: Mesh) -> np.ndarray | None:
+    """Per line: 1 on a side whose nodes' partners are another side's (a master side, in
+    Gmsh's words), 2 on that other side (the slaves), 0 elsewhere; None when the mesh
+    is not periodic."""
+    if not len(mesh.periodic):
+        return None
+    n = mesh.n_nodes
+    partner = np.full(n, -1, dtype=np.int64)
+    partner[mesh.periodic[:, 0]] = mesh.periodic[:, 1]
+    origin = np.full(n, -1, dtype=np.int64)
+    origin[mesh.periodic[:, 1]] = mesh.periodic[:, 0]
+    a, b = mesh.lines[:, 0], mesh.lines[:, 1]
+    key = set((a * n + b).tolist())
+    pa, pb, oa, ob = partner[a], partner[b], origin[a], origin[b]
+    master = (pa >= 0) & (pb >= 0) & np.isin(pb * n + pa, list(key))
+    slave = (oa >= 0) & (ob >= 0) & np.isin(ob * n + oa, list(key))
+    return np.where(master, 1, np.where(slave, 2, 0))
+
+
+def periodic_links(mesh: Mesh) -> list:
+    """The mesh's periodic pairs as Gmsh links, in meshio's ``gmsh_periodic`` form:
+    per pair of curves ``[1, (curve, master curve), affine, (k, 2) nodes]``, each
+    node (the *slave*, Gmsh's word) the partner at ``master + shift``; a pair's
+    curves are those of the side lines its nodes end (:func:`line_curves`), the
+    affine map the shift's."""
+    if not len(mesh.periodic):
+        return []
+    curve, role = line_curves(mesh), _side_roles(mesh)
+    master_on = np.zeros(mesh.n_nodes, dtype=np.int64)
+    slave_on = np.zeros(mesh.n_nodes, dtype=np.int64)
+    for k in (0, 1):
+        master_on[mesh.lines[role == 1, k]] = curve[role == 1]
+        slave_on[mesh.lines[role == 2, k]] = curve[role == 2]
+    master, slave = mesh.periodic[:, 0], mesh.periodic[:, 1]
+    dx, dy = mesh.shift
+    affine = [1.0, 0.0, 0.0, dx, 0.0, 1.0, 0.0, dy, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]
+    links = []
+    for s_tag, m_tag in sorted(set(zip(slave_on[slave].tolist(), master_on[master].tolist()))):
+        at = (slave_on[slave] == s_tag) & (master_on[master] == m_tag)
+        links.append([1, (s_tag, m_tag), affine, np.column_stack([slave[at], master[at]])])
+    return links
 
 
 def write(mesh: Mesh, path: str, version: str | None = None) -> None:
@@ -57,7 +117,7 @@ def write_meshio(mesh: Mesh, path: str, version: str) -> None:
         # 4.1 files place every node on a geometric entity: boundary nodes on
         # their boundary's curve (tag = group tag), the quads' other nodes on surface 2,
         # the rest on surface 1
-        line_tag = mesh.line_group + 1
+        line_tag = line_curves(mesh)
         dim_tags = np.column_stack([np.full(mesh.n_nodes, 2), np.ones(mesh.n_nodes)])
         dim_tags[mesh.quads.ravel(), 1] = 2  # (the quads' surface)
         dim_tags[mesh.lines[:, 0]] = np.column_stack([np.ones(len(line_tag)), line_tag])
@@ -72,6 +132,9 @@ def write_meshio(mesh: Mesh, path: str, version: str) -> None:
         },
     )
     m.field_data = {name: np.array([tag, dim]) for name, (tag, dim) in groups(mesh).items()}
+    links = periodic_links(mesh)
+    if links:
+        m.gmsh_periodic = links
     meshio.write(path, m, file_format=MESHIO_NAMES[version], binary=False)
     if version == "4.1":
         _nodes_in_order(path, mesh.points, point_data["gmsh:dim_tags"])
@@ -84,11 +147,11 @@ def _all_entities(path: str, mesh: Mesh, bl) -> None:
     nodes all lie on the boundary or on the other surface would be missing (Gmsh then
     refuses the file).  The same lines as meshio's: no bounding box, one physical tag,
     no bounding entities."""
-    curves = sorted({int(b[2][0]) for b in bl if b[0] == "line"})
+    curves = sorted({(int(b[2][0]), int(b[1][0])) for b in bl if b[0] == "line"})
     surfaces = sorted({int(b[2][0]) for b in bl if b[0] != "line"})
     domain = groups(mesh)["domain"][0]
     out = [f"$Entities\n0 {len(curves)} {len(surfaces)} 0\n"]
-    out += [f"{t} 0 0 0 0 0 0 1 {t} 0\n" for t in curves]
+    out += [f"{t} 0 0 0 0 0 0 1 {phys} 0\n" for t, phys in curves]
     out += [f"{t} 0 0 0 0 0 0 1 {domain} 0\n" for t in surfaces]
     out.append("$EndEntities\n")
     with open(path, encoding="ascii") as f:
@@ -147,6 +210,14 @@ def write_22(mesh: Mesh, path: str) -> None:
         parts.append(rows(f"%d {_GMSH_TYPE[kind]} 2" + " %d" * (2 + conn.shape[1]) + "\n", table))
         first += k
     parts.append("$EndElements\n")
+    links = periodic_links(mesh)
+    if links:  # (as meshio writes it)
+        parts.append(f"$Periodic\n{len(links)}\n")
+        for dim, (s_tag, m_tag), affine, pairs in links:
+            parts.append(f"{dim} {s_tag} {m_tag}\nAffine ")
+            parts.append(" ".join(f"{v:.16e}" for v in affine) + "\n")
+            parts.append(f"{len(pairs)}\n" + rows("%d %d\n", pairs + 1))
+        parts.append("$EndPeriodic\n")
     with open(path, "w", encoding="ascii", newline="\n") as fh:
         fh.writelines(parts)
 

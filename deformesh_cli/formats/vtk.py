@@ -40,9 +40,10 @@ def write(mesh: Mesh, path: str, version: str | None = None) -> None:
     cp = contour_point(mesh).astype(">i4")
     fields = [(f"contour_point 1 {n} int\n".encode(), cp)]
     for name, data in mesh.point_data.items():  # as meshio writes them: floats as double
-        data = np.asarray(data, dtype=">f8")
+        whole = np.asarray(data).dtype.kind in "iu"
+        data = np.asarray(data, dtype=">i4" if whole else ">f8")
         k = 1 if data.ndim == 1 else data.shape[1]
-        fields.append((f"{name} {k} {n} double\n".encode(), data))
+        fields.append((f"{name} {k} {n} {'int' if whole else 'double'}\n".encode(), data))
     with open(path, "wb") as f:
         f.write(
             f"# vtk DataFile Version 4.2\n{TITLE}\nBINARY\nDATASET UNSTRUCTURED_GRID\n".encode()

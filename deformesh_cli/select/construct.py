@@ -418,9 +418,12 @@ def select_constructed(
     max_nodes: int | None = None,
     max_h: float | None = None,
     size_function=None,
+    periodic: tuple[float, float] | None = None,
 ) -> GradedSelection:
     """The graded grid laid for ``contour`` and each ring's loop fitted to its points
-    (the module's steps).  ``size_function`` (a :class:`~..size.SizeFunction`): the
+    (the module's steps).  ``periodic``: on an exterior mesh, a translation by the
+    box's height ``(0, H)`` or width ``(W, 0)`` cuts the opposite sides alike
+    (:func:`.graded.match_sides`).  ``size_function`` (a :class:`~..size.SizeFunction`): the
     cells also follow it, at most ``lambda sqrt(f)`` wide, ``lambda`` the median over
     the contour's points of :data:`CELL_FACTOR` times their size over ``sqrt(f)``."""
     if not exterior and thin_triangles(contour):
@@ -441,12 +444,13 @@ def select_constructed(
             box = _checked_box(contour, box, False)
             box = (min(box[0], lo[0] - room), min(box[1], lo[1] - room),
                    max(box[2], hi[0] + room), max(box[3], hi[1] + room))  # fmt: skip
+    wrap = _wrap(box, periodic) if exterior else None
     factor = np.full(len(xy), CELL_FACTOR)
     crowded = None
     sizes = None  # (the coarsening's, with no size function)
     for _ in range(REFINE_ROUNDS + 1):
         tree, laid_for = graded.build_from(
-            xy, size * factor, box, growth, max_h, given, max_nodes, field=field
+            xy, size * factor, box, growth, max_h, given, max_nodes, field=field, wrap=wrap
         )
         if sizes is None:  # (the first: every point at CELL_FACTOR)
             sizes = laid_for
@@ -462,6 +466,22 @@ def select_constructed(
         f"{contour.source}: contour points still share grid nodes after halving their "
         f"cells {REFINE_ROUNDS} times, near {contour.where(int(crowded[0]))}"
     )
+
+
+#: A periodic translation matches a box side when within this fraction of the box's
+#: extent of it (as :data:`..periodic.TOLERANCE`).
+WRAP_TOLERANCE = 1e-9
+
+
+def _wrap(box, periodic) -> tuple[bool, bool] | None:
+    """Which opposite sides of an exterior ``box`` the translation ``periodic`` maps
+    onto each other: ``(left and right, bottom and top)``."""
+    if periodic is None:
+        return None
+    w, h = box[2] - box[0], box[3] - box[1]
+    tol = WRAP_TOLERANCE * max(w, h)
+    dx, dy = periodic
+    return (abs(dy) <= tol and abs(abs(dx) - w) <= tol, abs(dx) <= tol and abs(abs(dy) - h) <= tol)
 
 
 def thin_triangles(contour: Contour) -> bool:

@@ -302,16 +302,18 @@ def build_from(
     max_nodes: int | None = None,
     roots: int | None = None,
     field=None,
+    wrap: tuple[bool, bool] | None = None,
 ) -> tuple[Quadtree, SizeField]:
     """The balanced quadtree over ``box`` whose cells near each of ``points`` are
     about its size (``sizes``, made consistent with the growth by
     :func:`graded_sizes`): :func:`build` for sizes given point by point; and the size
-    field it was refined to, but ``field``."""
+    field it was refined to, but ``field``.  ``wrap``: opposite box sides cut alike
+    (:func:`match_sides`)."""
     if not growth > 1.0:
         raise OptionError(f"--growth must be > 1 (cells grow away from the contour), got {growth}")
     laid_for = SizeField(points, graded_sizes(points, sizes, growth), growth, max_h)
     tree = _lay(points, laid_for.s, box, growth, max_h, box_given, max_nodes, roots, field,
-                laid_for.cones)  # fmt: skip
+                laid_for.cones, wrap)  # fmt: skip
     return tree, laid_for
 
 
@@ -340,9 +342,11 @@ class SizeField:
         return out
 
 
-def _lay(points, s, box, growth, max_h, box_given, max_nodes, roots, field, cones=None) -> Quadtree:
+def _lay(
+    points, s, box, growth, max_h, box_given, max_nodes, roots, field, cones=None, wrap=None
+) -> Quadtree:
     """Root cells over ``box`` for the sizes ``s`` at ``points``, refined and balanced
-    (``cones``: theirs, if already built)."""
+    (``cones``: theirs, if already built; ``wrap``: :func:`match_sides`')."""
     xmin, ymin, xmax, ymax = box
     w, h = xmax - xmin, ymax - ymin
     nx, ny, top, h0 = root_cells(w, h, float(s.min()), max_h, exact=box_given, roots=roots)
@@ -372,7 +376,55 @@ def _lay(points, s, box, growth, max_h, box_given, max_nodes, roots, field, cone
         np.full(nx * ny, top, np.int64), i.ravel().astype(np.int64), j.ravel().astype(np.int64),
     )  # fmt: skip
     tree = refine(tree, points, s, growth, max_nodes, field, cones)
-    return balance(tree)
+    tree = balance(tree)
+    if wrap is not None and any(wrap):
+        tree = match_sides(tree, *wrap)
+    return tree
+
+
+def match_sides(tree: Quadtree, across_x: bool, across_y: bool) -> Quadtree:
+    """``tree`` with its opposite box sides cut alike: with ``across_y`` the leaves along
+    the bottom and along the top span the same x intervals (with ``across_x``, the left
+    and right sides the same y intervals), each refined to the finer of the two facing
+    it, then balanced again, until nothing changes.  The box sides' nodes are the
+    corners of those leaves, so a translation across the box maps them onto one
+    another (``--periodic`` on an exterior mesh).  Only splits: it ends, at worst with
+    both sides at the finest level."""
+    width, height = tree.nx * 2**tree.top, tree.ny * 2**tree.top
+    t = tree
+    while True:
+        lv, i, j = t.level, t.i, t.j
+        marks = np.zeros(len(lv), dtype=bool)
+        checks = []
+        if across_y:  # (a bottom leaf's first x on the top row, a top leaf's on the bottom)
+            checks += [
+                (j == 0, i << lv, height - 1, True),
+                ((j + 1) << lv == height, i << lv, 0, True),
+            ]
+        if across_x:
+            checks += [
+                (i == 0, j << lv, width - 1, False),
+                ((i + 1) << lv == width, j << lv, 0, False),
+            ]
+        for on, along, far, rows in checks:
+            k = np.flatnonzero(on)
+            zero = np.zeros(len(k), dtype=np.int64)
+            other = np.full(len(k), far, dtype=np.int64)
+            ii, jj = (along[k], other) if rows else (other, along[k])
+            holder = t.leaf_index(zero, ii, jj)
+            marks[holder[lv[holder] > lv[k]]] = True
+        if not marks.any():
+            return t
+        keep = ~marks
+        ls, is_, js = lv[marks] - 1, i[marks], j[marks]
+        t = balance(
+            Quadtree(
+                t.x0, t.y0, t.hx, t.hy, t.top, t.nx, t.ny,
+                np.concatenate([lv[keep], np.repeat(ls, 4)]),
+                np.concatenate([i[keep], np.repeat(is_, 4) * 2 + np.tile([0, 1, 0, 1], len(is_))]),
+                np.concatenate([j[keep], np.repeat(js, 4) * 2 + np.tile([0, 0, 1, 1], len(js))]),
+            )
+        )  # fmt: skip
 
 
 #: The most finest cells across the box: Morton codes (:func:`..geometry.morton`) and lattice keys
