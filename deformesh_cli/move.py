@@ -48,7 +48,7 @@ from .errors import (
     OptionError,
     printable,
 )
-from .mesh import Mesh
+from .mesh import Mesh, as_triangles
 from .options import MoveOptions
 from .readers import load_contour
 
@@ -67,7 +67,14 @@ class Motion:
     extra_at: np.ndarray  # and how far along that edge it sits (0..1)
     rings: list[np.ndarray]  # per ring: positions in ``moving`` of its nodes
     weights: list[np.ndarray]  # per ring, per node: how much of its rigid motion it follows
-    edges: tuple  # geometry.edge_uses of the triangles: the same in every frame
+    edges: tuple | None  # geometry.edge_uses of the triangles (none with quads)
+    #: the triangles the deformation keeps unfolded: the mesh's, and each quad's four
+    #: corner triangles (both diagonals' halves: all positive, the quad stays convex)
+    guard: np.ndarray | None = None
+
+    @property
+    def cells(self) -> np.ndarray:
+        return self.mesh.triangles if self.guard is None else self.guard
 
 
 @dataclass
@@ -79,8 +86,9 @@ class Step:
     report: dict
 
 
-def prepare(points: np.ndarray, tri: np.ndarray, first: Contour, source: str) -> Motion:
-    """The mesh read from ``source`` as a :class:`Motion`, given its first frame.
+def prepare(points: np.ndarray, tri: np.ndarray, first: Contour, source: str, quads=None) -> Motion:
+    """The mesh read from ``source`` as a :class:`Motion`, given its first frame
+    (``quads``: its quads, if any).
 
     The mesh must be one deformesh wrote for a contour of as many points as
     ``first``, ring by ring the same: its nodes ``0 .. m-1`` are the contour
@@ -106,7 +114,8 @@ def prepare(points: np.ndarray, tri: np.ndarray, first: Contour, source: str) ->
             f"{first.source}'s ({exc}); was it written by deformesh from "
             f"{m} points?"
         ) from None
-    edges = geometry.edge_uses(tri, len(points))
+    quads = np.zeros((0, 4), dtype=np.int64) if quads is None else quads
+    edges = geometry.edge_uses(as_triangles(tri, quads), len(points))
     ring = first.starts[1] - first.starts[0]
     held = _first_ring(edges)
     if held is not None and held != ring:  # (the mesh's own first ring: the frame differs)
@@ -116,7 +125,7 @@ def prepare(points: np.ndarray, tri: np.ndarray, first: Contour, source: str) ->
             f"{what} (point k of each frame follows contour point k)"
         )
     try:
-        mesh, box = quality.mesh_for_contour(points, tri, own)
+        mesh, box = quality.mesh_for_contour(points, tri, own, quads)
         quality.check_contract(mesh, own, box, edges)
     except ContractError as exc:
         raise InputError(
@@ -167,8 +176,15 @@ def prepare(points: np.ndarray, tri: np.ndarray, first: Contour, source: str) ->
         np.concatenate(ext_at),
         rings,
         weights,
-        edges,
+        None if len(quads) else edges,
+        _corners(tri, quads) if len(quads) else None,
     )
+
+
+def _corners(tri: np.ndarray, quads: np.ndarray) -> np.ndarray:
+    """The triangles and each quad's four corner triangles."""
+    q = quads
+    return np.concatenate([tri, q[:, [0, 1, 2]], q[:, [0, 2, 3]], q[:, [1, 2, 3]], q[:, [1, 3, 0]]])
 
 
 def rigid_weight(points: np.ndarray, own: np.ndarray, others: np.ndarray) -> np.ndarray:
@@ -287,7 +303,6 @@ def advance(
     Raises :class:`.errors.FoldError` when no refinement of the pseudo-time steps
     avoids a fold, :class:`.errors.ContractError` if the result breaks the contract.
     """
-    mesh = motion.mesh
     goal = targets(motion, frame)
     start = points
     # each ring's rigid motion first, carried by its weight (the twist a turning
@@ -299,7 +314,7 @@ def advance(
         for w, (cp, cq, theta) in zip(motion.weights, fits):
             if theta != 0 or (cq != cp).any():  # (a ring at rest: not a bit moves)
                 start = carry(start, w, cp, cp + share * (cq - cp), share * theta)
-        if (geometry.signed_areas(start, mesh.triangles) > 0).all():
+        if (geometry.signed_areas(start, motion.cells) > 0).all():
             break
         share /= 2
     else:
@@ -319,19 +334,19 @@ def advance(
         new = start.copy()
         new[motion.moving] = goal
         stats = DeformStats(steps=0, solver="none", moved_nodes=0)
-        if not (geometry.signed_areas(new, mesh.triangles) > 0).all():
+        if not (geometry.signed_areas(new, motion.cells) > 0).all():
             new = None  # (the last nudge folds: leave it to the solve)
     if new is None and solve == "band" and len(motion.held):
         band = _band(start, motion, goal)
         if band is not None:
             try:
                 new, stats = deform_band(
-                    start, mesh.triangles, motion.moving, goal, motion.held, band, **kwargs
+                    start, motion.cells, motion.moving, goal, motion.held, band, **kwargs
                 )
             except (FoldError, BandError):  # folds in the band, or a moving node on its edge
                 new = None
     if new is None:
-        new, stats = deform(start, mesh.triangles, motion.moving, goal, motion.held, **kwargs)
+        new, stats = deform(start, motion.cells, motion.moving, goal, motion.held, **kwargs)
     out = frame_mesh(motion, new)
     quality.check_contract(out, frame, motion.box, motion.edges)
     report = quality.stats(out)
@@ -377,7 +392,7 @@ def _band(points: np.ndarray, motion: Motion, goal: np.ndarray) -> np.ndarray | 
 
 
 def frame_mesh(motion: Motion, points: np.ndarray, point_data: dict | None = None) -> Mesh:
-    """The motion's mesh at ``points`` (same triangles, lines and groups)."""
+    """The motion's mesh at ``points`` (same cells, lines and groups)."""
     m = motion.mesh
     return Mesh(
         points,
@@ -389,6 +404,7 @@ def frame_mesh(motion: Motion, points: np.ndarray, point_data: dict | None = Non
         groups=m.groups,
         n_box=m.n_box,
         point_data=point_data or {},
+        quads=m.quads,
     )
 
 
@@ -457,9 +473,14 @@ def move_frames(
             f"--name {printable(name)}: a file name stem, without a folder (the frames go "
             "into --out-dir)"
         )
-    points, tri = formats.read_mesh(mesh_path)
+    points, tri, quads = formats.read_mesh(mesh_path, quads=True)
+    if len(quads) and o.remesh:
+        raise OptionError(
+            f"{mesh_path}: --remesh meshes a frame afresh in triangles; a mesh with quads "
+            "is carried with its own cells only (leave out --remesh)"
+        )
     contours = [load_contour(f, None, o.decimal) for f in frame_paths]
-    motion = prepare(points, tri, contours[0], mesh_path)
+    motion = prepare(points, tri, contours[0], mesh_path, quads)
     for c in contours[1:]:  # a bad frame fails before any work
         check_frame(motion, c)
     width = max(4, len(str(len(frame_paths))))
@@ -524,6 +545,7 @@ def move_frames(
         "frames": len(records),
         "nodes": records[0]["nodes"],
         "triangles": records[0]["triangles"],
+        "quads": records[0].get("quads", 0),
         "min_angle": lowest["min_angle"],
         "min_angle_first": records[0]["min_angle"],
         "min_angle_frame": int(lowest["frame"]),

@@ -361,17 +361,26 @@ def test_plot_draws_the_quads(run, tmp_path, circle_files):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-@pytest.mark.parametrize("command", ["move", "adapt"])
-def test_commands_on_triangles_refuse_quads_in_one_line(run, tmp_path, circle_files, command):
+def test_adapt_refuses_quads_in_one_line(run, tmp_path, circle_files):
     path, _ = circle_files["quad", "m.vtu"]
-    if command == "move":
-        args = ["move", path, SAMPLES / "circle.csv", "--out-dir", tmp_path / "o"]
-    else:
-        args = ["adapt", path, "-o", tmp_path / "a.vtu", "--monitor", "1 + x*x"]
-    r = run(*args)
+    r = run("adapt", path, "-o", tmp_path / "a.vtu", "--monitor", "1 + x*x")
     assert r.exit_code == 1
     assert "quad" in r.stderr and "--layer-cells tri" in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_move_carries_the_layers(run, tmp_path):
+    """The pulsating peanut with 5 layers: the same cells in every frame, every quad
+    convex (checked by move's contract on each frame), the stacks' nodes still stacked."""
+    mesh = tmp_path / "m.vtu"
+    args = ["--layers", 5, "--first-height", 0.01, "-o", mesh, "-q"]
+    assert run("all", SAMPLES / "peanut.csv", *args).exit_code == 0
+    frames = sorted((SAMPLES / "pulsating").glob("frame_*.csv"))
+    r = run("move", mesh, *frames, "--out-dir", tmp_path / "o", "-q")
+    assert r.exit_code == 0, r.stderr
+    first, last = meshio.read(mesh), meshio.read(tmp_path / "o" / f"m_{len(frames):04d}.vtu")
+    assert np.array_equal(first.cells_dict["quad"], last.cells_dict["quad"])
+    assert _convex(last.points[:, :2], last.cells_dict["quad"]).all()
 
 
 def test_a_top_whose_ear_would_leave_a_needle_meshes():

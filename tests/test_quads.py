@@ -321,3 +321,28 @@ def test_plot_draws_a_mesh_of_quads(run, tmp_path):
     r = run("plot", mesh, "-o", png)
     assert r.exit_code == 0, r.stderr
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize("cells", ["quad", "quad-only"])
+def test_move_carries_the_quads(run, tmp_path, cells):
+    """A quad mesh follows the pulsating peanut with its own cells: every frame has the
+    same triangles and quads, every quad convex (its four corner triangles positive)."""
+    frames = sorted((SAMPLES / "pulsating").glob("frame_*.csv"))
+    mesh = tmp_path / "m.vtu"
+    assert run("all", SAMPLES / "peanut.csv", "-o", mesh, "--cells", cells, "-q").exit_code == 0
+    first = meshio.read(mesh)
+    r = run("move", mesh, *frames, "--out-dir", tmp_path / "out", "--json", "-q")
+    assert r.exit_code == 0, r.stderr
+    s = json.loads(r.stdout)
+    assert sum(f.get("solves", 0) for f in s["per_frame"]) > 0  # (a change of shape, solved)
+    for k in range(len(frames) + 1):
+        m = meshio.read(tmp_path / "out" / f"m_{k:04d}.vtu")
+        for kind in ("triangle", "quad"):
+            a, b = first.cells_dict.get(kind), m.cells_dict.get(kind)
+            assert (a is None and b is None) or np.array_equal(a, b)
+        p = m.points[:, :2]
+        q = m.cells_dict["quad"]
+        for corner in ([0, 1, 2], [0, 2, 3], [1, 2, 3], [1, 3, 0]):
+            assert (_areas(p, q[:, corner]) > 0).all()
+    r = run("move", mesh, *frames, "--out-dir", tmp_path / "again", "--remesh")
+    assert r.exit_code == 2 and "--remesh" in r.stderr and "quads" in r.stderr

@@ -65,7 +65,9 @@ def command(mesh_path, frames, out_dir, name, force, as_json, quiet, **kwargs) -
         f"{s['frames']} frames -> {out_dir}"
         f"{'/' + s['pvd'] if s['pvd'] else ''}: "
         + (
-            f"same {s['triangles']} triangles in every frame"
+            f"same {s['triangles']} triangles"
+            + (f" and {s['quads']} quads" if s["quads"] else "")
+            + " in every frame"
             if not s["remeshed_frames"]
             else f"meshed afresh at frame(s) {', '.join(map(str, s['remeshed_frames']))}"
         )
