@@ -400,11 +400,14 @@ def adapt(
     source: str = "<mesh>",
     held: np.ndarray | None = None,
     slide: bool = True,
+    guard: np.ndarray | None = None,
 ) -> Adapted:
     """``points`` (the reference mesh) moved to follow ``monitor`` (points (k, 2) -> M
     (k,)); ``tri`` (counter-clockwise) unchanged; boundary nodes as
     :func:`boundary_motion` says (``held``: a node mask of the user's points).  A node
-    no triangle uses stays where it is (the report counts it held)."""
+    no triangle uses stays where it is (the report counts it held).  ``guard``: the
+    triangles kept unfolded (default ``tri``; with quads split into ``tri``, each
+    quad's four corner triangles too, so every quad stays convex)."""
     points = np.asarray(points, dtype=np.float64)
     tri = np.asarray(tri, dtype=np.int64)
     area = check_mesh(points, tri, source)
@@ -419,6 +422,7 @@ def adapt(
         part = adapt(
             points[keep], index[tri], monitor, steps, source,
             None if held is None else np.asarray(held, dtype=bool)[keep], slide,
+            None if guard is None else index[guard],
         )  # fmt: skip
         out = points.copy()
         out[keep] = part.points
@@ -426,6 +430,7 @@ def adapt(
         report["nodes"] = len(points)
         report["boundary_nodes_held"] += len(points) - len(keep)
         return Adapted(out, report)
+    guard = tri if guard is None else np.asarray(guard, dtype=np.int64)
     m0 = monitor_values(monitor, points, source)
     # M by a power of two near its largest value at the nodes: everything here depends
     # on M / c only, and a power of two scales each product and sum exactly, so the
@@ -456,7 +461,7 @@ def adapt(
         return monitor_values(monitor, q, source) / c
 
     def folded(q: np.ndarray) -> bool:
-        return not (signed_areas(q, tri) > 0).all()
+        return not (signed_areas(q, guard) > 0).all()
 
     def substeps(field: FrozenField, pos: np.ndarray, g: np.ndarray, t: float, span: float):
         # SUBSTEPS midpoint steps over [t, t + span] in the frozen field: the end
@@ -504,7 +509,7 @@ def adapt(
             if new is not None:
                 break
             if halved == MAX_HALVINGS:
-                x, y = worst[tri[int(np.argmin(signed_areas(worst, tri)))]].mean(axis=0)
+                x, y = worst[guard[int(np.argmin(signed_areas(worst, guard)))]].mean(axis=0)
                 raise FoldError(
                     f"{source}: the adaptation folds a triangle near ({x:.6g}, {y:.6g}) at "
                     f"pseudo-time {t:.3f} even with the step refined; give a smoother "
@@ -532,7 +537,7 @@ def adapt(
         "sigma_over_mu": after[0],
         "volume_ratio": after[1],
         "smallest_angle": float(measures(pos, tri)[0].min()),
-        "tangled": int((signed_areas(pos, tri) <= 0).sum()),
+        "tangled": int((signed_areas(pos, guard) <= 0).sum()),
         "moved_nodes": int((pos != points).any(axis=1).sum()),
     }
     return Adapted(pos, report)

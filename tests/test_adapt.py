@@ -401,17 +401,15 @@ def test_bad_meshes_are_refused_in_one_line(run, tmp_path):
     p, tri = square_grid(3)
     folded = tmp_path / "folded.vtu"
     meshio.write(folded, meshio.Mesh(np.c_[p, 0 * p[:, 0]], [("triangle", tri[:, ::-1])]))
-    quads = tmp_path / "quads.vtu"
-    meshio.write(quads, meshio.Mesh(np.c_[p, 0 * p[:, 0]], [("quad", np.array([[0, 4, 5, 1]]))]))
+    curved = tmp_path / "curved.vtu"  # (second-order triangles: cells adapt does not move)
+    six = np.array([[0, 4, 5, 1, 2, 3]])
+    meshio.write(curved, meshio.Mesh(np.c_[p, 0 * p[:, 0]], [("triangle6", six)]))
     mixed = tmp_path / "mixed.vtu"
-    meshio.write(
-        mixed,
-        meshio.Mesh(np.c_[p, 0 * p[:, 0]], [("triangle", tri), ("quad", np.array([[0, 4, 5, 1]]))]),
-    )
+    meshio.write(mixed, meshio.Mesh(np.c_[p, 0 * p[:, 0]], [("triangle", tri), ("triangle6", six)]))
     for path, text in (
         (folded, "is folded or flat"),
-        (quads, "cells other than triangles (quad)"),
-        (mixed, "cells other than triangles (quad)"),
+        (curved, "cells other than triangles and quads (triangle6)"),
+        (mixed, "cells other than triangles and quads (triangle6)"),
         (tmp_path / "none.vtu", "no such file"),
     ):
         out = tmp_path / "o.vtu"

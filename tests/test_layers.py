@@ -361,12 +361,14 @@ def test_plot_draws_the_quads(run, tmp_path, circle_files):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def test_adapt_refuses_quads_in_one_line(run, tmp_path, circle_files):
+def test_adapt_carries_the_layers(run, tmp_path, circle_files):
     path, _ = circle_files["quad", "m.vtu"]
-    r = run("adapt", path, "-o", tmp_path / "a.vtu", "--monitor", "1 + x*x")
-    assert r.exit_code == 1
-    assert "quad" in r.stderr and "--layer-cells tri" in r.stderr
-    assert len(r.stderr.strip().splitlines()) == 1
+    out = tmp_path / "a.vtu"
+    r = run("adapt", path, "-o", out, "--monitor", "1 + x*x", "-q")
+    assert r.exit_code == 0, r.stderr
+    before, after = meshio.read(path), meshio.read(out)
+    assert np.array_equal(before.cells_dict["quad"], after.cells_dict["quad"])
+    assert _convex(after.points[:, :2], after.cells_dict["quad"]).all()
 
 
 def test_move_carries_the_layers(run, tmp_path):

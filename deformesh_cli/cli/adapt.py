@@ -16,6 +16,7 @@ from .. import files, formats
 from ..errors import InputError, OptionError, WriteError, naming, printable
 from ..formats._common import GROUP_DATA, PHYSICAL_DATA
 from ..formats.read import checked, contour_nodes, read_meshio
+from ..mesh import as_triangles
 from .errors import handle_errors
 from .options import OutputPath, json_option, quiet_option, say
 
@@ -97,14 +98,14 @@ def command(
     mesh_path, output, monitor, field, alpha, kind, reference_path, boundary, steps, png,
     force, as_json, quiet,
 ) -> None:  # fmt: skip
-    """Move a mesh's nodes so its cells follow a monitor: the same triangles, never
-    tangled (r-adaptation by the div-curl deformation).  A deformesh mesh's contour
+    """Move a mesh's nodes so its cells follow a monitor: the same triangles (and quads),
+    never tangled (r-adaptation by the div-curl deformation).  A deformesh mesh's contour
     points stay where they are, bit for bit.
 
     The monitor is an expression (--monitor) or follows a point field of MESH
     (--field), as a solver wrote it.
 
-    MESH is any triangle mesh meshio reads; its point data are carried to the new
+    MESH is any mesh of triangles (and quads) meshio reads; its point data are carried to the new
     node positions by linear interpolation in the old mesh (integer arrays, which
     label nodes, stay as they are) into .vtu, .vtk and .xdmf, and into .msh (Gmsh
     2.2) as $NodeData beside the physical groups.
@@ -129,10 +130,18 @@ def command(
     if suffix == ".msh":  # (refused before the work, not after it)
         for k, v in m.point_data.items():
             _node_data(k, v, output)
-    points, tri = checked(m, mesh_path)
+    points, tri, quads = checked(m, mesh_path, quads=True)
+    guard = None
+    if len(quads):  # (solved on the quads' halves; all four corners of each kept unfolded)
+        q = quads
+        guard = np.concatenate(
+            [tri, *(q[:, c] for c in ([0, 1, 2], [0, 2, 3], [1, 2, 3], [1, 3, 0]))]
+        )
+        tri = as_triangles(tri, quads)
     start = points
     if reference_path is not None:
-        start, ref_tri = checked(_read(reference_path), reference_path)
+        start, ref_tri, ref_quads = checked(_read(reference_path), reference_path, quads=True)
+        ref_tri = as_triangles(ref_tri, ref_quads)
         if ref_tri.shape != tri.shape or len(start) != len(points):
             raise InputError(
                 f"{reference_path}: has {len(start)} nodes and {len(ref_tri)} triangles, "
@@ -157,7 +166,7 @@ def command(
     with naming(reference_path or mesh_path):  # (the solver's own words name no file)
         res = _adapt.adapt(
             start, tri, code, steps, source=reference_path or mesh_path, held=held,
-            slide=boundary == "slide",
+            slide=boundary == "slide", guard=guard,
         )  # fmt: skip
         new = res.points
         carried = {
@@ -207,6 +216,8 @@ def command(
     if reference_path is not None:
         report["reference"] = reference_path
     report.update(res.report)
+    if len(quads):  # (the mesh's own cells, not the halves the quads were solved on)
+        report.update(triangles=len(tri) - 2 * len(quads), quads=len(quads))
     report["seconds"] = round(time.perf_counter() - t0, 3)
     if as_json:
         files.write_stdout(files.to_json(report))
@@ -215,7 +226,9 @@ def command(
         quiet,
         f"{mesh_path} -> {output}: {r['moved_nodes']} of {r['nodes']} nodes moved "
         f"({r['boundary_nodes_held']} held, {r['boundary_nodes_sliding']} sliding), "
-        f"{r['triangles']} triangles kept, smallest angle {r['smallest_angle']:.1f}; "
+        f"{r['triangles']} triangles"
+        + (f" and {r['quads']} quads" if r.get("quads") else "")
+        + f" kept, smallest angle {r['smallest_angle']:.1f}; "
         f"sigma/mu {r['sigma_over_mu_before']:.3f} -> {r['sigma_over_mu']:.3f}, volume ratio "
         f"{r['volume_ratio_before']:.2f} -> {r['volume_ratio']:.2f} ({r['seconds']:.2f} s)",
     )
@@ -319,16 +332,13 @@ def _monitor(text: str):
 
 
 def _read(path: str):
-    """A triangle mesh read by meshio (other 2D cells refused in one line)."""
+    """A mesh of triangles and quads read by meshio (other 2D cells refused in one line)."""
     m = read_meshio(path)
-    others = sorted({c.type for c in m.cells} - {"triangle", "line", "vertex"})
+    others = sorted({c.type for c in m.cells} - {"triangle", "quad", "line", "vertex"})
     if others:
-        hint = (
-            " (boundary layers: write the mesh with --layer-cells tri)" if "quad" in others else ""
-        )
         raise InputError(
-            f"{path}: cells other than triangles ({', '.join(others)}); adapt moves triangle "
-            f"meshes{hint}"
+            f"{path}: cells other than triangles and quads ({', '.join(others)}); adapt "
+            "moves meshes of triangles and quads"
         )
     return m
 
