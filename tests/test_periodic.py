@@ -190,3 +190,48 @@ def test_match_sides_cuts_opposite_sides_alike():
         m = graded.match_sides(t, not across_y, across_y)
         assert row(m, True, across_y) == row(m, False, across_y)
         assert not m.overlapping() and int((4**m.level).sum()) == m.nx * m.ny * 4**m.top
+
+
+def _random_passage(rng: np.random.Generator):
+    """A random cascade passage: a lower side of random points (random spacing and
+    wave), the same points shifted by the pitch as the upper side, inlet and outlet
+    with the same random heights: ``(points, pitch, lower side's count)``."""
+    n = int(rng.integers(5, 40))
+    x = np.sort(rng.uniform(0.0, 1.0, n - 2))
+    x = np.concatenate([[0.0], x[np.diff(np.r_[0.0, x]) > 0.01], [1.0]])
+    x = x[np.r_[True, np.diff(x) > 0.01]]
+    x[-1] = 1.0
+    y = 0.15 * np.sin(rng.uniform(1, 6) * x + rng.uniform(0, 6)) + rng.uniform(-0.2, 0.2) * x
+    pitch = float(rng.uniform(0.4, 1.5))
+    k = int(rng.integers(1, 8))
+    h = np.sort(rng.uniform(0.05, 0.95, k)) * pitch
+    h = h[np.r_[True, np.diff(h) > 0.01 * pitch]]
+    lower = np.column_stack([x, y])
+    outer = np.concatenate(
+        [
+            lower[:-1],
+            np.column_stack([np.full(len(h) + 1, 1.0), y[-1] + np.r_[0.0, h]]),
+            (lower + [0.0, pitch])[::-1][:-1],
+            np.column_stack([np.zeros(len(h) + 1), y[0] + np.r_[pitch, h[::-1]]]),
+        ]
+    )
+    return outer, pitch, len(lower)
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_random_passages_pair_their_sides(seed):
+    """Random passages (unseen shapes, spacings and pitches), with quads only too: every
+    point of the lower side is paired with its translate on the upper side, and the
+    contract holds."""
+    from deformesh_cli.contour import make_contour
+
+    rng = np.random.default_rng(seed)
+    pts, pitch, count = _random_passage(rng)
+    c = make_contour(pts, source=f"passage-{seed}")
+    for cells, pairs in (("tri", count), ("quad-only", 2 * count - 1)):
+        res = pipeline.mesh_contour(c, MeshOptions(periodic=(0.0, pitch), cells=cells))
+        mesh = res.mesh
+        assert len(mesh.periodic) == pairs, (seed, cells)
+        a, b = mesh.periodic.T
+        assert np.allclose(mesh.points[b] - mesh.points[a], (0.0, pitch), rtol=0, atol=1e-9)
+        assert res.report["contract"] == "ok"

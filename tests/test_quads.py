@@ -368,3 +368,16 @@ def test_adapt_carries_the_quads(run, tmp_path, cells):
     assert not np.array_equal(p, before.points[:, :2])
     for corner in ([0, 1, 2], [0, 2, 3], [1, 2, 3], [1, 3, 0]):
         assert (_areas(p, q[:, corner]) > 0).all()
+
+
+@pytest.mark.parametrize(
+    "path", sorted(SAMPLES.glob("*.csv")) + sorted(SAMPLES.glob("*.svg")), ids=lambda p: p.name
+)
+def test_every_sample_meshes_in_quads_only(path):
+    c = load_contour(str(path))
+    res = pipeline.mesh_contour(c, MeshOptions(cells="quad-only"))
+    mesh = res.mesh
+    assert len(mesh.triangles) == 0 and len(mesh.quads)
+    assert (_sin_min(mesh.points, mesh.quads) > 0).all()
+    assert np.array_equal(mesh.points[: c.n], c.points)
+    assert res.report["contract"] == "ok"
