@@ -136,7 +136,52 @@ def main():
                     f"{m['min_sj']:.3f} |"
                 )
                 print(lines[-1], file=sys.stderr)
+    lines += [
+        "",
+        "In process, on the circle's mesh at each --max-h: `quads.recombine` (candidates, the "
+        "assignment, the quads) and `quads.subdivide`, the median of the repeats; the cost "
+        "grows with the triangles.",
+        "",
+        "| --max-h | triangles | recombine s | of it the assignment s | quads | subdivide s |",
+        "| ---: | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    lines += scaling(args.repeat)
     write_section("quads", "\n".join(lines))
+
+
+def scaling(repeat: int) -> list[str]:
+    """Rows of the in-process timings of the recombination and the subdivision."""
+    import time
+
+    import numpy as np
+
+    from deformesh_cli import pipeline, quads
+    from deformesh_cli.options import MeshOptions
+    from deformesh_cli.readers import load_contour
+
+    c = load_contour(str(ROOT / "samples" / "circle.csv"))
+    rows = []
+    for h in (0.05, 0.016, 0.005):
+        mesh = pipeline.mesh_contour(c, MeshOptions(max_h=h)).mesh
+        a, b, q = quads.candidates(mesh.points, mesh.triangles)
+        w = quads.scaled_jacobian(mesh.points, q)
+        t_all, t_lap, t_sub = [], [], []
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            quads.best_matching(len(mesh.triangles), a, b, w)
+            t_lap.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            made, _ = quads.recombine(mesh)
+            t_all.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            quads.subdivide(made)
+            t_sub.append(time.perf_counter() - t0)
+        rows.append(
+            f"| {h:g} | {len(mesh.triangles)} | {np.median(t_all):.3f} | "
+            f"{np.median(t_lap):.3f} | {len(made.quads)} | {np.median(t_sub):.3f} |"
+        )
+        print(rows[-1], file=sys.stderr)
+    return rows
 
 
 if __name__ == "__main__":
