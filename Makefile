@@ -65,6 +65,7 @@ bench: $(VENV)/.installed-bench
 	$(BIN)/python benchmarks/run_layers.py --repeat 3
 	$(BIN)/python benchmarks/run_layers_solver.py
 	$(BIN)/python benchmarks/run_quads.py --repeat 3
+	$(BIN)/python benchmarks/run_progress.py --repeat 9
 
 # only the side-by-side comparison with Triangle and Gmsh (about 25 minutes)
 bench-peers: $(VENV)/.installed-bench

@@ -401,13 +401,15 @@ def adapt(
     held: np.ndarray | None = None,
     slide: bool = True,
     guard: np.ndarray | None = None,
+    progress: Callable[[float, int], None] | None = None,
 ) -> Adapted:
     """``points`` (the reference mesh) moved to follow ``monitor`` (points (k, 2) -> M
     (k,)); ``tri`` (counter-clockwise) unchanged; boundary nodes as
     :func:`boundary_motion` says (``held``: a node mask of the user's points).  A node
     no triangle uses stays where it is (the report counts it held).  ``guard``: the
     triangles kept unfolded (default ``tri``; with quads split into ``tri``, each
-    quad's four corner triangles too, so every quad stays convex)."""
+    quad's four corner triangles too, so every quad stays convex).  ``progress(t,
+    solves)`` is called after each solve (``t`` the pseudo-time reached)."""
     points = np.asarray(points, dtype=np.float64)
     tri = np.asarray(tri, dtype=np.int64)
     area = check_mesh(points, tri, source)
@@ -422,7 +424,7 @@ def adapt(
         part = adapt(
             points[keep], index[tri], monitor, steps, source,
             None if held is None else np.asarray(held, dtype=bool)[keep], slide,
-            None if guard is None else index[guard],
+            None if guard is None else index[guard], progress,
         )  # fmt: skip
         out = points.copy()
         out[keep] = part.points
@@ -490,6 +492,8 @@ def adapt(
         V = system.velocity(geometry, g, grad, g1, t)
         U = V * g[:, None]  # (the paper's U, which the path leaves unchanged: frozen)
         solves += 1
+        if progress is not None:
+            progress(t, solves)
         spread = stretch(tri, geometry, V)
         k = int(np.argmax(spread))
         most = float(spread[k])

@@ -444,6 +444,7 @@ def mesh_contour(
     callback: Callback | None = None,
     size_function: SizeFunction | None = None,
     seconds: dict | None = None,
+    on_stage: Callable[[str], None] | None = None,
     **changes,
 ) -> MeshResult:
     """Mesh the inside of ``contour`` (or the box minus it, ``exterior``): the
@@ -451,16 +452,19 @@ def mesh_contour(
 
     ``options`` (default: :class:`~.options.MeshOptions`' defaults) with
     ``changes`` (its field names: ``mesh_contour(c, exterior=True)``);
-    ``callback(done, stats)`` follows the deformation; ``size_function`` replaces
-    the options' ``size`` and ``size_field``.  ``seconds``: filled with each stage's
-    time as it ends (for the benchmarks; nothing reads them).  The result meets the
-    contract or this raises.
+    ``callback(done, stats)`` follows the deformation; ``on_stage(name)`` is called as
+    each stage starts (``layers``, ``select``, ``deform``, ``triangulate``);
+    ``size_function`` replaces the options' ``size`` and ``size_field``.  ``seconds``:
+    filled with each stage's time as it ends (for the benchmarks; nothing reads them).
+    The result meets the contract or this raises.
     """
     o = _options(options, changes)
+    stage = on_stage or (lambda name: None)
     if o.layers:
         return mesh_with_layers(
-            contour, o, callback=callback, size_function=size_function, seconds=seconds
-        )
+            contour, o, callback=callback, size_function=size_function, seconds=seconds,
+            on_stage=on_stage,
+        )  # fmt: skip
     seconds = {} if seconds is None else seconds
     size = size_function
     if size is None:
@@ -472,9 +476,11 @@ def mesh_contour(
         now = time.perf_counter()
         seconds[stage], start = now - start, now
 
+    stage("select")
     laid = lay(contour, o)
     sel = run_select(laid.grid, o, size_function=size)
     lap("select")
+    stage("deform")
     sel.triangles()  # built once, here, rather than by both threads at once
     sel.kept_triangles()
     # stage 3's topology (which triangles, numbered how, and their edges) needs only
@@ -484,6 +490,7 @@ def mesh_contour(
         cut = pool.submit(triangulate.cut, laid.grid, sel, edges=True)
         d = run_deform(laid.grid, sel, o, callback=callback, size_function=size)
         lap("deform")
+        stage("triangulate")
         mesh, report = run_triangulate(laid, d, o, size_function=size, cut=cut.result())
     report.update(selection_report(sel))
     mesh, report = finish_mesh(laid.contour, mesh, report, o, sel.grid.box if o.exterior else None)
@@ -578,11 +585,14 @@ def mesh_with_layers(
     callback: Callback | None = None,
     size_function: SizeFunction | None = None,
     seconds: dict | None = None,
+    on_stage: Callable[[str], None] | None = None,
 ) -> MeshResult:
     """:func:`mesh_contour` with boundary layers (:mod:`.layers`): the stacks grown
     from the walls' points, the rest of the domain meshed as a contour of their top
     nodes (with the options' other fields, extra boundary nodes taken out on any
     grid), the two joined and checked."""
+    if on_stage is not None:
+        on_stage("layers")
     stacks = grow_layers(contour, o)
     core = mesh_contour(
         stacks.top,
@@ -590,6 +600,7 @@ def mesh_with_layers(
         callback=callback,
         size_function=size_function,
         seconds=seconds,
+        on_stage=on_stage,
     )
     mesh, report = join_layers(contour, stacks, core.mesh, core.report, core.selection, o)
     box = core.selection.grid.box if o.exterior else None

@@ -17,6 +17,7 @@ from ..errors import InputError, OptionError, WriteError, naming, printable
 from ..formats._common import GROUP_DATA, PHYSICAL_DATA
 from ..formats.read import checked, contour_nodes, read_meshio
 from ..mesh import as_triangles
+from . import progress
 from .errors import handle_errors
 from .options import OutputPath, json_option, quiet_option, say
 
@@ -93,10 +94,11 @@ _WRITE_OPTIONS = {"gmsh22": {"binary": False}}
 @click.option("-f", "--force", is_flag=True, help="Replace an output deformesh did not write.")
 @json_option("Print the report as JSON on stdout.")
 @quiet_option
+@progress.progress_option
 @handle_errors
 def command(
     mesh_path, output, monitor, field, alpha, kind, reference_path, boundary, steps, png,
-    force, as_json, quiet,
+    force, as_json, quiet, progress_flag,
 ) -> None:  # fmt: skip
     """Move a mesh's nodes so its cells follow a monitor: the same triangles (and quads),
     never tangled (r-adaptation by the div-curl deformation).  A deformesh mesh's contour
@@ -163,10 +165,15 @@ def command(
         )
         code = _adapt.interpolated(points, tri, nodal)
     held = _contour_nodes(m, len(points), mesh_path)
-    with naming(reference_path or mesh_path):  # (the solver's own words name no file)
+    line = progress.LiveLine(progress.mode(quiet, progress_flag))
+
+    def on_solve(t: float, solves: int) -> None:
+        line.say(f"deformesh: {mesh_path}: adapting, pseudo-time {t:.2f}, {solves} solves")
+
+    with naming(reference_path or mesh_path), contextlib.closing(line):
         res = _adapt.adapt(
             start, tri, code, steps, source=reference_path or mesh_path, held=held,
-            slide=boundary == "slide", guard=guard,
+            slide=boundary == "slide", guard=guard, progress=on_solve,
         )  # fmt: skip
         new = res.points
         carried = {

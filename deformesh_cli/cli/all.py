@@ -12,6 +12,7 @@ from .. import batch, files, pipeline
 from ..errors import one_line
 from ..options import MeshOptions
 from ..readers import load_contour
+from . import progress
 from .errors import handle_errors
 from .options import (
     force_option,
@@ -19,9 +20,7 @@ from .options import (
     output_option,
     png_option,
     quiet_option,
-    show_progress,
     stages,
-    steps_bar,
     take,
 )
 from .report import check_mesh_output, check_outputs, finish
@@ -66,6 +65,7 @@ from .report import check_mesh_output, check_outputs, finish
 @force_option
 @json_option("Print the summary as JSON on stdout (a batch: one record per contour).")
 @quiet_option
+@progress.progress_option
 @handle_errors
 def command(
     contours,
@@ -79,6 +79,7 @@ def command(
     force,
     as_json,
     quiet,
+    progress_flag,
     **kw,
 ):
     """Run select, deform and triangulate in one process, for one contour or a batch."""
@@ -92,7 +93,7 @@ def command(
         if png is not None:
             raise click.UsageError("--png names one file; it does not apply to a batch")
         tasks = batch.prepare(list(contours), out_dir, o, force, strict_inputs)
-        _batch(tasks, out_dir, jobs, scheduler, fail_fast, as_json, quiet, t0)
+        _batch(tasks, out_dir, jobs, scheduler, fail_fast, as_json, quiet, t0, progress_flag)
         return
     if output is None:
         raise click.UsageError("give -o FILE (one contour) or --out-dir DIR (a batch)")
@@ -105,8 +106,19 @@ def command(
     fmt = check_mesh_output(output, o.fmt, as_json)
     check_outputs(output, fmt, png, [contours[0], o.size_field], force)
     c = load_contour(contours[0], None, o.decimal, o.tolerance, o.element_id, o.resample, o.stroke)
-    with steps_bar(quiet) as progress:
-        res = pipeline.mesh_contour(c, o, callback=progress)
+    line = progress.LiveLine(progress.mode(quiet, progress_flag))
+    name = c.source
+
+    def on_stage(stage: str) -> None:
+        line.say(f"deformesh: {name}: {stage}")
+
+    def on_step(done: float, stats) -> None:
+        line.say(f"deformesh: {name}: deform, pseudo-time {done:.2f}")
+
+    try:
+        res = pipeline.mesh_contour(c, o, callback=on_step, on_stage=on_stage)
+    finally:
+        line.close()
     finish(
         c,
         res.mesh,
@@ -121,20 +133,16 @@ def command(
     )
 
 
-def _batch(tasks, out_dir, jobs, scheduler, fail_fast, as_json, quiet, t0) -> None:
+def _batch(tasks, out_dir, jobs, scheduler, fail_fast, as_json, quiet, t0, show=None) -> None:
     """Run a batch: each failure on stderr as it happens, the records in input order on
     stdout (``--json``), the table at the end; exit 1 if any input failed."""
     records: list[dict | None] = [None] * len(tasks)
     printed = 0
-    bar = None
-    if show_progress(quiet) and len(tasks) > 1:
-        bar = click.progressbar(length=len(tasks), label="meshing", file=sys.stderr)
-        bar.__enter__()
+    bar = progress.BatchProgress(len(tasks), progress.mode(quiet, show))
     try:
         jobs = jobs or os.cpu_count() or 1
         for task, rec in batch.run_and_write(tasks, out_dir, jobs, scheduler, fail_fast):
-            # over the progress bar's line, if one is drawn
-            clear = "\r\033[K" if bar is not None else ""
+            clear = bar.clear  # (over the live line, if one is drawn)
             if rec["status"] == "failed":
                 click.echo(f"{clear}deformesh: error: {one_line(rec['error'])}", err=True)
             elif task.passed is not None and not quiet:
@@ -144,11 +152,9 @@ def _batch(tasks, out_dir, jobs, scheduler, fail_fast, as_json, quiet, t0) -> No
                 if as_json:
                     files.write_stdout(files.to_json(records[printed]))
                 printed += 1
-            if bar is not None:
-                bar.update(1)
+            bar.step(rec["status"], rec["input"])
     finally:
-        if bar is not None:
-            bar.__exit__(None, None, None)
+        bar.close()
     if not quiet:
         click.echo(batch_table(records, time.perf_counter() - t0), err=True)
     if any(r["status"] == "failed" for r in records):

@@ -8,6 +8,7 @@ from .. import files, pipeline, state
 from .. import size as _size
 from ..errors import InputError, SizeError
 from ..options import MeshOptions, from_record
+from . import progress
 from .errors import handle_errors
 from .options import (
     check_binary_stdout,
@@ -15,7 +16,6 @@ from .options import (
     quiet_option,
     say,
     stages,
-    steps_bar,
     take,
 )
 
@@ -25,8 +25,9 @@ from .options import (
 @output_option("Deformed state file to write ('-' for stdout).")
 @stages("deform")
 @quiet_option
+@progress.progress_option
 @handle_errors
-def command(state_in: str, output: str, quiet: bool, **kwargs) -> None:
+def command(state_in: str, output: str, quiet: bool, progress_flag, **kwargs) -> None:
     """Move the selected nodes onto the contour without folding (stage 2)."""
     check_binary_stdout(output)
     files.check_outputs([output], [state_in, kwargs.get("size_field")])
@@ -39,19 +40,25 @@ def command(state_in: str, output: str, quiet: bool, **kwargs) -> None:
         del given["size"], given["size_field"]
     o = from_record(MeshOptions, st.options).replace(**given)
     size = st.size_function(name) if own else _size.make(o.size, o.size_field, st.laid.contour)
+    line = progress.LiveLine(progress.mode(quiet, progress_flag))
+
+    def on_step(done: float, stats) -> None:
+        line.say(f"deformesh: {name}: deform, pseudo-time {done:.2f}")
+
     try:
-        with steps_bar(quiet) as progress:
-            d = pipeline.run_deform(
-                st.grid_contour,
-                st.selection,
-                o.replace(size_field=None),
-                callback=progress,
-                size_function=size,
-            )
+        d = pipeline.run_deform(
+            st.grid_contour,
+            st.selection,
+            o.replace(size_field=None),
+            callback=on_step,
+            size_function=size,
+        )
     except SizeError as exc:
         if not own:
             raise
         raise InputError(f"{name}: its recorded size function: {exc}") from None
+    finally:
+        line.close()
     options = {**st.options, **o.stage("deform"), "size_field": None}
     rows = None if size is None else size.rows
     out = state.State(

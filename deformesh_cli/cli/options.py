@@ -7,11 +7,10 @@ default, choices and help text all come from the options class.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import math
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from typing import Any
 
 import click
@@ -203,22 +202,3 @@ def say(quiet: bool, msg: str) -> None:
 def check_binary_stdout(out: str) -> None:
     if out == "-" and sys.stdout is not None and sys.stdout.isatty():
         raise click.UsageError("refusing to write binary data to a terminal; use -o FILE or a pipe")
-
-
-def show_progress(quiet: bool) -> bool:
-    """Progress bars only for a person watching: stderr is a terminal and not --quiet."""
-    return not quiet and sys.stderr.isatty()
-
-
-@contextlib.contextmanager
-def steps_bar(quiet: bool) -> Iterator[Callable | None]:
-    """A deformation progress callback drawing a bar on stderr (or None)."""
-    if not show_progress(quiet):
-        yield None
-        return
-    with click.progressbar(length=1000, label="deforming", file=sys.stderr) as bar:
-
-        def progress(done, stats):
-            bar.update(int(1000 * done) - bar.pos)
-
-        yield progress
