@@ -88,7 +88,7 @@ class _Clock:
 
 def test_plain_lines_come_every_tenth_or_every_minute(capsys):
     clock = _Clock()
-    bar = progress.BatchProgress(1000, "plain", now=clock)
+    bar = progress.BatchProgress(1000, "plain", now=clock, heartbeat=False)
     for k in range(1000):
         clock.t += 1.0  # (a second a file: a minute passes before a tenth)
         bar.step("ok", f"c{k}.csv")
@@ -141,3 +141,16 @@ def test_move_on_a_terminal_says_each_frame(tmp_path):
     assert code == 0
     for k in range(1, 21):
         assert f"frame {k}/20" in err
+
+
+def test_a_long_file_still_gets_the_minute_s_line(capsys, monkeypatch):
+    """No file finishes for longer than the interval: a thread writes the line, so a CI
+    log shows the batch is alive (the interval shortened here)."""
+    import time
+
+    monkeypatch.setattr(progress, "PLAIN_EVERY", 0.2)
+    bar = progress.BatchProgress(5, "plain")
+    time.sleep(0.7)
+    bar.close()
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) >= 2 and all(ln.startswith("deformesh: 0 of 5 done (ok 0") for ln in lines)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import sys
+import threading
 import time
 from collections.abc import Callable
 
@@ -51,14 +52,27 @@ class BatchProgress:
     """A batch's progress: files done of ``total``, ok and failed so far, the time
     elapsed and an estimate of the time left, and the file last done.  Live: click's
     progress bar, redrawn in place; plain: a line at every tenth of the batch or
-    every :data:`PLAIN_EVERY` seconds, whichever comes first."""
+    every :data:`PLAIN_EVERY` seconds, whichever comes first (``heartbeat``: a thread
+    writes the minute's line while no file finishes)."""
 
-    def __init__(self, total: int, how: str | None, now: Callable[[], float] = time.monotonic):
+    def __init__(
+        self,
+        total: int,
+        how: str | None,
+        now: Callable[[], float] = time.monotonic,
+        heartbeat: bool = True,
+    ):
         self.total, self.how, self.now = total, how, now
         self.start = self.last_line = now()
         self.done = self.ok = self.failed = 0
         self.next_tenth = 1
         self.bar = None
+        self.lock = threading.Lock()
+        self.stop = threading.Event()
+        self.beat = None
+        if how == "plain" and heartbeat:
+            self.beat = threading.Thread(target=self._beat, daemon=True)
+            self.beat.start()
         if how == "live":
             self.bar = click.progressbar(
                 length=total, label="meshing", file=sys.stderr, show_eta=False,
@@ -73,28 +87,45 @@ class BatchProgress:
 
     def step(self, status: str, name: str) -> None:
         """One more input finished, with ``status`` (``ok``, ``failed``, ...)."""
-        self.done += 1
-        self.ok += status == "ok"
-        self.failed += status == "failed"
+        with self.lock:
+            self.done += 1
+            self.ok += status == "ok"
+            self.failed += status == "failed"
+            if self.bar is not None:  # (the file's name alone: the table gives its path)
+                self.bar.update(1, f"{self._counts()}: {os.path.basename(name)}")
+                return
+            if self.how != "plain":
+                return
+            tenth = self.done * 10 >= self.next_tenth * self.total
+            if tenth or self.now() - self.last_line >= PLAIN_EVERY:
+                while self.next_tenth * self.total <= self.done * 10:
+                    self.next_tenth += 1
+                self._line()
+
+    def _counts(self) -> str:
         elapsed = self.now() - self.start
-        left = elapsed / self.done * (self.total - self.done)
-        counts = f"ok {self.ok}, failed {self.failed}, {clock(elapsed)} elapsed"
-        if self.bar is not None:  # (the file's name alone: the table gives its path)
-            self.bar.update(1, f"{counts}, ~{clock(left)} left: {os.path.basename(name)}")
-            return
-        if self.how != "plain":
-            return
-        tenth = self.done * 10 >= self.next_tenth * self.total
-        if tenth or self.now() - self.last_line >= PLAIN_EVERY:
-            while self.next_tenth * self.total <= self.done * 10:
-                self.next_tenth += 1
-            click.echo(
-                f"deformesh: {self.done} of {self.total} done ({counts}, about {clock(left)} left)",
-                err=True,
-            )
-            self.last_line = self.now()
+        out = f"ok {self.ok}, failed {self.failed}, {clock(elapsed)} elapsed"
+        if self.done:
+            left = elapsed / self.done * (self.total - self.done)
+            out += f", {'~' if self.bar is not None else 'about '}{clock(left)} left"
+        return out
+
+    def _line(self) -> None:
+        click.echo(f"deformesh: {self.done} of {self.total} done ({self._counts()})", err=True)
+        self.last_line = self.now()
+
+    def _beat(self) -> None:
+        """The minute's line while no file finishes (a long one keeps a log alive)."""
+        while not self.stop.wait(PLAIN_EVERY / 4):
+            with self.lock:
+                if self.now() - self.last_line >= PLAIN_EVERY:
+                    self._line()
 
     def close(self) -> None:
+        self.stop.set()
+        if self.beat is not None:
+            self.beat.join()
+            self.beat = None
         if self.bar is not None:
             self.bar.__exit__(None, None, None)
             self.bar = None
