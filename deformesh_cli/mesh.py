@@ -57,6 +57,16 @@ class Mesh:
         return len(self.points)
 
 
+def guarded(triangles: np.ndarray, quads: np.ndarray) -> np.ndarray:
+    """``triangles`` and each of ``quads``' four corner triangles (both diagonals'
+    halves): all of them positive, and every quad is convex.  What ``move`` and
+    ``adapt`` keep unfolded."""
+    q = quads
+    return np.concatenate(
+        [triangles, q[:, [0, 1, 2]], q[:, [0, 2, 3]], q[:, [1, 2, 3]], q[:, [1, 3, 0]]]
+    )
+
+
 def as_triangles(triangles: np.ndarray, quads: np.ndarray) -> np.ndarray:
     """``triangles`` and each of ``quads`` as two (corners 0 1 2 and 0 2 3)."""
     if not len(quads):

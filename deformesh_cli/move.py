@@ -48,7 +48,7 @@ from .errors import (
     OptionError,
     printable,
 )
-from .mesh import Mesh, as_triangles
+from .mesh import Mesh, as_triangles, guarded
 from .options import MoveOptions
 from .readers import load_contour
 
@@ -177,14 +177,8 @@ def prepare(points: np.ndarray, tri: np.ndarray, first: Contour, source: str, qu
         rings,
         weights,
         None if len(quads) else edges,
-        _corners(tri, quads) if len(quads) else None,
+        guarded(tri, quads) if len(quads) else None,
     )
-
-
-def _corners(tri: np.ndarray, quads: np.ndarray) -> np.ndarray:
-    """The triangles and each quad's four corner triangles."""
-    q = quads
-    return np.concatenate([tri, q[:, [0, 1, 2]], q[:, [0, 2, 3]], q[:, [1, 2, 3]], q[:, [1, 3, 0]]])
 
 
 def rigid_weight(points: np.ndarray, own: np.ndarray, others: np.ndarray) -> np.ndarray:

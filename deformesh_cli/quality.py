@@ -435,20 +435,16 @@ def layer_report(
     growth between its layers (each layer's height over the one below).  With
     ``first``: how many first heights are within 1% of it, and the largest relative
     difference."""
+    from .quads import report as quad_report
+
     q = quads
     n = len(points)
-    own = np.minimum(signed_areas(points, q[:, [0, 1, 2]]), signed_areas(points, q[:, [0, 2, 3]]))
-    other = np.minimum(signed_areas(points, q[:, [1, 2, 3]]), signed_areas(points, q[:, [1, 3, 0]]))
-    bad = np.minimum(own, other) <= 0
+    cells = quad_report(points, q, tri) if len(q) else {}
 
     def dist(a, b):
         d = points[a] - points[b]
         return np.hypot(d[:, 0], d[:, 1])
 
-    along = 0.5 * (dist(q[:, 1], q[:, 0]) + dist(q[:, 2], q[:, 3]))
-    across = 0.5 * (dist(q[:, 3], q[:, 0]) + dist(q[:, 2], q[:, 1]))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        aspect = np.maximum(along, across) / np.minimum(along, across)
     # the stacks: each node's node above; a node with two is a fan's
     pairs = np.unique(np.concatenate([q[:, [0, 3]], q[:, [1, 2]]]), axis=0)
     lower, count = np.unique(pairs[:, 0], return_counts=True)
@@ -462,9 +458,9 @@ def layer_report(
     wall = np.flatnonzero((nxt >= 0) & (above >= 0))
     out = {
         "quads": int(len(q)),
-        "non_convex": int(bad.sum()),
-        "max_aspect_ratio": float(aspect.max()) if len(q) else None,
-        "mean_aspect_ratio": float(aspect.mean()) if len(q) else None,
+        "non_convex": cells.get("non_convex", 0),
+        "max_aspect_ratio": cells.get("max_aspect_ratio"),
+        "mean_aspect_ratio": cells.get("mean_aspect_ratio"),
         "stacks": int(len(wall)),
         "fans": int(np.count_nonzero(np.isin(lower[count > 1], lines[:, 0]))),
     }

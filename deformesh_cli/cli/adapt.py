@@ -16,7 +16,7 @@ from .. import files, formats
 from ..errors import InputError, OptionError, WriteError, naming, printable
 from ..formats._common import GROUP_DATA, PHYSICAL_DATA
 from ..formats.read import checked, contour_nodes, read_meshio
-from ..mesh import as_triangles
+from ..mesh import as_triangles, guarded
 from . import progress
 from .errors import handle_errors
 from .options import OutputPath, json_option, quiet_option, say
@@ -135,10 +135,7 @@ def command(
     points, tri, quads = checked(m, mesh_path, quads=True)
     guard = None
     if len(quads):  # (solved on the quads' halves; all four corners of each kept unfolded)
-        q = quads
-        guard = np.concatenate(
-            [tri, *(q[:, c] for c in ([0, 1, 2], [0, 2, 3], [1, 2, 3], [1, 3, 0]))]
-        )
+        guard = guarded(tri, quads)
         tri = as_triangles(tri, quads)
     start = points
     if reference_path is not None:
