@@ -381,3 +381,17 @@ def test_every_sample_meshes_in_quads_only(path):
     assert (_sin_min(mesh.points, mesh.quads) > 0).all()
     assert np.array_equal(mesh.points[: c.n], c.points)
     assert res.report["contract"] == "ok"
+
+
+def test_a_long_odd_cycle_is_rounded_whole():
+    """An odd cycle of 100,001 nodes: every second edge but at the one node left single,
+    the lightest to leave (its two edges the lightest pair)."""
+    k = 100_001
+    a = np.arange(k)
+    b = (a + 1) % k
+    w = np.full(k, 0.9)
+    w[[500, 501]] = 0.75  # (node 501 ends edges 500 and 501: leaving it costs least)
+    taken = quads.best_matching(k, a, b, w)
+    ends = np.concatenate([a[taken], b[taken]])
+    assert len(taken) == k // 2 and len(np.unique(ends)) == len(ends)
+    assert 501 not in ends
