@@ -38,6 +38,11 @@ def pair(mesh: Mesh, shift: tuple[float, float], source: str) -> np.ndarray:
     extent = float(np.ptp(pts, axis=0).max()) or 1.0
     tol = TOLERANCE * extent
     d = np.asarray(shift, dtype=np.float64)
+    if not float(np.hypot(*d)) > tol:  # (each node would be its own partner)
+        raise SelectionError(
+            f"{source}: --periodic {shift[0]:g},{shift[1]:g} is shorter than the pairing "
+            f"tolerance {tol:.3g} (1e-9 of the mesh's extent {extent:.6g})"
+        )
     dist, at = cKDTree(pts[nodes]).query(pts[nodes] + d, distance_upper_bound=tol)
     partner = np.full(mesh.n_nodes, -1, dtype=np.int64)
     has = np.isfinite(dist)

@@ -133,6 +133,8 @@ def test_a_translation_that_pairs_nothing_is_refused(run, tmp_path):
     assert "--periodic 3,0 pairs no boundary edge" in r.stderr and "contour point 0" in r.stderr
     r = run("all", SAMPLES / "circle.csv", "-o", out, "--periodic", "0,0")
     assert r.exit_code == 2 and "not a translation" in r.stderr
+    r = run("all", CHANNEL, "-o", out, "--periodic=1e-300,0")
+    assert r.exit_code == 1 and "shorter than the pairing tolerance" in r.stderr
 
 
 def test_stages_give_all_s_bytes(run, tmp_path):
