@@ -24,6 +24,7 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from meshfiles import plain_csv, read_cells
 from results import heading, write_section
 from run_contours import EXE, run_process
 
@@ -36,20 +37,11 @@ LAYERS, FIRST, GROWTH = 30, 1e-5, 1.15
 
 
 def measure(mesh_path: str, contour_path: str) -> dict:
-    import meshio
     import numpy as np
 
     from deformesh_cli.geometry import boundary_edges
-    from deformesh_cli.readers import load_contour
 
-    m = meshio.read(mesh_path)
-    p = np.asarray(m.points[:, :2], dtype=np.float64)
-    tri = np.concatenate([c.data for c in m.cells if c.type == "triangle"] or [np.zeros((0, 3))])
-    quads = np.concatenate([c.data for c in m.cells if c.type == "quad"] or [np.zeros((0, 4))])
-    tri, quads = tri.astype(np.int64), quads.astype(np.int64)
-    c = load_contour(contour_path).points
-    key = {(float(x), float(y)): k for k, (x, y) in enumerate(p.tolist())}
-    found = [key.get((float(x), float(y)), -1) for x, y in c.tolist()]
+    p, tri, quads, found = read_cells(mesh_path, contour_path)
     split = np.concatenate([tri, quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
     bnd = boundary_edges(split, len(p))
     lo, hi = p.min(axis=0), p.max(axis=0)
@@ -99,7 +91,7 @@ def measure(mesh_path: str, contour_path: str) -> dict:
         "triangles": len(tri),
         "quads": len(quads),
         "points_kept": int(sum(k >= 0 for k in found)),
-        "points": len(c),
+        "points": len(found),
         "extra": int(len(body_nodes) - sum(k >= 0 for k in found)),
         "fans": fans,
         "min_wall_angle": min(angles) if angles else None,
@@ -114,16 +106,8 @@ def commands(tool: str, out: str) -> list[str]:
             EXE, "all", str(SAMPLE), "--exterior", f"--box={BOX}", "--layers", str(LAYERS),
             "--first-height", repr(FIRST), "--layer-growth", repr(GROWTH), "-o", out, "-q",
         ]  # fmt: skip
-    return [PY, str(PEERS / "gmsh_layers.py"), _plain(), BOX, str(LAYERS), repr(FIRST),
+    return [PY, str(PEERS / "gmsh_layers.py"), plain_csv(SAMPLE), BOX, str(LAYERS), repr(FIRST),
             repr(GROWTH), out]  # fmt: skip
-
-
-def _plain() -> str:
-    """The sample without its comment lines (the peer reads ``x,y`` rows)."""
-    path = os.path.join(tempfile.gettempdir(), "deformesh_naca0012_plain.csv")
-    rows = [ln for ln in SAMPLE.read_text().splitlines() if not ln.startswith("#")]
-    Path(path).write_text("\n".join(rows) + "\n")
-    return path
 
 
 def main():

@@ -21,6 +21,7 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from meshfiles import plain_csv, read_cells
 from results import heading, write_section
 from run_contours import EXE, run_process
 
@@ -35,19 +36,10 @@ CASES = (
 
 
 def measure(mesh_path: str, contour_path: str) -> dict:
-    import meshio
     import numpy as np
 
-    from deformesh_cli.readers import load_contour
-
-    m = meshio.read(mesh_path)
-    p = np.asarray(m.points[:, :2], dtype=np.float64)
-    tri = np.concatenate([c.data for c in m.cells if c.type == "triangle"] or [np.zeros((0, 3))])
-    quads = np.concatenate([c.data for c in m.cells if c.type == "quad"] or [np.zeros((0, 4))])
-    tri, quads = tri.astype(np.int64), quads.astype(np.int64)
-    c = load_contour(contour_path).points
-    key = {(float(x), float(y)): k for k, (x, y) in enumerate(p.tolist())}
-    kept = sum(key.get((float(x), float(y)), -1) >= 0 for x, y in c.tolist())
+    p, tri, quads, found = read_cells(mesh_path, contour_path)
+    kept = sum(k >= 0 for k in found)
 
     def area(cells):
         x, y = p[cells, 0], p[cells, 1]
@@ -63,7 +55,7 @@ def measure(mesh_path: str, contour_path: str) -> dict:
         "triangles": len(tri),
         "quads": len(quads),
         "points_kept": int(kept),
-        "points": len(c),
+        "points": len(found),
         "share": float(qa / (qa + ta)),
         "min_angle": float(angle.min()),
         "max_angle": float(angle.max()),
@@ -77,15 +69,7 @@ def commands(tool: str, src: str, max_h, box, out: str) -> list[str]:
             ["--exterior", f"--box={box}"] if box else []
         )
         return [EXE, "all", src, "--cells", "quad", *extra, "-o", out, "-q"]
-    return [PY, str(PEERS / "gmsh_quads.py"), _plain(src), max_h or "-", box or "-", out]
-
-
-def _plain(src: str) -> str:
-    """The sample without its comment lines (the peer reads ``x,y`` rows)."""
-    path = os.path.join(tempfile.gettempdir(), "deformesh_" + Path(src).stem + "_plain.csv")
-    rows = [ln for ln in Path(src).read_text().splitlines() if not ln.startswith("#")]
-    Path(path).write_text("\n".join(rows) + "\n")
-    return path
+    return [PY, str(PEERS / "gmsh_quads.py"), plain_csv(src), max_h or "-", box or "-", out]
 
 
 def main():

@@ -29,6 +29,7 @@ Nothing here prints or exits.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import time
 from collections.abc import Callable
@@ -387,19 +388,7 @@ def _band(points: np.ndarray, motion: Motion, goal: np.ndarray) -> np.ndarray | 
 
 def frame_mesh(motion: Motion, points: np.ndarray, point_data: dict | None = None) -> Mesh:
     """The motion's mesh at ``points`` (same cells, lines and groups)."""
-    m = motion.mesh
-    return Mesh(
-        points,
-        m.triangles,
-        m.lines,
-        n_contour=m.n_contour,
-        n_extra=m.n_extra,
-        line_group=m.line_group,
-        groups=m.groups,
-        n_box=m.n_box,
-        point_data=point_data or {},
-        quads=m.quads,
-    )
+    return dataclasses.replace(motion.mesh, points=points, point_data=point_data or {})
 
 
 def remeshed(

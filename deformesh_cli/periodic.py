@@ -47,15 +47,10 @@ def pair(mesh: Mesh, shift: tuple[float, float], source: str) -> np.ndarray:
     partner = np.full(mesh.n_nodes, -1, dtype=np.int64)
     has = np.isfinite(dist)
     partner[nodes[has]] = nodes[at[has]]
-    a, b = lines[:, 0], lines[:, 1]
-    pa, pb = partner[a], partner[b]
-    key = lines[:, 0] * mesh.n_nodes + lines[:, 1]
-    both = (pa >= 0) & (pb >= 0)
-    # (the partner side runs the other way: the domain lies on the other side of it)
-    back = np.isin(pb * mesh.n_nodes + pa, key) & both
+    back = paired_edges(lines, partner)
     paired = np.zeros(mesh.n_nodes, dtype=bool)
-    paired[a[back]] = paired[b[back]] = True
-    _check_sides(mesh, shift, source, paired, partner, tol)
+    paired[lines[back].ravel()] = True
+    _check_sides(mesh, shift, source, partner, tol)
     if not back.any():
         k = int(nodes[~has][0]) if (~has).any() else int(nodes[0])
         x, y = pts[k]
@@ -68,7 +63,29 @@ def pair(mesh: Mesh, shift: tuple[float, float], source: str) -> np.ndarray:
     return np.column_stack([src, partner[src]])
 
 
-def _check_sides(mesh: Mesh, shift, source: str, paired, partner, tol: float) -> None:
+def paired_edges(lines: np.ndarray, partner: np.ndarray) -> np.ndarray:
+    """Per boundary line: both its nodes have a ``partner`` (-1: none), and the partners
+    are joined by a boundary line running the other way (the domain lies on the other
+    side of it)."""
+    n = len(partner)
+    a, b = lines[:, 0], lines[:, 1]
+    pa, pb = partner[a], partner[b]
+    return (pa >= 0) & (pb >= 0) & np.isin(pb * n + pa, a * n + b)
+
+
+def side_roles(mesh: Mesh) -> np.ndarray | None:
+    """Per boundary line of a periodic mesh: 1 on a side whose nodes' partners are
+    another side's, 2 on that other side, 0 elsewhere (None: the mesh is not
+    periodic)."""
+    if not len(mesh.periodic):
+        return None
+    partner = partner_data(mesh.n_nodes, mesh.periodic).astype(np.int64)
+    origin = partner_data(mesh.n_nodes, mesh.periodic[:, ::-1]).astype(np.int64)
+    master, slave = paired_edges(mesh.lines, partner), paired_edges(mesh.lines, origin)
+    return np.where(master, 1, np.where(slave, 2, 0))
+
+
+def _check_sides(mesh: Mesh, shift, source: str, partner, tol: float) -> None:
     """A box side facing the opposite side across ``shift`` must be wholly paired."""
     names = list(mesh.groups)
     if "bottom" not in names:

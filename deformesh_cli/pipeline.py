@@ -459,12 +459,27 @@ def mesh_contour(
     The result meets the contract or this raises.
     """
     o = _options(options, changes)
-    stage = on_stage or (lambda name: None)
+    kwargs = {"callback": callback, "size_function": size_function, "seconds": seconds}
     if o.layers:
-        return mesh_with_layers(
-            contour, o, callback=callback, size_function=size_function, seconds=seconds,
-            on_stage=on_stage,
-        )  # fmt: skip
+        return mesh_with_layers(contour, o, on_stage=on_stage, **kwargs)
+    res = _mesh_of(contour, o, on_stage=on_stage, **kwargs)
+    box = res.selection.grid.box if o.exterior else None
+    res.mesh, res.report = finish_mesh(contour, res.mesh, res.report, o, box)
+    return res
+
+
+def _mesh_of(
+    contour: Contour,
+    o: MeshOptions,
+    *,
+    callback: Callback | None = None,
+    size_function: SizeFunction | None = None,
+    seconds: dict | None = None,
+    on_stage: Callable[[str], None] | None = None,
+) -> MeshResult:
+    """The three stages on ``contour``, no layers: its triangle mesh, before
+    :func:`finish_mesh`."""
+    stage = on_stage or (lambda name: None)
     seconds = {} if seconds is None else seconds
     size = size_function
     if size is None:
@@ -492,9 +507,8 @@ def mesh_contour(
         lap("deform")
         stage("triangulate")
         mesh, report = run_triangulate(laid, d, o, size_function=size, cut=cut.result())
-    report.update(selection_report(sel))
-    mesh, report = finish_mesh(laid.contour, mesh, report, o, sel.grid.box if o.exterior else None)
     lap("triangulate")
+    report.update(selection_report(sel))
     if d.stats is not None:
         report["moved_nodes"] = int(d.stats.moved_nodes)  # the band's nodes, or every node
     return MeshResult(mesh, sel, d.stats, report)
@@ -528,7 +542,7 @@ def shape_cells(
     if o.cells not in _quads.CELLS:
         raise OptionError(f"--cells must be one of {', '.join(_quads.CELLS)}, got {o.cells!r}")
     mesh, made = _quads.recombine(mesh)
-    report = {**report, "cells": o.cells, "quads_made": made["quads_made"]}
+    report = {**report, "cells": o.cells, "quads_made": made}
     if o.cells == "quad-only":
         mesh, added = _quads.subdivide(mesh, triangulate.BOX_SIDES)
         report["split_boundary_edges"] = added
@@ -594,7 +608,7 @@ def mesh_with_layers(
     if on_stage is not None:
         on_stage("layers")
     stacks = grow_layers(contour, o)
-    core = mesh_contour(
+    core = _mesh_of(
         stacks.top,
         core_options(o),
         callback=callback,
@@ -626,8 +640,9 @@ def grow_layers(contour: Contour, o: MeshOptions) -> _layers.Stacks:
 def core_options(o: MeshOptions) -> MeshOptions:
     """The options the rest of the domain is meshed with under layers: no layers of its
     own, and extra boundary nodes taken out on any grid (the top nodes its only
-    boundary nodes)."""
-    return o.replace(layers=0, merge_extra="merge", cells="tri")
+    boundary nodes).  Its cells and periodic pairs are the whole mesh's
+    (:func:`finish_mesh`, after the layers are joined)."""
+    return o.replace(layers=0, merge_extra="merge")
 
 
 def join_layers(

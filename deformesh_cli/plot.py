@@ -138,12 +138,7 @@ def render(
     lo, hi = points.min(axis=0), points.max(axis=0)
     whole = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
     view = whole if window is None else tuple(float(v) for v in window)
-    corners = points[tri]
-    tlo, thi = corners.min(axis=1), corners.max(axis=1)
-    shown = (
-        (thi[:, 0] >= view[0]) & (tlo[:, 0] <= view[2])
-        & (thi[:, 1] >= view[1]) & (tlo[:, 1] <= view[3])
-    )  # fmt: skip
+    shown = _in_view(points[tri], view)
     part = view[0] > whole[0] or view[1] > whole[1] or view[2] < whole[2] or view[3] < whole[3]
     wide, tall = view[2] - view[0], view[3] - view[1]
     height = float(np.clip(7.5 * tall / max(wide, 1e-300), 3.5, 9.0))  # follow the shape
@@ -171,11 +166,7 @@ def render(
         from matplotlib.collections import PolyCollection
 
         qc = points[quads]
-        qlo, qhi = qc.min(axis=1), qc.max(axis=1)
-        seen = (
-            (qhi[:, 0] >= view[0]) & (qlo[:, 0] <= view[2])
-            & (qhi[:, 1] >= view[1]) & (qlo[:, 1] <= view[3])
-        )  # fmt: skip
+        seen = _in_view(qc, view)
         qlw = float(np.clip(0.4 * np.sqrt(4000.0 / max(seen.sum(), 1)), 36.0 / dpi, 0.4))
         ax.add_collection(
             PolyCollection(
@@ -239,3 +230,14 @@ def render(
     fig.savefig(buf, format="png", dpi=dpi, metadata={"Software": None})
     plt.close(fig)
     return buf.getvalue()
+
+
+def _in_view(corners: np.ndarray, view) -> np.ndarray:
+    """Per cell (its ``corners``, (c, k, 2)): whether its bounding box meets ``view``."""
+    lo, hi = corners.min(axis=1), corners.max(axis=1)
+    return (
+        (hi[:, 0] >= view[0])
+        & (lo[:, 0] <= view[2])
+        & (hi[:, 1] >= view[1])
+        & (lo[:, 1] <= view[3])
+    )

@@ -9,6 +9,8 @@ included.  Neither moves a node: the contour's points stay the boundary's (with
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from .geometry import signed_areas
@@ -45,6 +47,10 @@ def scaled_jacobian(points: np.ndarray, quads: np.ndarray) -> np.ndarray:
     """Each quad's smallest scaled Jacobian: the sine of its corner angle farthest from
     a right angle (1 for a rectangle, <= 0 for a quad that is not convex)."""
     cross, _, lengths = corner_terms(points, quads)
+    return _smallest_sine(cross, lengths)
+
+
+def _smallest_sine(cross: np.ndarray, lengths: np.ndarray) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.nan_to_num(cross / lengths).min(axis=1)
 
@@ -146,35 +152,22 @@ def _round_cycle(edges: np.ndarray, w: np.ndarray) -> np.ndarray:
     return edges[(single + 1 + 2 * np.arange(k // 2)) % k]
 
 
-def recombine(mesh: Mesh) -> tuple[Mesh, dict]:
+def recombine(mesh: Mesh) -> tuple[Mesh, int]:
     """``mesh`` with pairs of its triangles made quads (its own quads kept): of the pairs
     whose union is a good quad (:func:`candidates`), a matching over the whole mesh
     (:func:`best_matching`) weighted by each quad's smallest scaled Jacobian
     (:func:`scaled_jacobian`, above ``sin 45`` for every candidate, so two quads always
-    outweigh one).  Returns the mesh and what was done (``quads_made``)."""
+    outweigh one).  Returns the mesh and the number of quads made."""
     tri = mesh.triangles
     a, b, quads = candidates(mesh.points, tri)
     w = scaled_jacobian(mesh.points, quads)
     taken = best_matching(len(tri), a, b, w)
     single = np.ones(len(tri), dtype=bool)
     single[a[taken]] = single[b[taken]] = False
-    out = _with_cells(mesh, tri[single], np.concatenate([mesh.quads, quads[taken]]))
-    return out, {"quads_made": int(len(taken))}
-
-
-def _with_cells(mesh: Mesh, tri: np.ndarray, quads: np.ndarray) -> Mesh:
-    return Mesh(
-        mesh.points,
-        tri,
-        mesh.lines,
-        n_contour=mesh.n_contour,
-        n_extra=mesh.n_extra,
-        line_group=mesh.line_group,
-        groups=mesh.groups,
-        n_box=mesh.n_box,
-        point_data=dict(mesh.point_data),
-        quads=quads,
+    out = dataclasses.replace(
+        mesh, triangles=tri[single], quads=np.concatenate([mesh.quads, quads[taken]])
     )
+    return out, int(len(taken))
 
 
 def subdivide(mesh: Mesh, box_groups: tuple[str, ...] = ()) -> tuple[Mesh, int]:
@@ -284,9 +277,9 @@ def report(points: np.ndarray, quads: np.ndarray, tri: np.ndarray) -> dict:
     q = quads
     cross, dot, lengths = corner_terms(points, q)
     angle = np.degrees(np.arctan2(cross, dot)) % 360.0
-    own = np.minimum(signed_areas(points, q[:, [0, 1, 2]]), signed_areas(points, q[:, [0, 2, 3]]))
-    other = np.minimum(signed_areas(points, q[:, [1, 2, 3]]), signed_areas(points, q[:, [1, 3, 0]]))
-    bad = np.minimum(own, other) <= 0
+    # a corner's cross product is twice the area of the triangle it makes with its two
+    # neighbours: the four are both diagonals' halves, all positive in a convex quad
+    bad = (cross <= 0).any(axis=1)
 
     def dist(i, j):
         d = points[q[:, i]] - points[q[:, j]]
@@ -296,16 +289,14 @@ def report(points: np.ndarray, quads: np.ndarray, tri: np.ndarray) -> dict:
     two = 0.5 * (dist(3, 0) + dist(2, 1))
     with np.errstate(divide="ignore", invalid="ignore"):
         aspect = np.maximum(one, two) / np.minimum(one, two)
-    quad_area = float(
-        signed_areas(points, q[:, [0, 1, 2]]).sum() + signed_areas(points, q[:, [0, 2, 3]]).sum()
-    )
+    quad_area = float(0.5 * (cross[:, 0] + cross[:, 2]).sum())  # (the halves of 1-3)
     total = quad_area + float(signed_areas(points, tri).sum()) if len(tri) else quad_area
     return {
         "quads": int(len(q)),
         "non_convex": int(bad.sum()),
         "min_angle": float(angle.min()),
         "max_angle": float(angle.max()),
-        "min_scaled_jacobian": float(scaled_jacobian(points, q).min()),
+        "min_scaled_jacobian": float(_smallest_sine(cross, lengths).min()),
         "mean_aspect_ratio": float(aspect.mean()),
         "max_aspect_ratio": float(aspect.max()),
         "area_share": quad_area / total if total else None,

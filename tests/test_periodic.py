@@ -237,3 +237,23 @@ def test_random_passages_pair_their_sides(seed):
         a, b = mesh.periodic.T
         assert np.allclose(mesh.points[b] - mesh.points[a], (0.0, pitch), rtol=0, atol=1e-9)
         assert res.report["contract"] == "ok"
+
+
+def test_layers_keep_the_pairs(run, tmp_path):
+    """A channel with boundary layers on every wall: the pairs are the whole mesh's
+    (its inlet and outlet points), found once the layers are joined, never on the
+    rest of the domain alone (whose boundary is the layers' top)."""
+    c = load_contour(str(CHANNEL))
+    o = MeshOptions(periodic=(3.0, 0.0), layers=3, first_height=0.005)
+    for cells in ("quad", "tri"):
+        res = pipeline.mesh_contour(c, o.replace(cells=cells))
+        mesh = res.mesh
+        assert res.report["periodic"]["pairs"] == 11 and len(mesh.quads)
+        assert (mesh.periodic[:, 0] < c.n).all() and (mesh.periodic[:, 1] < c.n).all()
+    s1, s2, staged = tmp_path / "m.selected", tmp_path / "m.deformed", tmp_path / "s.vtu"
+    args = ["--periodic", "3,0", "--layers", 3, "--first-height", 0.005]
+    assert run("select", CHANNEL, "-o", s1, *args).exit_code == 0
+    assert run("deform", s1, "-o", s2).exit_code == 0
+    r = run("triangulate", s2, "-o", staged, "--json")
+    assert r.exit_code == 0, r.stderr
+    assert json.loads(r.stdout)["periodic"]["pairs"] == 11

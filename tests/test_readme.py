@@ -444,3 +444,15 @@ def test_quad_numbers_in_the_docs_are_the_benchmark_file():
     assert f"{phrase('circle', 'the circle')}; {phrase('naca0012', 'the NACA 0012')}." in method
     assert float(rows["circle", "deformesh"][7].rstrip("%")) >= 80
     assert float(rows["naca0012", "deformesh"][7].rstrip("%")) >= 70
+
+
+def test_the_recombination_s_time_grows_with_the_triangles():
+    """docs/method.md says the recombination's time grows in proportion to the triangles,
+    from 5 thousand to half a million: the rows ``make bench`` last wrote ("quads")."""
+    method = " ".join(DOCS["method.md"].split())
+    assert "grows in proportion to the triangles, from 5 thousand to half a million" in method
+    rows = [r for r in _section_rows("quads", 6) if r[0][0].isdigit()]
+    tri = [int(r[1]) for r in rows]
+    assert tri[0] < 6_000 and tri[-1] > 500_000
+    per = [float(r[2]) / n for r, n in zip(rows, tri)]
+    assert per[-1] <= 2 * per[1]  # (the smallest mesh's time is mostly fixed costs)

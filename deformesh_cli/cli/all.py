@@ -112,11 +112,8 @@ def command(
     def on_stage(stage: str) -> None:
         line.say(f"deformesh: {name}: {stage}")
 
-    def on_step(done: float, stats) -> None:
-        line.say(f"deformesh: {name}: deform, pseudo-time {done:.2f}")
-
     try:
-        res = pipeline.mesh_contour(c, o, callback=on_step, on_stage=on_stage)
+        res = pipeline.mesh_contour(c, o, callback=line.deforming(name), on_stage=on_stage)
     finally:
         line.close()
     finish(

@@ -41,16 +41,12 @@ def command(state_in: str, output: str, quiet: bool, progress_flag, **kwargs) ->
     o = from_record(MeshOptions, st.options).replace(**given)
     size = st.size_function(name) if own else _size.make(o.size, o.size_field, st.laid.contour)
     line = progress.LiveLine(progress.mode(quiet, progress_flag))
-
-    def on_step(done: float, stats) -> None:
-        line.say(f"deformesh: {name}: deform, pseudo-time {done:.2f}")
-
     try:
         d = pipeline.run_deform(
             st.grid_contour,
             st.selection,
             o.replace(size_field=None),
-            callback=on_step,
+            callback=line.deforming(name),
             size_function=size,
         )
     except SizeError as exc:

@@ -21,44 +21,50 @@ from ..options import STAGES, MeshOptions, flag
 from ..options import fields as option_fields
 
 
-class BoxType(click.ParamType):
+class NumbersType(click.ParamType):
+    """Comma-separated finite numbers, one per name in ``names``, as a tuple of floats."""
+
+    names: tuple[str, ...] = ()
+
+    @property
+    def name(self) -> str:
+        return ",".join(self.names)
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple):
+            return value
+        count = {2: "two", 4: "four"}[len(self.names)]
+        try:
+            v = tuple(float(s) for s in value.split(","))
+        except ValueError:
+            self.fail(f"{value!r} is not {count} numbers {self.name}", param, ctx)
+        if len(v) != len(self.names):
+            self.fail(f"{value!r} has {len(v)} numbers, expected {self.name}", param, ctx)
+        problem = self.problem(v)
+        if problem:
+            self.fail(f"{value!r} is not {problem}", param, ctx)
+        return v
+
+    def problem(self, v: tuple[float, ...]) -> str | None:
+        """What the numbers fail to be, or None."""
+        return None if all(math.isfinite(x) for x in v) else "four finite numbers"
+
+
+class BoxType(NumbersType):
     """XMIN,YMIN,XMAX,YMAX as a tuple of four floats."""
 
-    name = "XMIN,YMIN,XMAX,YMAX"
-
-    def convert(self, value, param, ctx):
-        if isinstance(value, tuple):
-            return value
-        try:
-            v = tuple(float(s) for s in value.split(","))
-        except ValueError:
-            self.fail(f"{value!r} is not four numbers XMIN,YMIN,XMAX,YMAX", param, ctx)
-        if len(v) != 4:
-            self.fail(f"{value!r} has {len(v)} numbers, expected XMIN,YMIN,XMAX,YMAX", param, ctx)
-        if not all(math.isfinite(x) for x in v):
-            self.fail(f"{value!r} is not four finite numbers", param, ctx)
-        return v
+    names = ("XMIN", "YMIN", "XMAX", "YMAX")
 
 
-class VectorType(click.ParamType):
+class VectorType(NumbersType):
     """DX,DY as a tuple of two finite floats, not both zero."""
 
-    name = "DX,DY"
+    names = ("DX", "DY")
 
-    def convert(self, value, param, ctx):
-        if isinstance(value, tuple):
-            return value
-        try:
-            v = tuple(float(s) for s in value.split(","))
-        except ValueError:
-            self.fail(f"{value!r} is not two numbers DX,DY", param, ctx)
-        if len(v) != 2:
-            self.fail(f"{value!r} has {len(v)} numbers, expected DX,DY", param, ctx)
-        if not all(math.isfinite(x) for x in v) or v == (0.0, 0.0):
-            self.fail(
-                f"{value!r} is not a translation (two finite numbers, not both 0)", param, ctx
-            )
-        return v
+    def problem(self, v: tuple[float, ...]) -> str | None:
+        if all(math.isfinite(x) for x in v) and v != (0.0, 0.0):
+            return None
+        return "a translation (two finite numbers, not both 0)"
 
 
 def positive(ctx, param, value):

@@ -147,6 +147,10 @@ class LiveLine:
             _draw(f"\r\033[K{text}")
             self.drawn = True
 
+    def deforming(self, name: str) -> Callable:
+        """The deformation's ``callback(done, stats)``, saying how far it is."""
+        return lambda done, stats: self.say(f"deformesh: {name}: deform, pseudo-time {done:.2f}")
+
     def close(self) -> None:
         if self.drawn:
             _draw("\r\033[K")

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..mesh import Mesh
+from ..periodic import side_roles
 from ._common import cell_blocks, groups, rows
 from .format import Format
 
@@ -47,7 +48,7 @@ def line_curves(mesh: Mesh) -> np.ndarray:
     after the groups', one per group and role: Gmsh links one curve to another, never
     a curve to itself, and one ring can hold both sides of a channel)."""
     curve = (mesh.line_group + 1).astype(np.int64)
-    role = _side_roles(mesh)
+    role = side_roles(mesh)
     if role is None:
         return curve
     sides = sorted(set(zip(role[role > 0].tolist(), curve[role > 0].tolist())))
@@ -55,25 +56,6 @@ def line_curves(mesh: Mesh) -> np.ndarray:
     for k in np.flatnonzero(role > 0).tolist():
         curve[k] = new[int(role[k]), int(curve[k])]
     return curve
-
-
-def _side_roles(mesh: Mesh) -> np.ndarray | None:
-    """Per line: 1 on a side whose nodes' partners are another side's (a master side, in
-    Gmsh's words), 2 on that other side (the slaves), 0 elsewhere; None when the mesh
-    is not periodic."""
-    if not len(mesh.periodic):
-        return None
-    n = mesh.n_nodes
-    partner = np.full(n, -1, dtype=np.int64)
-    partner[mesh.periodic[:, 0]] = mesh.periodic[:, 1]
-    origin = np.full(n, -1, dtype=np.int64)
-    origin[mesh.periodic[:, 1]] = mesh.periodic[:, 0]
-    a, b = mesh.lines[:, 0], mesh.lines[:, 1]
-    key = set((a * n + b).tolist())
-    pa, pb, oa, ob = partner[a], partner[b], origin[a], origin[b]
-    master = (pa >= 0) & (pb >= 0) & np.isin(pb * n + pa, list(key))
-    slave = (oa >= 0) & (ob >= 0) & np.isin(ob * n + oa, list(key))
-    return np.where(master, 1, np.where(slave, 2, 0))
 
 
 def periodic_links(mesh: Mesh) -> list:
@@ -84,7 +66,7 @@ def periodic_links(mesh: Mesh) -> list:
     affine map the shift's."""
     if not len(mesh.periodic):
         return []
-    curve, role = line_curves(mesh), _side_roles(mesh)
+    curve, role = line_curves(mesh), side_roles(mesh)
     master_on = np.zeros(mesh.n_nodes, dtype=np.int64)
     slave_on = np.zeros(mesh.n_nodes, dtype=np.int64)
     for k in (0, 1):
@@ -154,12 +136,7 @@ def _all_entities(path: str, mesh: Mesh, bl) -> None:
     out += [f"{t} 0 0 0 0 0 0 1 {phys} 0\n" for t, phys in curves]
     out += [f"{t} 0 0 0 0 0 0 1 {domain} 0\n" for t in surfaces]
     out.append("$EndEntities\n")
-    with open(path, encoding="ascii") as f:
-        text = f.read()
-    head, rest = text.split("$Entities\n", 1)
-    tail = rest.split("$EndEntities\n", 1)[1]
-    with open(path, "w", encoding="ascii") as f:
-        f.write(head + "".join(out) + tail)
+    _replace_section(path, "Entities", "".join(out))
 
 
 def _nodes_in_order(path: str, points: np.ndarray, dim_tags: np.ndarray) -> None:
@@ -179,12 +156,18 @@ def _nodes_in_order(path: str, points: np.ndarray, dim_tags: np.ndarray) -> None
         out.append(rows("%d\n", np.arange(a + 1, b + 1)[:, None]))
         out.append(rows("%.16e %.16e %.16e\n", xyz[a:b]))
     out.append("$EndNodes\n")
+    _replace_section(path, "Nodes", "".join(out))
+
+
+def _replace_section(path: str, name: str, section: str) -> None:
+    """Put ``section`` (from ``$NAME`` to ``$EndNAME``, both lines included) in place of
+    the file's own."""
     with open(path, encoding="ascii") as f:
         text = f.read()
-    head, rest = text.split("$Nodes\n", 1)
-    tail = rest.split("$EndNodes\n", 1)[1]
+    head, rest = text.split(f"${name}\n", 1)
+    tail = rest.split(f"$End{name}\n", 1)[1]
     with open(path, "w", encoding="ascii") as f:
-        f.write(head + "".join(out) + tail)
+        f.write(head + section + tail)
 
 
 def write_22(mesh: Mesh, path: str) -> None:
