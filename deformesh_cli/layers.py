@@ -525,6 +525,35 @@ def combine(contour: Contour, stacks: Stacks, core, exterior: bool = False):
     )
 
 
+def columns(stacks: Stacks, mesh):
+    """The rays and fans of ``stacks`` (:class:`.quads.Columns`) in the numbering of
+    ``mesh``, :func:`combine`'s: the layer nodes after the contour's points and the
+    mesh's other boundary nodes."""
+    from .quads import Columns
+
+    m, n_layers = mesh.n_contour, stacks.spec.layers
+    first_layer = m + mesh.n_extra + mesh.n_box
+    count = len(stacks.wall)
+    ids = first_layer + np.arange(count * n_layers).reshape(count, n_layers)
+    column = np.column_stack([stacks.wall, ids])  # (stack s: its nodes, wall first)
+    rays = np.stack([column[:, :-1], column[:, 1:]], axis=2).reshape(-1, 2)
+    # a fan: a run of stacks on one wall point (a ring's stacks are consecutive, and a
+    # point's too); its first layer's nodes counter-clockwise round it: last stack first
+    cut = np.flatnonzero(np.diff(stacks.wall) != 0) + 1
+    start = np.concatenate([[0], cut])
+    size = np.diff(np.concatenate([start, [count]]))
+    fan = size > 1
+    starts = np.concatenate([[0], np.cumsum(size[fan])])
+    j = np.arange(starts[-1]) - np.repeat(starts[:-1], size[fan])
+    order = np.repeat(start[fan] + size[fan] - 1, size[fan]) - j
+    return Columns(
+        rays.astype(np.int64),
+        stacks.wall[start[fan]].astype(np.int64),
+        ids[order, 0].astype(np.int64),
+        starts.astype(np.int64),
+    )
+
+
 def split_quads(mesh):
     """``mesh`` with each quad as two triangles, along the diagonal whose two triangles'
     smallest angle is larger (the first on a tie)."""

@@ -515,13 +515,14 @@ def _mesh_of(
 
 
 def finish_mesh(
-    contour: Contour, mesh: Mesh, report: dict, o: MeshOptions, box=None
+    contour: Contour, mesh: Mesh, report: dict, o: MeshOptions, box=None, stacks=None
 ) -> tuple[Mesh, dict]:
-    """The last steps on a checked mesh: the cells ``o.cells`` asks for
-    (:func:`shape_cells`), then the periodic pairs ``o.periodic`` asks for
-    (:func:`.periodic.pair`: the mesh's ``periodic`` and point data ``periodic``, each
-    node's partner or -1; the summary's ``periodic`` record)."""
-    mesh, report = shape_cells(contour, mesh, report, o, box)
+    """The last steps on a checked mesh (``stacks``: its boundary layers, joined by
+    :func:`join_layers`): the cells ``o.cells`` asks for (:func:`shape_cells`), then
+    the periodic pairs ``o.periodic`` asks for (:func:`.periodic.pair`: the mesh's
+    ``periodic`` and point data ``periodic``, each node's partner or -1; the summary's
+    ``periodic`` record)."""
+    mesh, report = shape_cells(contour, mesh, report, o, box, stacks)
     if o.periodic is None:
         return mesh, report
     pairs = _periodic.pair(mesh, o.periodic, contour.source)
@@ -532,11 +533,12 @@ def finish_mesh(
 
 
 def shape_cells(
-    contour: Contour, mesh: Mesh, report: dict, o: MeshOptions, box=None
+    contour: Contour, mesh: Mesh, report: dict, o: MeshOptions, box=None, stacks=None
 ) -> tuple[Mesh, dict]:
     """The cells ``o.cells`` asks for (:mod:`.quads`) on the finished ``mesh`` of
-    ``contour`` (``box``: an exterior mesh's), checked, and its summary with the
-    quads' record: ``tri`` leaves both as they are."""
+    ``contour`` (``box``: an exterior mesh's; ``stacks``: its boundary layers, whose
+    rays ``quad-only`` keeps whole), checked, and its summary with the quads' record:
+    ``tri`` leaves both as they are."""
     if o.cells == "tri":
         return mesh, report
     if o.cells not in _quads.CELLS:
@@ -544,7 +546,8 @@ def shape_cells(
     mesh, made = _quads.recombine(mesh)
     report = {**report, "cells": o.cells, "quads_made": made}
     if o.cells == "quad-only":
-        mesh, added = _quads.subdivide(mesh, triangulate.BOX_SIDES)
+        columns = None if stacks is None else _layers.columns(stacks, mesh)
+        mesh, added = _quads.subdivide(mesh, triangulate.BOX_SIDES, columns)
         report["split_boundary_edges"] = added
         report["notes"] = [
             *report.get("notes", []),
@@ -582,12 +585,12 @@ def layer_spec(contour: Contour, o: MeshOptions) -> _layers.LayerSpec:
 
 
 def check_layer_cells(o: MeshOptions) -> None:
-    """Refuse ``--cells quad-only`` with boundary layers: splitting every cell in four
-    would halve the layers' heights, the first one's included."""
-    if o.cells == "quad-only":
+    """Refuse ``--cells quad-only`` with ``--layer-cells tri``: one asks for quads
+    alone, the other for the layers as triangles."""
+    if o.cells == "quad-only" and o.layer_cells == "tri":
         raise OptionError(
-            "--cells quad-only would split the boundary layers' quads in four and halve "
-            "their first height; give --cells quad with --layers"
+            "--cells quad-only asks for quads alone and --layer-cells tri for the "
+            "layers as triangles; give one of them"
         )
 
 
@@ -618,7 +621,7 @@ def mesh_with_layers(
     )
     mesh, report = join_layers(contour, stacks, core.mesh, core.report, core.selection, o)
     box = core.selection.grid.box if o.exterior else None
-    mesh, report = finish_mesh(contour, mesh, report, o, box)
+    mesh, report = finish_mesh(contour, mesh, report, o, box, stacks)
     return MeshResult(mesh, core.selection, core.deform_stats, report)
 
 

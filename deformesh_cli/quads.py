@@ -78,6 +78,11 @@ def candidates(points: np.ndarray, tri: np.ndarray) -> tuple[np.ndarray, ...]:
     return ta[keep], tb[keep], quads[keep]
 
 
+#: The matching's weights are rounded to this many bits after the point (integers
+#: to its solver: :func:`best_matching`).
+WEIGHT_BITS = 20
+
+
 def best_matching(n: int, a: np.ndarray, b: np.ndarray, w: np.ndarray) -> np.ndarray:
     """A matching of the graph on nodes ``0 .. n-1`` with edges ``(a, b)`` of weights
     ``w > 0``: the indices of the edges taken.
@@ -90,7 +95,12 @@ def best_matching(n: int, a: np.ndarray, b: np.ndarray, w: np.ndarray) -> np.nda
     is a half-integral part, which is rounded to its best matching (every second edge
     of an even cycle, and of an odd one the best leaving one node single).  Where no
     cycle is longer than two, the matching is a best one; each longer odd cycle costs
-    at most one edge's weight."""
+    at most one edge's weight.
+
+    The weights are rounded to multiples of ``2^-WEIGHT_BITS`` and scaled to integers
+    first: the solver's arithmetic on them is then exact, so it ends (on fractions its
+    reduction step can lower a price by an amount lost to round-off, and loop), and
+    gives the same matching on every machine."""
     import scipy.sparse as sp
     from scipy.sparse.csgraph import min_weight_full_bipartite_matching
 
@@ -100,8 +110,10 @@ def best_matching(n: int, a: np.ndarray, b: np.ndarray, w: np.ndarray) -> np.nda
     nodes = np.arange(n, dtype=np.int64)
     rows = np.concatenate([a, b, nodes])
     cols = np.concatenate([b, a, nodes])
-    # (weights must be non-zero: 1 more each, the same for every full assignment)
-    weight = np.concatenate([1.0 + w, 1.0 + w, np.ones(n)])
+    # (weights must be non-zero: one unit more each, the same for every full assignment)
+    unit = float(2**WEIGHT_BITS)
+    w = np.round(np.asarray(w, dtype=np.float64) * unit)
+    weight = np.concatenate([unit + w, unit + w, np.full(n, unit)])
     biadj = sp.csr_array((weight, (rows, cols)), shape=(n, n))
     r, c = min_weight_full_bipartite_matching(biadj, maximize=True)
     sigma = np.empty(n, dtype=np.int64)
@@ -170,12 +182,36 @@ def recombine(mesh: Mesh) -> tuple[Mesh, int]:
     return out, int(len(taken))
 
 
-def subdivide(mesh: Mesh, box_groups: tuple[str, ...] = ()) -> tuple[Mesh, int]:
+@dataclasses.dataclass(frozen=True)
+class Columns:
+    """What :func:`subdivide` keeps of a boundary layer's cells.
+
+    ``rays`` ((k, 2) node pairs): the layer edges leaving the wall, kept whole, so
+    each layer keeps its height.  ``fans``: each fan's wall node ``wall[f]`` and its
+    first layer's nodes ``nodes[starts[f]:starts[f + 1]]`` (``a_1 .. a_m``, ``m >= 3``)
+    counter-clockwise round it; the mesh's triangles ``(w, a_i, a_(i+1))`` are the
+    fan's first cells."""
+
+    rays: np.ndarray
+    wall: np.ndarray
+    nodes: np.ndarray
+    starts: np.ndarray
+
+
+def subdivide(
+    mesh: Mesh, box_groups: tuple[str, ...] = (), columns: Columns | None = None
+) -> tuple[Mesh, int]:
     """``mesh`` with every cell split into quads: a node at the middle of every edge and
     at the centre of every cell (a triangle's centroid, a quad's corner average), each
     triangle into three quads and each quad into four, all counter-clockwise and
     convex (a triangle's pieces: its centroid is inside; a quad's: the images of the
     unit square's quarters under its bilinear map, which a convex quad keeps convex).
+
+    With a boundary layer's ``columns`` its rays stay whole: a quad between two rays
+    is split in two through the middles of its other two sides (the segment between
+    two points of a convex quad's opposite sides leaves two convex quads), and a
+    fan's first cells, triangles ``(w, a_i, a_(i+1))``, become ``2 m - 3`` quads
+    (:func:`_fan_quads`).
 
     Every boundary edge gets a middle node too (a mesh of quads only has an even
     number of boundary edges).  Numbering as :class:`.mesh.Mesh` wants: the contour's
@@ -183,7 +219,7 @@ def subdivide(mesh: Mesh, box_groups: tuple[str, ...] = ()) -> tuple[Mesh, int]:
     order, then the box sides' (``box_groups``), then the interior nodes.  Point data
     is carried linearly.  Returns the mesh and the number of boundary nodes added."""
     pts, tri, quads = mesh.points, mesh.triangles, mesh.quads
-    nt, nq, n = len(tri), len(quads), mesh.n_nodes
+    n = mesh.n_nodes
     sides = np.concatenate(
         [
             tri[:, [0, 1]],
@@ -195,33 +231,67 @@ def subdivide(mesh: Mesh, box_groups: tuple[str, ...] = ()) -> tuple[Mesh, int]:
     key = np.sort(sides, axis=1)
     edges, side_edge = np.unique(key, axis=0, return_inverse=True)
     side_edge = side_edge.ravel()
-    ne = len(edges)
-    # provisional numbering: old nodes, then edge middles, then cell centres
-    mid = n + side_edge
-    centre = n + ne + np.arange(nt + nq)
-    t_mid = mid[: 3 * nt].reshape(3, nt).T  # (middle of 01, 12, 20)
-    q_mid = mid[3 * nt :].reshape(4, nq).T  # (middle of 01, 12, 23, 30)
-    tc, qc = centre[:nt], centre[nt:]
+    code = edges[:, 0] * (n + 1) + edges[:, 1]  # (sorted: edges are sorted)
+    whole = np.zeros(len(edges), dtype=bool)
+    if columns is not None:
+        rays = np.sort(columns.rays, axis=1)
+        whole[np.searchsorted(code, rays[:, 0] * (n + 1) + rays[:, 1])] = True
+    split = np.flatnonzero(~whole)
+    ne = len(split)
+    # provisional numbering: old nodes, edge middles, cell centres, fans' ray middles
+    mid = np.full(len(edges), -1, dtype=np.int64)
+    mid[split] = n + np.arange(ne)
+    side_mid = mid[side_edge]
+    nt, nq = len(tri), len(quads)
+    t_mid = side_mid[: 3 * nt].reshape(3, nt).T  # (middle of 01, 12, 20)
+    q_mid = side_mid[3 * nt :].reshape(4, nq).T  # (middle of 01, 12, 23, 30)
+    fan_tri = (t_mid < 0).any(axis=1)
+    four = (q_mid >= 0).all(axis=1)
+    two = ~four
+    if ((t_mid[fan_tri] >= 0).sum(axis=1) != 1).any() or not _opposite_whole(q_mid[two]):
+        raise ValueError("the layer's rays leave a cell that is neither a column nor a fan's")
+    tri_g, t_mid_g = tri[~fan_tri], t_mid[~fan_tri]
+    quad_f, q_mid_f = quads[four], q_mid[four]
+    nc = len(tri_g) + len(quad_f)
+    tc = n + ne + np.arange(len(tri_g))
+    qc = n + ne + len(tri_g) + np.arange(len(quad_f))
     cells = []
     for k in range(3):  # corner k, the middle after it, the centre, the middle before it
-        cells.append(np.stack([tri[:, k], t_mid[:, k], tc, t_mid[:, (k + 2) % 3]], axis=1))
+        cells.append(np.stack([tri_g[:, k], t_mid_g[:, k], tc, t_mid_g[:, (k + 2) % 3]], axis=1))
     for k in range(4):
-        cells.append(np.stack([quads[:, k], q_mid[:, k], qc, q_mid[:, (k + 3) % 4]], axis=1))
+        cells.append(np.stack([quad_f[:, k], q_mid_f[:, k], qc, q_mid_f[:, (k + 3) % 4]], axis=1))
+    if two.any():  # (columns: sides 1 and 3 whole, after turning those with 0 and 2)
+        q, qm = quads[two], q_mid[two]
+        turn = qm[:, 0] < 0
+        q = np.where(turn[:, None], np.roll(q, -1, axis=1), q)
+        qm = np.where(turn[:, None], np.roll(qm, -1, axis=1), qm)
+        cells.append(np.stack([q[:, 0], qm[:, 0], qm[:, 2], q[:, 3]], axis=1))
+        cells.append(np.stack([qm[:, 0], q[:, 1], q[:, 2], qm[:, 2]], axis=1))
+    fan_pts = np.zeros((0, 2))
+    fan_ends = np.zeros((0, 2), dtype=np.int64)
+    if columns is not None and len(columns.wall):
+
+        def mids(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+            lo, hi = np.minimum(u, v), np.maximum(u, v)
+            return mid[np.searchsorted(code, lo * (n + 1) + hi)]
+
+        fan_cells, fan_ends = _fan_quads(columns, mids, n + ne + nc)
+        cells.append(fan_cells)
+        fan_pts = 0.5 * (pts[fan_ends[:, 0]] + pts[fan_ends[:, 1]])
     new_quads = np.concatenate(cells)
+    ends = edges[split]
     new_pts = np.concatenate(
         [
             pts,
-            0.5 * (pts[edges[:, 0]] + pts[edges[:, 1]]),
-            pts[tri].mean(axis=1),
-            pts[quads].mean(axis=1),
+            0.5 * (pts[ends[:, 0]] + pts[ends[:, 1]]),
+            pts[tri_g].mean(axis=1),
+            pts[quad_f].mean(axis=1),
+            fan_pts,
         ]
     )
     # the boundary: each line split at its middle
     line_key = np.sort(mesh.lines, axis=1)
-    at = np.searchsorted(
-        edges[:, 0] * (n + 1) + edges[:, 1], line_key[:, 0] * (n + 1) + line_key[:, 1]
-    )
-    line_mid = n + at
+    line_mid = mid[np.searchsorted(code, line_key[:, 0] * (n + 1) + line_key[:, 1])]
     lines = np.stack([mesh.lines[:, 0], line_mid, line_mid, mesh.lines[:, 1]], axis=1).reshape(
         -1, 2
     )
@@ -245,7 +315,13 @@ def subdivide(mesh: Mesh, box_groups: tuple[str, ...] = ()) -> tuple[Mesh, int]:
     data = {}
     for name, v in mesh.point_data.items():
         full = np.concatenate(
-            [v, 0.5 * (v[edges[:, 0]] + v[edges[:, 1]]), v[tri].mean(axis=1), v[quads].mean(axis=1)]
+            [
+                v,
+                0.5 * (v[ends[:, 0]] + v[ends[:, 1]]),
+                v[tri_g].mean(axis=1),
+                v[quad_f].mean(axis=1),
+                0.5 * (v[fan_ends[:, 0]] + v[fan_ends[:, 1]]),
+            ]
         )
         data[name] = full[perm]
     out = Mesh(
@@ -261,6 +337,56 @@ def subdivide(mesh: Mesh, box_groups: tuple[str, ...] = ()) -> tuple[Mesh, int]:
         quads=inv[new_quads],
     )
     return out, int(len(mesh.lines))
+
+
+def _opposite_whole(q_mid: np.ndarray) -> bool:
+    """Whether each quad with whole sides (middle -1) has exactly two, opposite."""
+    w = q_mid < 0
+    return bool(
+        (
+            (w[:, 0] & w[:, 2] & ~w[:, 1] & ~w[:, 3]) | (w[:, 1] & w[:, 3] & ~w[:, 0] & ~w[:, 2])
+        ).all()
+    )
+
+
+def _fan_quads(columns: Columns, mids, first: int) -> tuple[np.ndarray, np.ndarray]:
+    """The quads of each fan's first cells, numbering new nodes from ``first``.
+
+    The fan's wall node ``w``, its first layer's nodes ``a_1 .. a_m`` round it and the
+    middles ``b_i`` of their edges ``a_i a_(i+1)`` (split with the cells above) bound
+    it; a node ``c_i`` at the middle of each inner ray ``w a_i`` (``1 < i < m``) gives
+
+        (w, a_1, b_1, c_2), (c_i, b_(i-1), a_i, b_i), (w, c_i, b_i, c_(i+1)),
+        (w, c_(m-1), b_(m-1), a_m),
+
+    ``2 m - 3`` quads whose angles, the ``a_i`` on a circle round ``w`` at a fan's
+    steps ``delta`` (10 to 15 degrees), lie between ``delta`` and ``180 - delta``:
+    the fan's triangles' own corner at ``w``.  Returns the quads and, per new node,
+    the two nodes it is the middle of."""
+    a, starts = columns.nodes, columns.starts
+    m = np.diff(starts)
+    fan = np.repeat(np.arange(len(m)), m)
+    i = np.arange(len(a)) - starts[fan]  # (0-based place in its fan)
+    w = columns.wall[fan]
+    last = i == m[fan] - 1
+    b = np.full(len(a), -1, dtype=np.int64)
+    b[~last] = mids(a[~last], a[np.flatnonzero(~last) + 1])
+    inner = (i > 0) & ~last
+    c = np.full(len(a), -1, dtype=np.int64)
+    c[inner] = first + np.arange(int(inner.sum()))
+    j0 = starts[:-1]
+    jl = starts[1:] - 1
+    jk = np.flatnonzero(inner)
+    jb = np.flatnonzero((i > 0) & (i < m[fan] - 2))
+    quads = np.concatenate(
+        [
+            np.stack([columns.wall, a[j0], b[j0], c[j0 + 1]], axis=1),
+            np.stack([c[jk], b[jk - 1], a[jk], b[jk]], axis=1),
+            np.stack([w[jb], c[jb], b[jb], c[jb + 1]], axis=1),
+            np.stack([columns.wall, c[jl - 1], b[jl - 1], a[jl]], axis=1),
+        ]
+    )
+    return quads, np.stack([w[inner], a[inner]], axis=1)
 
 
 def _first_seen(nodes: np.ndarray) -> np.ndarray:

@@ -146,23 +146,26 @@ def _random_outcomes(exterior: bool):
             assert "boundary layers of first height" in str(exc) and "do not fit" in str(exc)
             refused += 1
             continue
-        mesh = res.mesh
-        assert _convex(mesh.points, mesh.quads).all(), name
-        if not exterior:
-            split = np.concatenate(
-                [mesh.triangles, mesh.quads[:, [0, 1, 2]], mesh.quads[:, [0, 2, 3]]]
-            )
-            assert contract_problems(mesh.points, split, c.points, ring) == [], name
+        quads_only = pipeline.mesh_contour(c, o.replace(cells="quad-only")).mesh
+        for mesh in (res.mesh, quads_only):
+            assert _convex(mesh.points, mesh.quads).all(), name
+            assert np.array_equal(mesh.points[: c.n], c.points), name
+            if not exterior:
+                split = np.concatenate(
+                    [mesh.triangles, mesh.quads[:, [0, 1, 2]], mesh.quads[:, [0, 2, 3]]]
+                )
+                assert contract_problems(mesh.points, split, c.points, ring) == [], name
+        assert len(quads_only.triangles) == 0, name
         ok += 1
     return ok, refused
 
 
 @pytest.mark.parametrize("exterior, counts", [(False, (37, 63)), (True, (38, 62))])
 def test_random_polygons_mesh_or_are_refused_where_layers_cannot_fit(exterior, counts):
-    """Each polygon meshes with the contract holding (every quad convex) or is refused in
-    one line naming where the layers cannot fit; none folds.  The counts are this
-    construction's on these polygons (their thin parts refuse): a change is a change of
-    the construction, to be looked at."""
+    """Each polygon meshes with the contract holding (every quad convex), also in quads
+    alone, or is refused in one line naming where the layers cannot fit; none folds.
+    The counts are this construction's on these polygons (their thin parts refuse): a
+    change is a change of the construction, to be looked at."""
     assert _random_outcomes(exterior) == counts
 
 
@@ -471,3 +474,79 @@ def test_a_shortened_stack_keeps_its_first_height_and_grows_less():
     assert np.allclose(ratio, ratio[0]) and 1.0 < ratio[0] < 1.2
     assert np.allclose(np.diff(h[3]), 0.005)
     assert np.array_equal(h[:, -1], thick) and (np.diff(h, axis=1) > 0).all()
+
+
+def _edges(cells: np.ndarray) -> set:
+    k = cells.shape[1]
+    return {tuple(sorted(e)) for j in range(k) for e in cells[:, [j, (j + 1) % k]].tolist()}
+
+
+@pytest.mark.parametrize(
+    "sample, options",
+    [
+        ("naca0012.csv", NACA_LAYERS),
+        ("slot.csv", {"layers": 10, "first_height": 0.002}),
+        ("two_bodies.csv", {"layers": 1, "first_height": 0.002, "exterior": True,
+                            "box": (-3, -2, 4, 2)}),
+    ],
+)  # fmt: skip
+def test_quad_only_keeps_every_layer_whole(sample, options):
+    """``--cells quad-only`` with layers: quads alone, each convex, every node of the
+    mixed mesh kept where it was, and every edge leaving the wall (each layer's height
+    on each stack) still an edge: the layers are split along the wall only."""
+    c = load_contour(str(SAMPLES / sample))
+    o = MeshOptions(**options)
+    mixed = pipeline.mesh_contour(c, o).mesh
+    res = pipeline.mesh_contour(c, o.replace(cells="quad-only"))
+    mesh = res.mesh
+    assert len(mesh.triangles) == 0 and _convex(mesh.points, mesh.quads).all()
+    assert np.array_equal(mesh.points[: c.n], c.points)
+    at = {tuple(p): k for k, p in enumerate(mesh.points.tolist())}
+    old = np.array([at[tuple(p)] for p in mixed.points.tolist()])  # (KeyError: a node lost)
+    rays = old[np.concatenate([mixed.quads[:, [0, 3]], mixed.quads[:, [1, 2]]])]
+    assert {tuple(sorted(e)) for e in rays.tolist()} <= _edges(mesh.quads)
+    total = _cells_area(mesh.points, mesh.triangles, mesh.quads)
+    assert total == pytest.approx(_cells_area(mixed.points, mixed.triangles, mixed.quads))
+    if not o.exterior:
+        split = np.concatenate([mesh.quads[:, [0, 1, 2]], mesh.quads[:, [0, 2, 3]]])
+        assert contract_problems(mesh.points, split, c.points, c.ring) == []
+    assert res.report["layers"] == pipeline.mesh_contour(c, o).report["layers"]
+
+
+def test_quad_only_fans_are_quads_between_the_fan_step_and_its_supplement():
+    """A square body's four fans (six steps of 15 degrees each): their first cells
+    become ``2 m - 3`` quads each, no angle under the step or over 180 less it."""
+    sq = make_contour(np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float))
+    o = MeshOptions(layers=3, first_height=0.01, exterior=True, box=(-3, -3, 4, 4))
+    mesh = pipeline.mesh_contour(sq, o.replace(cells="quad-only")).mesh
+    assert len(mesh.triangles) == 0 and _convex(mesh.points, mesh.quads).all()
+    for corner in range(4):  # (seven directions: 2 m - 3 = 11 quads, m - 1 at the corner,
+        # and a half column either side)
+        assert np.count_nonzero((mesh.quads == corner).any(axis=1)) == 7 - 1 + 2
+    q = mesh.points[mesh.quads]
+    near = np.abs(q[:, :, None, :] - sq.points[None, None]).max(axis=-1).min(axis=-1)
+    q = q[(near <= 0.01 + 1e-12).all(axis=1)]  # (the fans' first cells)
+    assert len(q) == 4 * 11
+    a, b = np.roll(q, -1, axis=1) - q, np.roll(q, 1, axis=1) - q
+    angle = np.degrees(np.arctan2(a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
+                                  (a * b).sum(axis=-1)))  # fmt: skip
+    assert angle.min() >= 15.0 - 1e-9 and angle.max() <= 165.0 + 1e-9
+
+
+def test_quad_only_with_layers_loads_in_scikit_fem(tmp_path):
+    """The layered circle in quads alone loads as scikit-fem's MeshQuad, its contour's
+    boundary named (each edge split in two), as the split one loads as MeshTri."""
+    import skfem
+
+    from deformesh_cli import formats
+
+    c = load_contour(str(SAMPLES / "circle.csv"))
+    mesh = pipeline.mesh_contour(
+        c, MeshOptions(layers=4, first_height=0.01, cells="quad-only")
+    ).mesh
+    for version in ("2.2", "4.1"):
+        path = tmp_path / f"m{version}.msh"
+        formats.write_mesh(mesh, str(path), msh_version=version)
+        m = skfem.MeshQuad.load(str(path))
+        assert m.nelements == len(mesh.quads) and np.array_equal(m.p.T, mesh.points)
+        assert len(m.boundaries["contour"]) == 2 * 64

@@ -286,7 +286,7 @@ def test_quad_only_meshes_solve_at_rate_two(tmp_path, run):
 
 def test_quads_with_layers(run, tmp_path):
     """Layers and recombined quads together: the layers' quads kept, the rest recombined;
-    quad-only is refused with the layers in one line."""
+    quad-only with the layers as triangles is refused in one line."""
     c = load_contour(str(CIRCLE))
     o = MeshOptions(layers=4, first_height=0.01)
     plain = pipeline.mesh_contour(c, o).mesh
@@ -294,9 +294,9 @@ def test_quads_with_layers(run, tmp_path):
     assert len(mixed.quads) > len(plain.quads)
     assert {tuple(q) for q in plain.quads.tolist()} <= {tuple(q) for q in mixed.quads.tolist()}
     r = run("all", CIRCLE, "-o", tmp_path / "m.vtu", "--layers", 4, "--first-height", 0.01,
-            "--cells", "quad-only")  # fmt: skip
+            "--cells", "quad-only", "--layer-cells", "tri")  # fmt: skip
     assert r.exit_code == 2 and "Error:" in r.stderr and "--cells quad-only" in r.stderr
-    assert "Traceback" not in r.stderr
+    assert "Traceback" not in r.stderr and not (tmp_path / "m.vtu").exists()
 
 
 def _random_quads(exterior: bool, count: int) -> int:
@@ -405,3 +405,26 @@ def test_a_long_odd_cycle_is_rounded_whole():
     ends = np.concatenate([a[taken], b[taken]])
     assert len(taken) == k // 2 and len(np.unique(ends)) == len(ends)
     assert 501 not in ends
+
+
+def test_the_matching_ends_where_fractional_weights_make_the_solver_loop():
+    """The assignment solver on a graph whose fractional weights made it loop for ever
+    (tests/data/matching): on the integer weights the matching ends, and is one."""
+    import subprocess
+    import sys
+
+    from .conftest import DATA
+
+    graph = DATA / "matching" / "naca_layers.npz"
+    code = (
+        "import sys, numpy as np\n"
+        "from deformesh_cli.quads import best_matching\n"
+        f"g = np.load({str(graph)!r})\n"
+        "t = best_matching(int(g['n']), g['a'].astype(np.int64), g['b'].astype(np.int64), g['w'])\n"
+        "ends = np.concatenate([g['a'][t], g['b'][t]])\n"
+        "assert len(np.unique(ends)) == len(ends) and len(t) > 0\n"
+        "print(len(t))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert int(done.stdout) > 1000

@@ -63,7 +63,7 @@ def command(
                 st.contour, st.stacks, mesh, report, st.selection, o
             )
         box = st.selection.grid.box if o.exterior else None
-        mesh, report = pipeline.finish_mesh(st.contour, mesh, report, o, box)
+        mesh, report = pipeline.finish_mesh(st.contour, mesh, report, o, box, st.stacks)
     except FoldError as exc:  # (the state's deformed points are what folds)
         raise FoldError(f"{name}: {exc}") from None
     except SizeError as exc:
