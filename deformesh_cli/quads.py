@@ -13,6 +13,7 @@ import dataclasses
 
 import numpy as np
 
+from .errors import ContractError
 from .geometry import signed_areas
 from .mesh import Mesh
 
@@ -249,7 +250,10 @@ def subdivide(
     four = (q_mid >= 0).all(axis=1)
     two = ~four
     if ((t_mid[fan_tri] >= 0).sum(axis=1) != 1).any() or not _opposite_whole(q_mid[two]):
-        raise ValueError("the layer's rays leave a cell that is neither a column nor a fan's")
+        raise ContractError(
+            "the boundary layers' edges leaving the wall bound a cell that is neither "
+            "a layer's nor a fan's first"
+        )
     tri_g, t_mid_g = tri[~fan_tri], t_mid[~fan_tri]
     quad_f, q_mid_f = quads[four], q_mid[four]
     nc = len(tri_g) + len(quad_f)

@@ -428,3 +428,20 @@ def test_the_matching_ends_where_fractional_weights_make_the_solver_loop():
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert int(done.stdout) > 1000
+
+
+def test_rays_that_leave_a_triangle_with_one_whole_side_are_refused():
+    """Kept-whole edges must bound layer columns and fans' first cells: one whole side of
+    a triangle (an odd number of nodes round it) is refused as a broken contract."""
+    from deformesh_cli.errors import ContractError
+    from deformesh_cli.mesh import Mesh
+
+    pts = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    tri = np.array([[0, 1, 2], [0, 2, 3]])
+    lines = np.array([[0, 1], [1, 2], [2, 3], [3, 0]])
+    mesh = Mesh(pts, tri, lines, n_contour=4)
+    assert len(quads.subdivide(mesh)[0].quads) == 6
+    none = np.zeros(0, dtype=np.int64)
+    cols = quads.Columns(np.array([[0, 2]]), none, none, np.zeros(1, dtype=np.int64))
+    with pytest.raises(ContractError, match="neither a layer's nor a fan's"):
+        quads.subdivide(mesh, (), cols)
