@@ -421,8 +421,17 @@ def mesh_for_contour(
     return mesh, box
 
 
+#: A stack goes on up while its next edge turns from its first by under this (radians):
+#: a stack's nodes lie on one line, up to round-off.
+STRAIGHT = 1e-6
+
+
 def layer_report(
-    points: np.ndarray, quads: np.ndarray, tri: np.ndarray, first: float | None = None
+    points: np.ndarray,
+    quads: np.ndarray,
+    tri: np.ndarray,
+    first: float | None = None,
+    walls: np.ndarray | None = None,
 ) -> dict:
     """What ``deformesh quality`` says of a mesh's quads (boundary layers, corners in
     deformesh's order: 0 and 1 on the side nearer the wall, 3 above 0 and 2 above 1).
@@ -430,11 +439,14 @@ def layer_report(
     ``non_convex``: quads not strictly convex and counter-clockwise; the aspect
     ratio (the longer over the shorter of a quad's mean widths along and across the
     layers); per *stack* (a boundary node with one node above it; a fan's point,
-    which has several, is left out): its first height, its wall angle (between the
-    first layer edge and the two boundary edges at the node, 90 at best) and the
-    growth between its layers (each layer's height over the one below).  With
-    ``first``: how many first heights are within 1% of it, and the largest relative
-    difference."""
+    which has several, is left out, as is one whose node above is a boundary
+    neighbour; ``walls``: the nodes a stack may stand on, say the contour's rings',
+    or any boundary node), on up while each next node is the
+    only one above and on the stack's line (within :data:`STRAIGHT`): its first
+    height, its wall angle (between the first layer edge and the two boundary edges
+    at the node, 90 at best) and the growth between its layers (each layer's height
+    over the one below).  With ``first``: how many first heights are within 1% of
+    it, and the largest relative difference."""
     from .quads import report as quad_report
 
     q = quads
@@ -455,7 +467,8 @@ def layer_report(
     nxt = np.full(n, -1, dtype=np.int64)
     prv = np.full(n, -1, dtype=np.int64)
     nxt[lines[:, 0]], prv[lines[:, 1]] = lines[:, 1], lines[:, 0]
-    wall = np.flatnonzero((nxt >= 0) & (above >= 0))
+    leaves = (above >= 0) & (nxt != above) & (prv != above)  # (not along the boundary)
+    wall = np.flatnonzero((nxt >= 0) & leaves & (True if walls is None else walls))
     out = {
         "quads": int(len(q)),
         "non_convex": cells.get("non_convex", 0),
@@ -477,15 +490,19 @@ def layer_report(
         angle(points[nxt[wall]] - points[wall]), angle(points[prv[wall]] - points[wall])
     )
     growth_lo, growth_hi = np.inf, -np.inf
-    cur, below = above[wall], h1
+    cur, below, line = above[wall], h1, up / h1[:, None]
     while True:
-        go = above[cur] >= 0
+        nxt_up = above[cur]
+        step = points[np.maximum(nxt_up, 0)] - points[cur]
+        h = np.hypot(step[:, 0], step[:, 1])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            turn = np.abs(step[:, 0] * line[:, 1] - step[:, 1] * line[:, 0]) / h
+        go = (nxt_up >= 0) & ((step * line).sum(axis=1) > 0) & (turn < STRAIGHT)
         if not go.any():
             break
-        h = dist(above[cur[go]], cur[go])
-        ratio = h / below[go]
+        ratio = h[go] / below[go]
         growth_lo, growth_hi = min(growth_lo, ratio.min()), max(growth_hi, ratio.max())
-        cur, below = above[cur[go]], h
+        cur, below, line = nxt_up[go], h[go], line[go]
     out.update(
         first_height_min=float(h1.min()),
         first_height_max=float(h1.max()),
@@ -498,6 +515,19 @@ def layer_report(
         out["first_height_within_1pct"] = int(np.count_nonzero(off <= 0.01))
         out["first_height_max_difference"] = float(off.max())
     return out
+
+
+def _ring_nodes(points, tri, contour: Contour, quads) -> np.ndarray | None:
+    """Which nodes lie on ``contour``'s rings (their boundary walked by
+    :func:`mesh_for_contour`), or None where that walk fails (the contract check then
+    says why)."""
+    try:
+        mesh, _ = mesh_for_contour(points, tri, contour, quads)
+    except ContractError:
+        return None
+    on = np.zeros(len(points), dtype=bool)
+    on[mesh.lines[mesh.line_group < contour.n_rings].ravel()] = True
+    return on
 
 
 def assess(
@@ -526,7 +556,8 @@ def assess(
         rep["quads"] = q.pop("quads")
         rep["quad_quality"] = q
         if first is not None:
-            rep["layers"] = layer_report(points, quads, tri, first)
+            walls = None if contour is None else _ring_nodes(points, tri, contour, quads)
+            rep["layers"] = layer_report(points, quads, tri, first, walls)
         rep["area"] = float(signed_areas(points, as_triangles(tri, quads)).sum())
         if q["non_convex"]:
             problem = f"{q['non_convex']} quad(s) not convex"

@@ -550,3 +550,23 @@ def test_quad_only_with_layers_loads_in_scikit_fem(tmp_path):
         m = skfem.MeshQuad.load(str(path))
         assert m.nelements == len(mesh.quads) and np.array_equal(m.p.T, mesh.points)
         assert len(m.boundaries["contour"]) == 2 * 64
+
+
+def test_quality_reads_the_stacks_of_a_quads_only_mesh_on_its_contour(run, tmp_path):
+    """On a mesh of quads alone, with ``--contour``: a stack on every ring node (the
+    points and the middles of their edges), each first height within 1% of H, the
+    growth the layers' and no step into the core's quads; without it, the box's nodes
+    with a single quad above them read as stacks too."""
+    out = tmp_path / "m.vtu"
+    circle = SAMPLES / "circle.csv"
+    r = run("all", circle, "-o", out, "--exterior", "--box=-3,-3,3,3", "--layers", 4,
+            "--first-height", 0.01, "--cells", "quad-only", "-q")  # fmt: skip
+    assert r.exit_code == 0, r.stderr
+    r = run("quality", out, "--contour", circle, "--first-height", 0.01, "--json")
+    lay = json.loads(r.stdout)["layers"]
+    assert json.loads(r.stdout)["contract"] == "ok"
+    assert lay["stacks"] == 2 * 64 and lay["first_height_within_1pct"] == 2 * 64
+    assert lay["growth_min"] == pytest.approx(1.2) and lay["growth_max"] == pytest.approx(1.2)
+    assert lay["min_wall_angle"] == pytest.approx(90.0 - 360.0 / 64 / 2)
+    plain = json.loads(run("quality", out, "--first-height", 0.01, "--json").stdout)
+    assert plain["layers"]["stacks"] > 2 * 64
