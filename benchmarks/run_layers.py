@@ -4,7 +4,8 @@ Usage: python benchmarks/run_layers.py [--repeat N]
 
 samples/naca0012.csv in the box -20,-20,21,20 with 30 layers from a first height of
 1e-5 growing by 1.15: ``deformesh all ... --layers 30 --first-height 1e-5
---layer-growth 1.15 -o OUT.msh`` and ``benchmarks/peers/gmsh_layers.py`` (the same
+--layer-growth 1.15 -o OUT.msh`` (and again with ``--cells quad-only``) and
+``benchmarks/peers/gmsh_layers.py`` (the same
 points, the same first height, ratio and thickness, quads, fans at the trailing
 edge's corners), in turn, the median of N runs each.  Both files are measured by
 one code (:func:`measure`), which reads no cell order: the contour's points found
@@ -100,11 +101,16 @@ def measure(mesh_path: str, contour_path: str) -> dict:
     }
 
 
+#: The rows: deformesh's default cells, deformesh in quads alone, Gmsh.
+TOOLS = ("deformesh", "deformesh quad-only", "gmsh")
+
+
 def commands(tool: str, out: str) -> list[str]:
-    if tool == "deformesh":
+    if tool.startswith("deformesh"):
         return [
             EXE, "all", str(SAMPLE), "--exterior", f"--box={BOX}", "--layers", str(LAYERS),
             "--first-height", repr(FIRST), "--layer-growth", repr(GROWTH), "-o", out, "-q",
+            *(["--cells", "quad-only"] if tool.endswith("quad-only") else []),
         ]  # fmt: skip
     return [PY, str(PEERS / "gmsh_layers.py"), plain_csv(SAMPLE), BOX, str(LAYERS), repr(FIRST),
             repr(GROWTH), out]  # fmt: skip
@@ -117,19 +123,19 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
-    tools = ("deformesh", "gmsh")
+    tools = TOOLS
     res = {t: {"times": [], "rss": 0.0} for t in tools}
     with tempfile.TemporaryDirectory() as d:
         for _ in range(args.repeat):
             for tool in tools:
-                out = os.path.join(d, f"{tool}.msh")
+                out = os.path.join(d, f"{tool.replace(' ', '_')}.msh")
                 dt, rss, code, _, err = run_process(commands(tool, out))
                 if code != 0:
                     raise SystemExit(f"{tool} failed: {err}")
                 res[tool]["times"].append(dt)
                 res[tool]["rss"] = max(res[tool]["rss"], rss)
         for tool in tools:
-            out = os.path.join(d, f"{tool}.msh")
+            out = os.path.join(d, f"{tool.replace(' ', '_')}.msh")
             got = subprocess.run(
                 [PY, __file__, "--measure", out, str(SAMPLE)],
                 capture_output=True, text=True, check=True,
@@ -140,7 +146,8 @@ def main():
         f"{args.repeat})",
         f"`python benchmarks/run_layers.py`: samples/naca0012.csv (160 points, blunt "
         f"trailing edge) in the box {BOX}, {LAYERS} layers from a first height of {FIRST:g} "
-        f"growing by {GROWTH:g}, quads, written as .msh; Gmsh 4 with the same points, first "
+        f"growing by {GROWTH:g}, quads (and with `--cells quad-only`, quads alone: the "
+        "layers cut along the wall only), written as .msh; Gmsh 4 with the same points, first "
         "size, ratio and thickness, fans at the trailing edge's corners "
         "(benchmarks/peers/gmsh_layers.py). One code measures both files: the wall angle "
         "and first height at each wall node with one edge into the domain (fans left out), "

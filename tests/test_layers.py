@@ -450,6 +450,24 @@ def test_the_stages_give_alls_bytes(run, tmp_path, sample, args):
     assert a.read_bytes() == b.read_bytes()
 
 
+def test_the_stages_give_alls_bytes_in_quads_alone(run, tmp_path):
+    """``--cells quad-only`` given to stage 3: the layers kept whole there too."""
+    args = ["--layers", 10, "--first-height", 0.002]
+    a, s, d, b = (tmp_path / n for n in ("a.vtk", "s.state", "d.state", "b.vtk"))
+    slot = SAMPLES / "slot.csv"
+    assert run("all", slot, *args, "--cells", "quad-only", "-o", a, "-q").exit_code == 0
+    assert run("select", slot, *args, "-o", s, "-q").exit_code == 0
+    assert run("deform", s, "-o", d, "-q").exit_code == 0
+    assert run("triangulate", d, "--cells", "quad-only", "-o", b, "-q").exit_code == 0
+    assert a.read_bytes() == b.read_bytes()
+    s2, d2 = tmp_path / "s2.state", tmp_path / "d2.state"
+    assert run("select", slot, *args, "--layer-cells", "tri", "-o", s2).exit_code == 0
+    assert run("deform", s2, "-o", d2, "-q").exit_code == 0
+    r = run("triangulate", d2, "--cells", "quad-only", "-o", tmp_path / "c.vtk")
+    assert r.exit_code == 2 and "--layer-cells tri" in r.stderr
+    assert not (tmp_path / "c.vtk").exists()
+
+
 def test_a_ring_too_narrow_for_one_first_layer_is_refused(run, tmp_path):
     """Inside the unit circle every stack converges on the centre (none thicker than
     half the radius): a first height of 0.9 fits nowhere, which no point's clearance
