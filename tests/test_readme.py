@@ -417,6 +417,13 @@ def test_layer_numbers_in_the_docs_are_the_benchmark_file():
         f"{ours[11]} against {gmsh[11]}."
     ) in method
     assert ours[7] == "0" and ours[6] == gmsh[6]
+    alone = peer["deformesh quad-only"]
+    assert (
+        f"In quads alone (`--cells quad-only`): {alone[5]} quads in {alone[1]} s, a node at "
+        f"the middle of each of the {alone[7]} wall edges, smallest wall angle {alone[9]} "
+        f"degrees, first heights {alone[10]}"
+    ) in method and f"largest aspect ratio {alone[11]}, the layers halved" in method
+    assert alone[4] == "0" and alone[6] == ours[6]
     solved = {r[0]: r for r in _section_rows("layers-solver", 6)}
     layers, plain = solved["with layers"], solved["without layers"]
     assert (
