@@ -585,12 +585,12 @@ def layer_spec(contour: Contour, o: MeshOptions) -> _layers.LayerSpec:
 
 
 def check_layer_cells(o: MeshOptions) -> None:
-    """Refuse ``--cells quad-only`` with ``--layer-cells tri``: one asks for quads
-    alone, the other for the layers as triangles."""
-    if o.cells == "quad-only" and o.layer_cells == "tri":
+    """Refuse ``--cells quad`` or ``quad-only`` with ``--layer-cells tri``: the layers
+    split into triangles would be made quads again."""
+    if o.cells != "tri" and o.layer_cells == "tri":
         raise OptionError(
-            "--cells quad-only asks for quads alone and --layer-cells tri for the "
-            "layers as triangles; give one of them"
+            f"--cells {o.cells} would make quads again of the layers --layer-cells tri "
+            "splits into triangles; give one of them"
         )
 
 

@@ -286,17 +286,18 @@ def test_quad_only_meshes_solve_at_rate_two(tmp_path, run):
 
 def test_quads_with_layers(run, tmp_path):
     """Layers and recombined quads together: the layers' quads kept, the rest recombined;
-    quad-only with the layers as triangles is refused in one line."""
+    quads with the layers as triangles are refused in one line."""
     c = load_contour(str(CIRCLE))
     o = MeshOptions(layers=4, first_height=0.01)
     plain = pipeline.mesh_contour(c, o).mesh
     mixed = pipeline.mesh_contour(c, o.replace(cells="quad")).mesh
     assert len(mixed.quads) > len(plain.quads)
     assert {tuple(q) for q in plain.quads.tolist()} <= {tuple(q) for q in mixed.quads.tolist()}
-    r = run("all", CIRCLE, "-o", tmp_path / "m.vtu", "--layers", 4, "--first-height", 0.01,
-            "--cells", "quad-only", "--layer-cells", "tri")  # fmt: skip
-    assert r.exit_code == 2 and "Error:" in r.stderr and "--cells quad-only" in r.stderr
-    assert "Traceback" not in r.stderr and not (tmp_path / "m.vtu").exists()
+    for cells in ("quad", "quad-only"):
+        r = run("all", CIRCLE, "-o", tmp_path / "m.vtu", "--layers", 4, "--first-height", 0.01,
+                "--cells", cells, "--layer-cells", "tri")  # fmt: skip
+        assert r.exit_code == 2 and "Error:" in r.stderr and f"--cells {cells} " in r.stderr
+        assert "Traceback" not in r.stderr and not (tmp_path / "m.vtu").exists()
 
 
 def _random_quads(exterior: bool, count: int) -> int:
