@@ -588,3 +588,25 @@ def test_quality_reads_the_stacks_of_a_quads_only_mesh_on_its_contour(run, tmp_p
     assert lay["min_wall_angle"] == pytest.approx(90.0 - 360.0 / 64 / 2)
     plain = json.loads(run("quality", out, "--first-height", 0.01, "--json").stdout)
     assert plain["layers"]["stacks"] > 2 * 64
+
+
+def test_quads_alone_with_fans_pass_scikit_fems_patch_test(tmp_path):
+    """A square body's layers and fans in quads alone, loaded as scikit-fem's MeshQuad:
+    bilinear elements on it reproduce a linear solution at every node (the patch test:
+    every cell a valid element, the connectivity whole)."""
+    import skfem
+    from skfem.models.poisson import laplace
+
+    from deformesh_cli import formats
+
+    sq = make_contour(np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float))
+    o = MeshOptions(layers=5, first_height=0.005, exterior=True, box=(-2, -2, 3, 3))
+    mesh = pipeline.mesh_contour(sq, o.replace(cells="quad-only")).mesh
+    path = tmp_path / "m.msh"
+    formats.write_mesh(mesh, str(path), msh_version="4.1")
+    m = skfem.MeshQuad.load(str(path))
+    basis = skfem.Basis(m, skfem.ElementQuad1())
+    A = laplace.assemble(basis)
+    exact = m.p[0] + 2.0 * m.p[1]
+    uh = skfem.solve(*skfem.condense(A, np.zeros(basis.N), x=exact, D=m.boundary_nodes()))
+    assert np.abs(uh - exact).max() < 1e-9
