@@ -1,8 +1,28 @@
 """What the side-by-side benchmarks share to read both tools' files the same way."""
 
+import json
 import os
+import subprocess
+import sys
 import tempfile
 from pathlib import Path
+
+
+def answered(flag: str, fn) -> bool:
+    """Whether this process was started as ``SCRIPT FLAG ARGS...``; if so, ``fn(*ARGS)``
+    is printed as JSON (for :func:`asked`), and the caller returns."""
+    if len(sys.argv) > 1 and sys.argv[1] == flag:
+        print(json.dumps(fn(*sys.argv[2:])))
+        return True
+    return False
+
+
+def asked(script, flag: str, *args) -> dict:
+    """``script FLAG ARGS`` in a process of its own (:func:`answered`), its JSON answer:
+    what the answer imports stays out of the benchmark's process, which stays small
+    (a forked child's peak RSS counts its parent's)."""
+    cmd = [sys.executable, str(script), flag, *map(str, args)]
+    return json.loads(subprocess.run(cmd, capture_output=True, text=True, check=True).stdout)
 
 
 def read_cells(mesh_path: str, contour_path: str):

@@ -16,16 +16,14 @@ longer over its shorter pair of opposite sides (each pair's mean).
 """
 
 import argparse
-import json
 import os
 import statistics
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from meshfiles import plain_csv, read_cells
+from meshfiles import answered, asked, plain_csv, read_cells
 from results import heading, write_section
 from run_contours import EXE, run_process
 
@@ -117,8 +115,7 @@ def commands(tool: str, out: str) -> list[str]:
 
 
 def main():
-    if len(sys.argv) > 1 and sys.argv[1] == "--measure":
-        print(json.dumps(measure(sys.argv[2], sys.argv[3])))
+    if answered("--measure", measure):
         return
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=3)
@@ -136,11 +133,7 @@ def main():
                 res[tool]["rss"] = max(res[tool]["rss"], rss)
         for tool in tools:
             out = os.path.join(d, f"{tool.replace(' ', '_')}.msh")
-            got = subprocess.run(
-                [PY, __file__, "--measure", out, str(SAMPLE)],
-                capture_output=True, text=True, check=True,
-            )  # fmt: skip
-            res[tool]["m"] = json.loads(got.stdout)
+            res[tool]["m"] = asked(__file__, "--measure", out, SAMPLE)
     lines = heading(
         f"## Boundary layers next to Gmsh's BoundaryLayer field (whole processes, median of "
         f"{args.repeat})",

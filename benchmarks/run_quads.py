@@ -12,16 +12,14 @@ scaled Jacobian (the sine of the corner angle farthest from a right angle).
 """
 
 import argparse
-import json
 import os
 import statistics
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from meshfiles import plain_csv, read_cells
+from meshfiles import answered, asked, plain_csv, read_cells
 from results import heading, write_section
 from run_contours import EXE, run_process
 
@@ -73,8 +71,7 @@ def commands(tool: str, src: str, max_h, box, out: str) -> list[str]:
 
 
 def main():
-    if len(sys.argv) > 1 and sys.argv[1] == "--measure":
-        print(json.dumps(measure(sys.argv[2], sys.argv[3])))
+    if answered("--measure", measure):
         return
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=3)
@@ -108,11 +105,7 @@ def main():
                     res[tool].append(dt)
             for tool in tools:
                 out = os.path.join(d, f"{name}_{tool}.msh")
-                got = subprocess.run(
-                    [PY, __file__, "--measure", out, src], capture_output=True, text=True,
-                    check=True,
-                )  # fmt: skip
-                m = json.loads(got.stdout)
+                m = asked(__file__, "--measure", out, src)
                 lines.append(
                     f"| {name} | {tool} | {statistics.median(res[tool]):.2f} | {m['nodes']} | "
                     f"{m['triangles']} | {m['quads']} | {m['points_kept']} of {m['points']} | "

@@ -13,12 +13,12 @@ cost of the stage is the difference of the two deformesh medians.
 import argparse
 import json
 import statistics
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from meshfiles import answered, asked
 from results import heading, write_section
 from run_contours import EXE, REFERENCE, ROOT, run_process
 from run_peers import PEERS, PY, helper
@@ -59,8 +59,7 @@ def points(src: str, out: str) -> dict:
 
 
 def main():
-    if len(sys.argv) > 1 and sys.argv[1] == "--points":
-        print(json.dumps(points(sys.argv[2], sys.argv[3])))
+    if answered("--points", points):
         return
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=3)
@@ -73,14 +72,7 @@ def main():
             report = {}
             # Triangle gets the points deformesh read (one ring only: the peer has no holes)
             clean = f"{d}/points.csv"
-            if not json.loads(
-                subprocess.run(
-                    [PY, __file__, "--points", str(path), clean],
-                    capture_output=True,
-                    text=True,
-                    check=True,
-                ).stdout
-            )["one_ring"]:
+            if not asked(__file__, "--points", path, clean)["one_ring"]:
                 clean = None
             for _ in range(args.repeat):
                 for k in ("on", "off"):

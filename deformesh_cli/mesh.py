@@ -34,8 +34,8 @@ class Mesh:
     #: extra per-node arrays to write with the mesh where the format has point data
     #: (.vtk, .vtu, .xdmf): name -> (n,) or (n, k) array (``move``: ``velocity``)
     point_data: dict = field(default_factory=dict)
-    #: (q, 4) int64: quadrilateral cells, counter-clockwise (boundary layers'); none
-    #: on a triangle mesh
+    #: (q, 4) int64: quadrilateral cells, counter-clockwise, convex (boundary layers',
+    #: ``--cells``'); none on a triangle mesh
     quads: np.ndarray = field(default_factory=lambda: np.zeros((0, 4), dtype=np.int64))
     #: (k, 2) int64: periodic pairs ``(node, partner)``, ``partner`` the boundary node at
     #: ``node + shift`` (``--periodic``); none otherwise

@@ -216,7 +216,8 @@ class MeshOptions:
         "Cells: triangles ('tri'); 'quad': pairs of triangles made quads where every "
         "corner of the quad is within 45 degrees of a right angle, chosen over the whole "
         "mesh, triangles elsewhere; 'quad-only': every cell split into quads (a node at "
-        "the middle of every edge, the boundary's included).",
+        "the middle of every edge, the boundary's included; boundary layers are cut "
+        "along the wall only, each keeping its height).",
         "choice",
         choices=CELLS,
     )

@@ -457,14 +457,30 @@ def mesh_contour(
     ``size_function`` replaces the options' ``size`` and ``size_field``.  ``seconds``:
     filled with each stage's time as it ends (for the benchmarks; nothing reads them).
     The result meets the contract or this raises.
+
+    With boundary layers (:mod:`.layers`): the stacks grown from the walls' points,
+    the rest of the domain meshed as a contour of their top nodes (with the options'
+    other fields, extra boundary nodes taken out on any grid), the two joined and
+    checked, then finished as one mesh.
     """
     o = _options(options, changes)
-    kwargs = {"callback": callback, "size_function": size_function, "seconds": seconds}
+    stacks = None
     if o.layers:
-        return mesh_with_layers(contour, o, on_stage=on_stage, **kwargs)
-    res = _mesh_of(contour, o, on_stage=on_stage, **kwargs)
+        if on_stage is not None:
+            on_stage("layers")
+        stacks = grow_layers(contour, o)
+    res = _mesh_of(
+        contour if stacks is None else stacks.top,
+        o if stacks is None else core_options(o),
+        callback=callback,
+        size_function=size_function,
+        seconds=seconds,
+        on_stage=on_stage,
+    )
+    if stacks is not None:
+        res.mesh, res.report = join_layers(contour, stacks, res.mesh, res.report, res.selection, o)
     box = res.selection.grid.box if o.exterior else None
-    res.mesh, res.report = finish_mesh(contour, res.mesh, res.report, o, box)
+    res.mesh, res.report = finish_mesh(contour, res.mesh, res.report, o, box, stacks)
     return res
 
 
@@ -592,37 +608,6 @@ def check_layer_cells(o: MeshOptions) -> None:
             f"--cells {o.cells} would make quads again of the layers --layer-cells tri "
             "splits into triangles; give one of them"
         )
-
-
-@names_its_file
-def mesh_with_layers(
-    contour: Contour,
-    o: MeshOptions,
-    *,
-    callback: Callback | None = None,
-    size_function: SizeFunction | None = None,
-    seconds: dict | None = None,
-    on_stage: Callable[[str], None] | None = None,
-) -> MeshResult:
-    """:func:`mesh_contour` with boundary layers (:mod:`.layers`): the stacks grown
-    from the walls' points, the rest of the domain meshed as a contour of their top
-    nodes (with the options' other fields, extra boundary nodes taken out on any
-    grid), the two joined and checked."""
-    if on_stage is not None:
-        on_stage("layers")
-    stacks = grow_layers(contour, o)
-    core = _mesh_of(
-        stacks.top,
-        core_options(o),
-        callback=callback,
-        size_function=size_function,
-        seconds=seconds,
-        on_stage=on_stage,
-    )
-    mesh, report = join_layers(contour, stacks, core.mesh, core.report, core.selection, o)
-    box = core.selection.grid.box if o.exterior else None
-    mesh, report = finish_mesh(contour, mesh, report, o, box, stacks)
-    return MeshResult(mesh, core.selection, core.deform_stats, report)
 
 
 @names_its_file

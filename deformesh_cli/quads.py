@@ -14,7 +14,7 @@ import dataclasses
 import numpy as np
 
 from .errors import ContractError
-from .geometry import signed_areas
+from .geometry import signed_areas, unique_inverse
 from .mesh import Mesh
 
 #: ``--cells``: triangles only (the mesh as built), quads where a pair of triangles
@@ -230,9 +230,8 @@ def subdivide(
         ]
     )
     key = np.sort(sides, axis=1)
-    edges, side_edge = np.unique(key, axis=0, return_inverse=True)
-    side_edge = side_edge.ravel()
-    code = edges[:, 0] * (n + 1) + edges[:, 1]  # (sorted: edges are sorted)
+    code, side_edge = unique_inverse(key[:, 0] * (n + 1) + key[:, 1])  # (sorted)
+    edges = np.column_stack([code // (n + 1), code % (n + 1)])
     whole = np.zeros(len(edges), dtype=bool)
     if columns is not None:
         rays = np.sort(columns.rays, axis=1)
@@ -271,7 +270,6 @@ def subdivide(
         qm = np.where(turn[:, None], np.roll(qm, -1, axis=1), qm)
         cells.append(np.stack([q[:, 0], qm[:, 0], qm[:, 2], q[:, 3]], axis=1))
         cells.append(np.stack([qm[:, 0], q[:, 1], q[:, 2], qm[:, 2]], axis=1))
-    fan_pts = np.zeros((0, 2))
     fan_ends = np.zeros((0, 2), dtype=np.int64)
     if columns is not None and len(columns.wall):
 
@@ -281,18 +279,17 @@ def subdivide(
 
         fan_cells, fan_ends = _fan_quads(columns, mids, n + ne + nc)
         cells.append(fan_cells)
-        fan_pts = 0.5 * (pts[fan_ends[:, 0]] + pts[fan_ends[:, 1]])
     new_quads = np.concatenate(cells)
-    ends = edges[split]
-    new_pts = np.concatenate(
-        [
-            pts,
-            0.5 * (pts[ends[:, 0]] + pts[ends[:, 1]]),
-            pts[tri_g].mean(axis=1),
-            pts[quad_f].mean(axis=1),
-            fan_pts,
-        ]
-    )
+    ends = np.concatenate([edges[split], fan_ends])  # (the middles, in their order)
+
+    def carried(v: np.ndarray) -> np.ndarray:
+        """A per-node array at the new nodes too: the middles' the mean of their ends',
+        the centres' that of their cell's corners."""
+        middle = 0.5 * (v[ends[:, 0]] + v[ends[:, 1]])
+        at = [v, middle[:ne], v[tri_g].mean(axis=1), v[quad_f].mean(axis=1), middle[ne:]]
+        return np.concatenate(at)
+
+    new_pts = carried(pts)
     # the boundary: each line split at its middle
     line_key = np.sort(mesh.lines, axis=1)
     line_mid = mid[np.searchsorted(code, line_key[:, 0] * (n + 1) + line_key[:, 1])]
@@ -316,18 +313,7 @@ def subdivide(
     perm = np.concatenate([np.arange(m), ring_extra, box_nodes, np.flatnonzero(~placed)])
     inv = np.empty(total, dtype=np.int64)
     inv[perm] = np.arange(total)
-    data = {}
-    for name, v in mesh.point_data.items():
-        full = np.concatenate(
-            [
-                v,
-                0.5 * (v[ends[:, 0]] + v[ends[:, 1]]),
-                v[tri_g].mean(axis=1),
-                v[quad_f].mean(axis=1),
-                0.5 * (v[fan_ends[:, 0]] + v[fan_ends[:, 1]]),
-            ]
-        )
-        data[name] = full[perm]
+    data = {name: carried(v)[perm] for name, v in mesh.point_data.items()}
     out = Mesh(
         new_pts[perm],
         np.zeros((0, 3), dtype=np.int64),

@@ -14,6 +14,8 @@ The contract (README, "The contract") is checked on every mesh written:
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from .contour import Contour
@@ -517,15 +519,9 @@ def layer_report(
     return out
 
 
-def _ring_nodes(points, tri, contour: Contour, quads) -> np.ndarray | None:
-    """Which nodes lie on ``contour``'s rings (their boundary walked by
-    :func:`mesh_for_contour`), or None where that walk fails (the contract check then
-    says why)."""
-    try:
-        mesh, _ = mesh_for_contour(points, tri, contour, quads)
-    except ContractError:
-        return None
-    on = np.zeros(len(points), dtype=bool)
+def _ring_nodes(mesh: Mesh, contour: Contour) -> np.ndarray:
+    """Which nodes of ``mesh`` (:func:`mesh_for_contour`'s) lie on ``contour``'s rings."""
+    on = np.zeros(mesh.n_nodes, dtype=bool)
     on[mesh.lines[mesh.line_group < contour.n_rings].ravel()] = True
     return on
 
@@ -549,6 +545,15 @@ def assess(
     quads = np.zeros((0, 4), dtype=np.int64) if quads is None else quads
     rep = report(points, tri) if len(tri) else {"nodes": int(len(points)), "triangles": 0}
     problem = None
+
+    @functools.cache
+    def walked() -> tuple[tuple[Mesh, Box | None] | None, str | None]:
+        """The boundary walked along the contour's rings (once), or why it cannot be."""
+        try:
+            return mesh_for_contour(points, tri, contour, quads), None
+        except ContractError as exc:
+            return None, str(exc)
+
     if len(quads):
         from .quads import report as quad_report
 
@@ -556,7 +561,8 @@ def assess(
         rep["quads"] = q.pop("quads")
         rep["quad_quality"] = q
         if first is not None:
-            walls = None if contour is None else _ring_nodes(points, tri, contour, quads)
+            walk = walked()[0] if contour is not None else None
+            walls = None if walk is None else _ring_nodes(walk[0], contour)
             rep["layers"] = layer_report(points, quads, tri, first, walls)
         rep["area"] = float(signed_areas(points, as_triangles(tri, quads)).sum())
         if q["non_convex"]:
@@ -571,11 +577,12 @@ def assess(
     if contour is not None:
         rep["contour"] = contour.source
         if problem is None:
-            try:
-                mesh, box = mesh_for_contour(points, tri, contour, quads)
-                check_contract(mesh, contour, box)
-                rep["exterior"] = box is not None
-            except ContractError as exc:
-                problem = str(exc)
+            walk, problem = walked()
+            if walk is not None:
+                try:
+                    check_contract(walk[0], contour, walk[1])
+                    rep["exterior"] = walk[1] is not None
+                except ContractError as exc:
+                    problem = str(exc)
         rep["contract"] = f"violated: {problem}" if problem else "ok"
     return rep, problem

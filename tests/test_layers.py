@@ -514,7 +514,8 @@ def test_quad_only_keeps_every_layer_whole(sample, options):
     on each stack) still an edge: the layers are split along the wall only."""
     c = load_contour(str(SAMPLES / sample))
     o = MeshOptions(**options)
-    mixed = pipeline.mesh_contour(c, o).mesh
+    plain = pipeline.mesh_contour(c, o)
+    mixed = plain.mesh
     res = pipeline.mesh_contour(c, o.replace(cells="quad-only"))
     mesh = res.mesh
     assert len(mesh.triangles) == 0 and _convex(mesh.points, mesh.quads).all()
@@ -528,7 +529,7 @@ def test_quad_only_keeps_every_layer_whole(sample, options):
     if not o.exterior:
         split = np.concatenate([mesh.quads[:, [0, 1, 2]], mesh.quads[:, [0, 2, 3]]])
         assert contract_problems(mesh.points, split, c.points, c.ring) == []
-    assert res.report["layers"] == pipeline.mesh_contour(c, o).report["layers"]
+    assert res.report["layers"] == plain.report["layers"]
 
 
 def test_quad_only_fans_are_quads_between_the_fan_step_and_its_supplement():

@@ -118,17 +118,22 @@ def write_meshio(mesh: Mesh, path: str, version: str) -> None:
     if links:
         m.gmsh_periodic = links
     meshio.write(path, m, file_format=MESHIO_NAMES[version], binary=False)
-    if version == "4.1":
-        _nodes_in_order(path, mesh.points, point_data["gmsh:dim_tags"])
-        _all_entities(path, mesh, bl)
+    if version == "4.1":  # (both sections rewritten in one pass over the file)
+        _replace_sections(
+            path,
+            {
+                "Entities": _all_entities(mesh, bl),
+                "Nodes": _nodes_in_order(mesh.points, point_data["gmsh:dim_tags"]),
+            },
+        )
 
 
-def _all_entities(path: str, mesh: Mesh, bl) -> None:
-    """Rewrite the ``$Entities`` section of the 4.1 file ``path`` to list every entity an
-    element block names: meshio lists only those that hold a node, and a surface whose
-    nodes all lie on the boundary or on the other surface would be missing (Gmsh then
-    refuses the file).  The same lines as meshio's: no bounding box, one physical tag,
-    no bounding entities."""
+def _all_entities(mesh: Mesh, bl) -> str:
+    """The ``$Entities`` section of a 4.1 file listing every entity an element block
+    names: meshio lists only those that hold a node, and a surface whose nodes all lie
+    on the boundary or on the other surface would be missing (Gmsh then refuses the
+    file).  The same lines as meshio's: no bounding box, one physical tag, no bounding
+    entities."""
     curves = sorted({(int(b[2][0]), int(b[1][0])) for b in bl if b[0] == "line"})
     surfaces = sorted({int(b[2][0]) for b in bl if b[0] != "line"})
     domain = groups(mesh)["domain"][0]
@@ -136,12 +141,12 @@ def _all_entities(path: str, mesh: Mesh, bl) -> None:
     out += [f"{t} 0 0 0 0 0 0 1 {phys} 0\n" for t, phys in curves]
     out += [f"{t} 0 0 0 0 0 0 1 {domain} 0\n" for t in surfaces]
     out.append("$EndEntities\n")
-    _replace_section(path, "Entities", "".join(out))
+    return "".join(out)
 
 
-def _nodes_in_order(path: str, points: np.ndarray, dim_tags: np.ndarray) -> None:
-    """Rewrite the ``$Nodes`` section of the 4.1 file ``path`` with its node blocks in
-    node order: one block per run of consecutive nodes on the same entity.  meshio
+def _nodes_in_order(points: np.ndarray, dim_tags: np.ndarray) -> str:
+    """The ``$Nodes`` section of a 4.1 file with its node blocks in node order: one
+    block per run of consecutive nodes on the same entity.  meshio
     writes one block per entity, sorted by entity, and readers that take the nodes in
     file order (meshio's, scikit-fem's) then number them differently from the tags:
     node ``k`` would no longer be contour point ``k``."""
@@ -156,18 +161,19 @@ def _nodes_in_order(path: str, points: np.ndarray, dim_tags: np.ndarray) -> None
         out.append(rows("%d\n", np.arange(a + 1, b + 1)[:, None]))
         out.append(rows("%.16e %.16e %.16e\n", xyz[a:b]))
     out.append("$EndNodes\n")
-    _replace_section(path, "Nodes", "".join(out))
+    return "".join(out)
 
 
-def _replace_section(path: str, name: str, section: str) -> None:
-    """Put ``section`` (from ``$NAME`` to ``$EndNAME``, both lines included) in place of
-    the file's own."""
+def _replace_sections(path: str, sections: dict[str, str]) -> None:
+    """Put each of ``sections`` (``NAME``: the text from ``$NAME`` to ``$EndNAME``, both
+    lines included) in place of the file's own, in one read and one write."""
     with open(path, encoding="ascii") as f:
         text = f.read()
-    head, rest = text.split(f"${name}\n", 1)
-    tail = rest.split(f"$End{name}\n", 1)[1]
+    for name, section in sections.items():
+        head, rest = text.split(f"${name}\n", 1)
+        text = head + section + rest.split(f"$End{name}\n", 1)[1]
     with open(path, "w", encoding="ascii") as f:
-        f.write(head + section + tail)
+        f.write(text)
 
 
 def write_22(mesh: Mesh, path: str) -> None:

@@ -382,6 +382,26 @@ def _lay(
     return tree
 
 
+def children(lv: np.ndarray, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The four children of each leaf ``(lv, i, j)``, in Morton order, leaf by leaf."""
+    n = len(lv)
+    return (
+        np.repeat(lv - 1, 4),
+        np.repeat(i, 4) * 2 + np.tile([0, 1, 0, 1], n),
+        np.repeat(j, 4) * 2 + np.tile([0, 0, 1, 1], n),
+    )
+
+
+def split_leaves(lv, i, j, marks: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The leaves ``(lv, i, j)`` with the ``marks``ed ones split in four: the kept ones
+    first, in their order, then :func:`children` of the split."""
+    keep = ~marks
+    return tuple(
+        np.concatenate([a[keep], c])
+        for a, c in zip((lv, i, j), children(lv[marks], i[marks], j[marks]))
+    )
+
+
 def match_sides(tree: Quadtree, across_x: bool, across_y: bool) -> Quadtree:
     """``tree`` with its opposite box sides cut alike: with ``across_y`` the leaves along
     the bottom and along the top span the same x intervals (with ``across_x``, the left
@@ -415,16 +435,9 @@ def match_sides(tree: Quadtree, across_x: bool, across_y: bool) -> Quadtree:
             marks[holder[lv[holder] > lv[k]]] = True
         if not marks.any():
             return t
-        keep = ~marks
-        ls, is_, js = lv[marks] - 1, i[marks], j[marks]
         t = balance(
-            Quadtree(
-                t.x0, t.y0, t.hx, t.hy, t.top, t.nx, t.ny,
-                np.concatenate([lv[keep], np.repeat(ls, 4)]),
-                np.concatenate([i[keep], np.repeat(is_, 4) * 2 + np.tile([0, 1, 0, 1], len(is_))]),
-                np.concatenate([j[keep], np.repeat(js, 4) * 2 + np.tile([0, 0, 1, 1], len(js))]),
-            )
-        )  # fmt: skip
+            Quadtree(t.x0, t.y0, t.hx, t.hy, t.top, t.nx, t.ny, *split_leaves(lv, i, j, marks))
+        )
 
 
 #: The most finest cells across the box: Morton codes (:func:`..geometry.morton`) and lattice keys
@@ -506,10 +519,7 @@ def refine(
                 f"the graded grid would need more than {max_nodes} cells; "
                 "raise --max-nodes or give a larger --growth"
             )
-        ls, is_, js = lv[split] - 1, i[split], j[split]
-        lv = np.repeat(ls, 4)
-        i = (np.repeat(is_, 4) * 2) + np.tile([0, 1, 0, 1], len(is_))
-        j = (np.repeat(js, 4) * 2) + np.tile([0, 0, 1, 1], len(js))
+        lv, i, j = children(lv[split], i[split], j[split])
     return Quadtree(
         tree.x0, tree.y0, tree.hx, tree.hy, tree.top, tree.nx, tree.ny,
         np.concatenate(keep_l), np.concatenate(keep_i), np.concatenate(keep_j),
@@ -543,11 +553,8 @@ def balance(tree: Quadtree) -> Quadtree:
         keep = ~marks
         renum = np.cumsum(keep) - 1
         again = renum[again[keep[again]]]  # (a marked one is asked for by its children)
-        ls, is_, js = lv[marks] - 1, i[marks], j[marks]
         kept = int(keep.sum())
-        lv = np.concatenate([lv[keep], np.repeat(ls, 4)])
-        i = np.concatenate([i[keep], np.repeat(is_, 4) * 2 + np.tile([0, 1, 0, 1], len(is_))])
-        j = np.concatenate([j[keep], np.repeat(js, 4) * 2 + np.tile([0, 0, 1, 1], len(js))])
+        lv, i, j = split_leaves(lv, i, j, marks)
         ask = np.concatenate([again, np.arange(kept, len(lv))])
         split = t._split_order(marks, renum, kept)
         t = Quadtree(tree.x0, tree.y0, tree.hx, tree.hy, tree.top, tree.nx, tree.ny, lv, i, j)
